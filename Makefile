@@ -1,0 +1,34 @@
+# rotavat: `make run` (venv + install + the whole pipeline on sample_data/) and `make test`.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+OUT    ?= out
+SAMPLE := sample_data
+
+.PHONY: install run test bench sample clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+run: install
+	@bash tools/pipeline.sh $(BIN)/rotavat $(SAMPLE) $(OUT)
+
+test: install
+	$(BIN)/python -m pytest
+
+bench: install
+	$(BIN)/python benchmarks/run_all.py
+
+# Regenerate the committed sample scene (deterministic).
+sample: install
+	rm -rf $(SAMPLE)/scene
+	$(BIN)/rotavat synth $(SAMPLE)/scene --seed 7 --frames 4 --people 5 --image-size 1280 720 --hps-focal 1468.6 --quiet
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache

@@ -1,0 +1,58 @@
+"""The packaged library of synthetic body meshes (``data/bodies.npz``; source in data/README.md).
+
+Canonical body frame of the stored arrays: metres, +Y up, the person faces +Z, +X is the
+person's left; the ground is ``y = 0`` and the mid-sole point sits at ``x = z = 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .landmarks import Topology, register_topology
+
+__all__ = ["BodyLibrary", "load_bodies", "BODIES_PATH", "SMPL_JOINT_NAMES"]
+
+BODIES_PATH = Path(__file__).resolve().parent / "data" / "bodies.npz"
+
+SMPL_JOINT_NAMES = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
+    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
+    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist", "left_hand", "right_hand",
+)
+
+
+@dataclass(frozen=True)
+class BodyLibrary:
+    """B bodies of one topology in the canonical body frame."""
+
+    vertices: np.ndarray  # (B, V, 3) float64
+    faces: np.ndarray  # (F, 3) int64
+    joints: np.ndarray  # (B, 24, 3) float64, SMPL order
+    stature_m: np.ndarray  # (B,)
+    topology: Topology
+
+    def __len__(self) -> int:
+        return int(self.vertices.shape[0])
+
+
+@lru_cache(maxsize=1)
+def load_bodies(path: str | None = None) -> BodyLibrary:
+    """Load the body library and register its topology for foot/crown look-ups."""
+    with np.load(Path(path) if path else BODIES_PATH, allow_pickle=False) as npz:
+        verts = npz["vertices"].astype(np.float64)
+        topology = Topology(
+            name="rotavat-synth",
+            n_verts=int(verts.shape[1]),
+            crown_index=int(npz["crown_index"]),
+            left_sole_indices=npz["left_sole_indices"].astype(np.int64),
+            right_sole_indices=npz["right_sole_indices"].astype(np.int64),
+        )
+        library = BodyLibrary(verts, npz["faces"].astype(np.int64), npz["joints"].astype(np.float64),
+                              npz["stature_m"].astype(np.float64), topology)
+    register_topology(topology)
+    return library

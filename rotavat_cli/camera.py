@@ -1,0 +1,335 @@
+"""Static pinhole camera over a ground plane (conventions: docs/conventions.md).
+
+Frames
+------
+- pixels ``px``: origin top-left, ``u`` right, ``v`` down;
+- camera ``cam`` (OpenCV): ``x`` right, ``y`` down, ``z`` forward, metres;
+- world ``world``: origin on the ground below the camera centre, ``Y`` up, ``X`` the camera's
+  ``x`` axis projected on the ground, ``Z = X x Y`` (back toward the camera).
+
+The camera pose is three scene parameters: ``pitch`` (downward tilt, + = looking down), ``roll``
+(about the optical axis) and ``height`` (camera centre above the ground). World up in the camera
+frame is ``n = (-sin(roll) cos(pitch), -cos(roll) cos(pitch), -sin(pitch))`` and the ground is
+``n . X + h = 0``.
+
+Every array function broadcasts over leading dimensions, so the calibration grid can pass
+parameter arrays of shape ``(G, 1)`` against points of shape ``(1, N, 2)``.
+
+Examples
+--------
+>>> cam = Camera(image_size=(640, 480), focal_px=500.0, principal_point=(320.0, 240.0),
+...              pitch_rad=np.deg2rad(30.0), roll_rad=0.0, height_m=5.0)
+>>> ground_cam = cam.backproject_px_to_ground(np.array([320.0, 240.0]))
+>>> round(float(ground_cam[2]), 6)  # 5 m / sin(30 deg) along the optical axis
+10.0
+>>> round(float(cam.height_above_ground(ground_cam)), 9)
+0.0
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Camera",
+    "up_vector_cam",
+    "pitch_roll_from_up",
+    "intrinsics_matrix",
+    "project_cam_to_px",
+    "pixel_rays_cam",
+    "backproject_px_to_plane",
+    "height_above_ground",
+    "R_cam_from_world_from_up",
+    "horizon_v_px",
+]
+
+_EPS = 1e-12  # denominators below this are treated as "ray parallel to the plane"
+
+
+def up_vector_cam(pitch_rad: np.ndarray | float, roll_rad: np.ndarray | float = 0.0) -> np.ndarray:
+    """World up ``n`` in the camera frame: (..., 3) from pitch and roll (radians, broadcast)."""
+    pitch = np.asarray(pitch_rad, dtype=np.float64)
+    roll = np.asarray(roll_rad, dtype=np.float64)
+    cp = np.cos(pitch)
+    return np.stack(np.broadcast_arrays(-np.sin(roll) * cp, -np.cos(roll) * cp, -np.sin(pitch)), axis=-1)
+
+
+def pitch_roll_from_up(up_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`up_vector_cam`: up_cam (..., 3), any norm -> (pitch_rad, roll_rad)."""
+    n = np.asarray(up_cam, dtype=np.float64)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    pitch = np.arcsin(np.clip(-n[..., 2], -1.0, 1.0))
+    roll = np.arctan2(-n[..., 0], -n[..., 1])
+    return pitch, roll
+
+
+def intrinsics_matrix(focal_px: float, principal_point: tuple[float, float]) -> np.ndarray:
+    """3x3 pinhole matrix K with square pixels and no skew."""
+    cx, cy = principal_point
+    return np.array([[focal_px, 0.0, cx], [0.0, focal_px, cy], [0.0, 0.0, 1.0]])
+
+
+def project_cam_to_px(points_cam: np.ndarray, focal_px: np.ndarray | float, principal_point: np.ndarray | tuple) -> np.ndarray:
+    """Project camera-frame points (..., 3) to pixels (..., 2); points with z <= 0 give NaN."""
+    p = np.asarray(points_cam, dtype=np.float64)
+    pp = np.asarray(principal_point, dtype=np.float64)
+    f = np.asarray(focal_px, dtype=np.float64)[..., None]
+    z = p[..., 2:3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = pp + f * p[..., :2] / z
+    return np.where(z > 0, uv, np.nan)
+
+
+def pixel_rays_cam(points_px: np.ndarray, focal_px: np.ndarray | float, principal_point: np.ndarray | tuple) -> np.ndarray:
+    """Viewing rays (..., 3) with z = 1 through pixels (..., 2)."""
+    px = np.asarray(points_px, dtype=np.float64)
+    pp = np.asarray(principal_point, dtype=np.float64)
+    f = np.asarray(focal_px, dtype=np.float64)[..., None]
+    xy = (px - pp) / f
+    return np.concatenate([xy, np.ones_like(xy[..., :1])], axis=-1)
+
+
+def backproject_px_to_plane(
+    points_px: np.ndarray,
+    focal_px: np.ndarray | float,
+    principal_point: np.ndarray | tuple,
+    up_cam: np.ndarray,
+    ground_offset_m: np.ndarray | float,
+    plane_height_m: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """Intersect pixel rays (..., 2) with the plane ``plane_height_m`` above the ground -> (..., 3).
+
+    Rays that meet the plane behind the camera, or never (parallel), give NaN.
+    """
+    rays = pixel_rays_cam(points_px, focal_px, principal_point)
+    n = np.asarray(up_cam, dtype=np.float64)
+    denom = np.sum(rays * n, axis=-1)
+    num = np.asarray(plane_height_m, dtype=np.float64) - np.asarray(ground_offset_m, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = num / denom
+    s = np.where((np.abs(denom) > _EPS) & (s > 0), s, np.nan)
+    return rays * s[..., None]
+
+
+def height_above_ground(points_cam: np.ndarray, up_cam: np.ndarray, ground_offset_m: np.ndarray | float) -> np.ndarray:
+    """Signed height (...,) of camera-frame points (..., 3) above the ground ``n.X + h = 0``."""
+    return np.sum(np.asarray(points_cam, dtype=np.float64) * np.asarray(up_cam, dtype=np.float64), axis=-1) + ground_offset_m
+
+
+def R_cam_from_world_from_up(up_cam: np.ndarray) -> np.ndarray:
+    """Rotation (3, 3) whose columns are the world X, Y (= up), Z axes written in the camera frame."""
+    y_axis = np.asarray(up_cam, dtype=np.float64)
+    y_axis = y_axis / np.linalg.norm(y_axis)
+    x_cam = np.array([1.0, 0.0, 0.0])
+    x_axis = x_cam - np.dot(x_cam, y_axis) * y_axis
+    norm = np.linalg.norm(x_axis)
+    if norm < 1e-9:  # camera x axis vertical (roll of +-90 deg): fall back to the optical axis
+        z_cam = np.array([0.0, 0.0, 1.0])
+        x_axis = np.cross(y_axis, z_cam)
+        norm = np.linalg.norm(x_axis)
+    x_axis = x_axis / norm
+    z_axis = np.cross(x_axis, y_axis)
+    return np.stack([x_axis, y_axis, z_axis], axis=1)
+
+
+def horizon_v_px(u_px: np.ndarray | float, focal_px: float, principal_point: tuple[float, float], up_cam: np.ndarray) -> np.ndarray:
+    """Image row of the horizon (vanishing line of the ground) at columns ``u_px``."""
+    n = np.asarray(up_cam, dtype=np.float64)
+    cx, cy = principal_point
+    u = np.asarray(u_px, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return cy - (n[0] * (u - cx) + n[2] * focal_px) / n[1]
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Static pinhole camera over a ground plane; angles in radians, lengths in metres."""
+
+    image_size: tuple[int, int]  # (W, H) px
+    focal_px: float
+    principal_point: tuple[float, float] = field(default=None)  # (cx, cy) px; None -> image centre
+    pitch_rad: float = 0.0  # + = looking down
+    roll_rad: float = 0.0
+    height_m: float = 1.0  # camera centre above the ground
+
+    def __post_init__(self) -> None:
+        w, h = (int(v) for v in self.image_size)
+        object.__setattr__(self, "image_size", (w, h))
+        pp = (w / 2.0, h / 2.0) if self.principal_point is None else tuple(float(v) for v in self.principal_point)
+        object.__setattr__(self, "principal_point", pp)
+        for name in ("focal_px", "pitch_rad", "roll_rad", "height_m"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        if not all(math.isfinite(v) for v in (self.focal_px, self.pitch_rad, self.roll_rad, self.height_m, *pp)):
+            raise ValueError("camera parameters must be finite")
+        if self.focal_px <= 0:
+            raise ValueError(f"focal_px must be > 0, got {self.focal_px}")
+        if w <= 0 or h <= 0:
+            raise ValueError(f"image_size must be positive, got {self.image_size}")
+
+    # ---- derived quantities (never stored twice) -------------------------------------------
+    @property
+    def K(self) -> np.ndarray:
+        """Intrinsics (3, 3)."""
+        return intrinsics_matrix(self.focal_px, self.principal_point)
+
+    @property
+    def up_cam(self) -> np.ndarray:
+        """World up ``n`` (3,) in the camera frame."""
+        return up_vector_cam(self.pitch_rad, self.roll_rad)
+
+    @property
+    def ground_offset_m(self) -> float:
+        """``h`` in the ground plane ``n.X + h = 0`` (equals the camera height)."""
+        return self.height_m
+
+    @property
+    def R_cam_from_world(self) -> np.ndarray:
+        """Rotation (3, 3): ``X_cam = R_cam_from_world @ X_world + t_cam_from_world``."""
+        return R_cam_from_world_from_up(self.up_cam)
+
+    @property
+    def t_cam_from_world(self) -> np.ndarray:
+        """Translation (3,): the world origin (ground below the camera) in the camera frame."""
+        return -self.height_m * self.up_cam
+
+    @property
+    def center_world(self) -> np.ndarray:
+        """Camera centre (3,) in the world frame: (0, h, 0)."""
+        return np.array([0.0, self.height_m, 0.0])
+
+    @property
+    def horizontal_fov_rad(self) -> float:
+        """Full horizontal field of view."""
+        return 2.0 * math.atan(self.image_size[0] / (2.0 * self.focal_px))
+
+    @property
+    def vertical_fov_rad(self) -> float:
+        """Full vertical field of view."""
+        return 2.0 * math.atan(self.image_size[1] / (2.0 * self.focal_px))
+
+    # ---- geometry -------------------------------------------------------------------------
+    def project(self, points_cam: np.ndarray) -> np.ndarray:
+        """Camera-frame points (..., 3) -> pixels (..., 2); NaN behind the camera."""
+        return project_cam_to_px(points_cam, self.focal_px, self.principal_point)
+
+    def backproject_px_to_ground(self, points_px: np.ndarray, plane_height_m: float | np.ndarray = 0.0) -> np.ndarray:
+        """Pixels (..., 2) -> camera-frame points (..., 3) on the plane at that height; NaN if missed."""
+        return backproject_px_to_plane(points_px, self.focal_px, self.principal_point, self.up_cam, self.height_m, plane_height_m)
+
+    def height_above_ground(self, points_cam: np.ndarray) -> np.ndarray:
+        """Signed height (...,) of camera-frame points above the ground."""
+        return height_above_ground(points_cam, self.up_cam, self.height_m)
+
+    def cam_from_world(self, points_world: np.ndarray) -> np.ndarray:
+        """World points (..., 3) -> camera frame."""
+        return np.asarray(points_world, dtype=np.float64) @ self.R_cam_from_world.T + self.t_cam_from_world
+
+    def world_from_cam(self, points_cam: np.ndarray) -> np.ndarray:
+        """Camera-frame points (..., 3) -> world frame."""
+        return (np.asarray(points_cam, dtype=np.float64) - self.t_cam_from_world) @ self.R_cam_from_world
+
+    def horizon_v_px(self, u_px: np.ndarray | float) -> np.ndarray:
+        """Image row of the horizon at columns ``u_px``."""
+        return horizon_v_px(u_px, self.focal_px, self.principal_point, self.up_cam)
+
+    # ---- construction ---------------------------------------------------------------------
+    @classmethod
+    def from_up(cls, image_size: tuple[int, int], focal_px: float, up_cam: np.ndarray, ground_offset_m: float,
+                principal_point: tuple[float, float] | None = None) -> "Camera":
+        """Camera from an up vector (any norm) and the ground offset ``h``."""
+        n = np.asarray(up_cam, dtype=np.float64)
+        norm = float(np.linalg.norm(n))
+        pitch, roll = pitch_roll_from_up(n)
+        return cls(image_size, focal_px, principal_point, float(pitch), float(roll), ground_offset_m / norm)
+
+    @classmethod
+    def from_extrinsics(cls, image_size: tuple[int, int], focal_px: float, R_cam_from_world: np.ndarray,
+                        t_cam_from_world: np.ndarray, principal_point: tuple[float, float] | None = None) -> "Camera":
+        """Camera from world-to-camera extrinsics (world Y = up, ground at Y = 0)."""
+        R = np.asarray(R_cam_from_world, dtype=np.float64)
+        n = R[:, 1]
+        h = -float(np.dot(n, np.asarray(t_cam_from_world, dtype=np.float64)))
+        return cls.from_up(image_size, focal_px, n, h, principal_point)
+
+    def replace(self, **changes: Any) -> "Camera":
+        """Copy with some fields changed."""
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
+
+
+# ---- camera.yaml (the only place the contract's key names meet the code's) ---------------------
+_ANGLE_KEYS = ("pitch_deg", "roll_deg")
+
+
+def camera_to_yaml_dict(camera: Camera, fit: dict | None = None) -> dict:
+    """Plain-typed dict in the CONVENTIONS.md ``camera.yaml`` schema (degrees, metres, lists)."""
+    d: dict[str, Any] = {
+        "image_size": [int(v) for v in camera.image_size],
+        "focal_px": float(camera.focal_px),
+        "principal_point": [float(v) for v in camera.principal_point],
+        "pitch_deg": float(np.rad2deg(camera.pitch_rad)),
+        "roll_deg": float(np.rad2deg(camera.roll_rad)),
+        "height_m": float(camera.height_m),
+        "up_cam": [float(v) for v in camera.up_cam],
+        "ground_offset_m": float(camera.ground_offset_m),
+        "R_world_to_cam": [[float(v) for v in row] for row in camera.R_cam_from_world],
+        "t_world_to_cam": [float(v) for v in camera.t_cam_from_world],
+    }
+    if fit:
+        d["fit"] = fit
+    return d
+
+
+def _floats(value: Any, shape: tuple[int, ...], key: str) -> np.ndarray:
+    """Validate a YAML value as a finite float array of the given shape."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"key '{key}' must be numeric, got {value!r}") from None
+    if arr.shape != shape:
+        raise ValueError(f"key '{key}' must have shape {list(shape) or 'scalar'}, got {list(arr.shape)}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"key '{key}' has non-finite values")
+    return arr
+
+
+def camera_from_yaml_dict(d: dict, image_size: tuple[int, int] | None = None) -> Camera:
+    """Camera from a ``camera.yaml`` dict: pitch/roll/height, else up_cam/ground_offset_m, else R/t.
+
+    Raises ValueError naming the key when something is missing, misshaped or inconsistent.
+    """
+    if not isinstance(d, dict):
+        raise ValueError("camera file must hold a mapping")
+    if "image_size" in d:
+        size = _floats(d["image_size"], (2,), "image_size")
+        image_size = (int(size[0]), int(size[1]))
+    if image_size is None:
+        raise ValueError("key 'image_size' is missing")
+    if "focal_px" not in d:
+        raise ValueError("key 'focal_px' is missing")
+    focal = float(_floats(d["focal_px"], (), "focal_px"))
+    pp = tuple(_floats(d["principal_point"], (2,), "principal_point")) if d.get("principal_point") is not None else None
+    if all(k in d for k in ("pitch_deg", "height_m")):
+        pitch = np.deg2rad(float(_floats(d["pitch_deg"], (), "pitch_deg")))
+        roll = np.deg2rad(float(_floats(d.get("roll_deg", 0.0), (), "roll_deg")))
+        cam = Camera(image_size, focal, pp, pitch, roll, float(_floats(d["height_m"], (), "height_m")))
+    elif "up_cam" in d and "ground_offset_m" in d:
+        cam = Camera.from_up(image_size, focal, _floats(d["up_cam"], (3,), "up_cam"),
+                             float(_floats(d["ground_offset_m"], (), "ground_offset_m")), pp)
+    elif "R_world_to_cam" in d and "t_world_to_cam" in d:
+        cam = Camera.from_extrinsics(image_size, focal, _floats(d["R_world_to_cam"], (3, 3), "R_world_to_cam"),
+                                     _floats(d["t_world_to_cam"], (3,), "t_world_to_cam"), pp)
+    else:
+        raise ValueError("needs pitch_deg and height_m (or up_cam and ground_offset_m, or R_world_to_cam and t_world_to_cam)")
+    if "up_cam" in d:
+        up = _floats(d["up_cam"], (3,), "up_cam")
+        if np.linalg.norm(up / np.linalg.norm(up) - cam.up_cam) > 1e-4:
+            raise ValueError("key 'up_cam' disagrees with pitch_deg/roll_deg")
+    if cam.height_m <= 0:
+        raise ValueError(f"camera height must be > 0 (camera above the ground), got {cam.height_m}")
+    return cam

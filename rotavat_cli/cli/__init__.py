@@ -1,0 +1,49 @@
+"""The ``rotavat`` command line: a thin layer over the Python API, one module per command.
+
+Exit status: 0 ok; 1 a ``--fail-if`` gate tripped; 2 bad input or usage.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from .. import __version__
+from ._common import RotavatGroup
+
+app = typer.Typer(
+    name="rotavat",
+    cls=RotavatGroup,
+    help="Put the people of a static-camera HPS output back on the ground. "
+    "Exit status: 0 ok, 1 a --fail-if gate tripped, 2 bad input or usage.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_show_locals=False,
+    rich_markup_mode="rich",
+)
+
+
+def _version(value: bool) -> None:
+    """Print the version and exit."""
+    if value:
+        typer.echo(f"rotavat {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Show the version and exit.")] = False,
+) -> None:
+    """rotavat: auto-calibrate a static camera from its people, re-seat HPS meshes on the ground, and score them."""
+
+
+from . import info as _info  # noqa: E402  (commands register themselves on ``app``)
+from . import synth as _synth  # noqa: E402,F401
+
+_ = (_info, _synth)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app()

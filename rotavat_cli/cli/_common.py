@@ -1,0 +1,93 @@
+"""Shared CLI plumbing: the stderr console, the one error handler, progress, JSON output."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from typer.core import TyperGroup
+
+from ..config import load_config
+from ..errors import RotavatError
+
+console = Console(stderr=True)
+T = TypeVar("T")
+
+ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file overriding configs/default.yaml (flags override it).", dir_okay=False)]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no summary on stderr.")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON result on stdout (implies no progress bar).")]
+
+
+class RotavatGroup(TyperGroup):
+    """Click group that turns a RotavatError into one line on stderr and its exit code."""
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except RotavatError as exc:
+            console.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True, soft_wrap=True)
+            raise typer.Exit(exc.exit_code) from None
+
+
+def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:
+    """Effective options of one config section: defaults < --config FILE < flags (None = unset)."""
+    return load_config(config_file, {section: flags})[section]
+
+
+def progress_enabled(quiet: bool, as_json: bool) -> bool:
+    """Live bars only on an interactive terminal and never with --quiet/--json (CI stays quiet)."""
+    return not (quiet or as_json) and console.is_terminal and not console.is_dumb_terminal
+
+
+@contextmanager
+def progress_bar(description: str, total: int | None, enabled: bool) -> Iterator[Any]:
+    """A rich progress bar yielding an ``advance()`` callable."""
+    progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                        console=console, disable=not enabled, transient=True)
+    with progress:
+        task = progress.add_task(description, total=total)
+        yield lambda n=1: progress.advance(task, n)
+
+
+def track(items: Iterable[T], description: str, total: int | None, enabled: bool) -> Iterator[T]:
+    """Iterate with a progress bar when enabled."""
+    with progress_bar(description, total, enabled) as advance:
+        for item in items:
+            yield item
+            advance()
+
+
+def _plain(value: Any) -> Any:
+    """JSON-safe plain types (NaN/inf become null)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def print_json(data: Any) -> None:
+    """Write ``data`` as JSON to stdout."""
+    typer.echo(json.dumps(_plain(data), indent=2))
+
+
+def info(message: str, quiet: bool) -> None:
+    """A human message on stderr unless --quiet."""
+    if not quiet:
+        console.print(message, highlight=False)

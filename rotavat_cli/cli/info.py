@@ -1,0 +1,45 @@
+"""``rotavat info SEQ``: validate a sequence and summarise it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from ..sequence import open_sequence, summarize_sequence
+from . import app
+from ._common import JsonOpt, console, print_json
+
+
+@app.command()
+def info(
+    seq: Annotated[Path, typer.Argument(help="Sequence directory (npz frames or folders of per-person OBJ).")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Validate a sequence and print a summary: form, frames, people, keys, sizes, intrinsics, camera."""
+    summary = summarize_sequence(open_sequence(seq))
+    if as_json:
+        print_json(summary)
+        return
+    table = Table(title=f"sequence {summary['path']}", show_header=False)
+    ppf = summary["people_per_frame"]
+    rows = [
+        ("form", summary["form"]),
+        ("frames", f"{summary['frames']} ({summary['empty_frames']} empty)"),
+        ("people", f"{summary['people_total']} total; per frame min {ppf['min']}, median {ppf['median']:g}, max {ppf['max']}"),
+        ("tracks", str(summary["tracks"]) if summary["tracks"] is not None else "no person_ids"),
+        ("keys", ", ".join(summary["keys"])),
+        ("vertices / joints / 2D keypoints", " / ".join(",".join(map(str, summary[k])) or "-" for k in ("vertex_counts", "joint_counts", "keypoint_counts"))),
+        ("image size", "x".join(map(str, summary["image_size"])) if summary["image_size"] else "[red]unknown[/]"),
+        ("focal (px)", f"{summary['focal_px']:.1f}" if summary["focal_px"] else "not stated"),
+        ("principal point", ", ".join(f"{v:.1f}" for v in summary["principal_point"]) if summary["principal_point"] else "image centre"),
+        ("source", summary["source"] or "-"),
+    ]
+    cam = summary["camera"]
+    rows.append(("camera.yaml", "none" if cam is None else
+                 f"f {cam['focal_px']:.1f} px, pitch {cam['pitch_deg']:.2f}°, roll {cam['roll_deg']:.2f}°, height {cam['height_m']:.2f} m"))
+    for key, value in rows:
+        table.add_row(key, value)
+    console.print(table)

@@ -1,0 +1,49 @@
+"""``rotavat synth OUT``: write a synthetic scene (ground truth + HPS-like prediction)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import InputError
+from ..synth import SynthOptions, write_synth_scene
+from . import app
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
+
+
+@app.command()
+def synth(
+    out: Annotated[Path, typer.Argument(help="Output directory (gets gt/, pred/ and synth.yaml).", file_okay=False)],
+    seed: Annotated[int | None, typer.Option(help="Random seed (same seed, same scene).")] = None,
+    frames: Annotated[int | None, typer.Option(help="Number of frames.", min=1)] = None,
+    people: Annotated[int | None, typer.Option(help="People per frame.", min=0)] = None,
+    image_size: Annotated[tuple[int, int] | None, typer.Option(help="Image width and height (px).")] = None,
+    roll: Annotated[float | None, typer.Option("--roll", help="Camera roll (deg); default random in [-3, 3].")] = None,
+    noise_px: Annotated[float | None, typer.Option(help="Noise of the 2D detections (px).", min=0)] = None,
+    outliers: Annotated[float | None, typer.Option(help="Fraction of gross 2D outliers.", min=0, max=1)] = None,
+    hps_focal: Annotated[float | None, typer.Option(help="Focal (px) the HPS prediction assumes; default the true one.")] = None,
+    depth_sd: Annotated[float | None, typer.Option(help="Per-person log-normal depth error of the prediction.", min=0)] = None,
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Synthesise a static-camera scene: true people on the ground (gt/) and an HPS-like prediction (pred/)."""
+    opts = config_for(config, "synth", seed=seed, frames=frames, people=people,
+                      image_size=list(image_size) if image_size else None, roll_deg=roll, noise_px=noise_px,
+                      outliers=outliers, hps_focal=hps_focal, depth_sd=depth_sd)
+    if opts["hps_focal"] is not None and opts["hps_focal"] <= 0:
+        raise InputError(f"--hps-focal must be > 0, got {opts['hps_focal']}")
+    options = SynthOptions(**{**opts, "image_size": tuple(opts["image_size"])})
+    try:
+        with progress_bar("synthesising", options.frames, progress_enabled(quiet, as_json)) as advance:
+            summary = write_synth_scene(out, options, advance)
+    except ValueError as exc:
+        raise InputError(f"{out}: {exc}") from None
+    if as_json:
+        print_json(summary)
+    cam = summary["camera"]
+    info(f"wrote {summary['frames']} frames x {summary['people']} people to {out}/gt and {out}/pred "
+         f"(camera: f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, roll {cam['roll_deg']:.1f}°, "
+         f"height {cam['height_m']:.2f} m; HPS focal {summary['hps_focal_px']:.0f} px)", quiet or as_json)

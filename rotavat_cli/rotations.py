@@ -1,0 +1,45 @@
+"""Batched rotations (column-vector convention: ``x_rotated = R @ x``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["axis_angle_to_matrix", "rotation_between", "rotate_about"]
+
+
+def axis_angle_to_matrix(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """Rodrigues: unit-or-not axes (..., 3) and angles (...,) -> rotation matrices (..., 3, 3).
+
+    >>> R = axis_angle_to_matrix(np.array([0.0, 0.0, 1.0]), np.pi / 2)
+    >>> np.round(R @ np.array([1.0, 0.0, 0.0]), 12) + 0.0
+    array([0., 1., 0.])
+    """
+    k = np.asarray(axis, dtype=np.float64)
+    norm = np.linalg.norm(k, axis=-1, keepdims=True)
+    k = np.divide(k, norm, out=np.zeros_like(k), where=norm > 0)
+    theta = np.asarray(angle_rad, dtype=np.float64)[..., None, None]
+    zero = np.zeros_like(k[..., 0])
+    K = np.stack([
+        np.stack([zero, -k[..., 2], k[..., 1]], axis=-1),
+        np.stack([k[..., 2], zero, -k[..., 0]], axis=-1),
+        np.stack([-k[..., 1], k[..., 0], zero], axis=-1),
+    ], axis=-2)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Axis (..., 3) and angle (...,) of the shortest rotation taking directions ``a`` to ``b``."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    axis = np.cross(a, b)
+    angle = np.arctan2(np.linalg.norm(axis, axis=-1), np.sum(a * b, axis=-1))
+    return axis, angle
+
+
+def rotate_about(points: np.ndarray, R: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """Rotate points (P, N, 3) by R (P, 3, 3) about centres (P, 3)."""
+    c = np.asarray(center, dtype=np.float64)[:, None, :]
+    return np.einsum("pij,pnj->pni", R, np.asarray(points, dtype=np.float64) - c) + c

@@ -1,0 +1,471 @@
+"""Sequence I/O for the data contract: per-frame ``.npz`` or per-frame folders of per-person ``.obj``.
+
+A sequence is opened lazily (:func:`open_sequence` lists frames and reads ``meta.yaml`` and
+``camera.yaml``) and iterated one frame at a time, so memory stays bounded whatever its length.
+Every reader validates what it reads and raises :class:`~rotavat_cli.errors.InputError` naming
+the file, the key and the problem. Every writer is atomic (temporary file, then rename).
+"""
+
+from __future__ import annotations
+
+import io
+import re
+import zipfile
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .atomic import atomic_open, atomic_write_text
+from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
+from .errors import InputError
+
+__all__ = [
+    "Frame",
+    "Intrinsics",
+    "Sequence",
+    "PER_PERSON_KEYS",
+    "open_sequence",
+    "read_frame_npz",
+    "read_frame_obj",
+    "write_frame",
+    "write_meta",
+    "read_yaml",
+    "read_camera_yaml",
+    "write_camera_yaml",
+    "validate_frame",
+    "summarize_sequence",
+]
+
+# Per-person keys: trailing shape after the leading P axis (None = any size >= 1).
+PER_PERSON_KEYS: dict[str, tuple[int | None | tuple[int, ...], ...]] = {
+    "vertices": (None, (3,)),
+    "joints": (None, (3,)),
+    "keypoints_2d": (None, (2, 3)),
+    "feet_2d": ((2,),),
+    "heads_2d": ((2,),),
+    "person_ids": (),
+}
+# Keys where NaN marks a missing value instead of an error (undetected 2D keypoints).
+_NAN_ALLOWED = {"keypoints_2d"}
+META_FILE = "meta.yaml"
+CAMERA_FILE = "camera.yaml"
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """What is known of the camera the HPS method used: image size, focal, principal point."""
+
+    image_size: tuple[int, int] | None = None
+    focal_px: float | None = None
+    principal_point: tuple[float, float] | None = None
+
+    def with_defaults(self) -> "Intrinsics":
+        """Principal point defaulted to the image centre when the image size is known."""
+        if self.principal_point is None and self.image_size is not None:
+            return Intrinsics(self.image_size, self.focal_px, (self.image_size[0] / 2.0, self.image_size[1] / 2.0))
+        return self
+
+    def override(self, other: "Intrinsics") -> "Intrinsics":
+        """Fields of ``other`` that are set take precedence over ours."""
+        return Intrinsics(
+            other.image_size if other.image_size is not None else self.image_size,
+            other.focal_px if other.focal_px is not None else self.focal_px,
+            other.principal_point if other.principal_point is not None else self.principal_point,
+        )
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame: contract arrays (plus any extra keys, copied through) and where it came from."""
+
+    name: str
+    data: Mapping[str, np.ndarray]
+    source: str = ""
+
+    @property
+    def n_people(self) -> int:
+        """Number of people P (0 for an empty frame)."""
+        for key in PER_PERSON_KEYS:
+            if key in self.data:
+                return int(self.data[key].shape[0])
+        return 0
+
+    def get(self, key: str) -> np.ndarray | None:
+        """Array under ``key`` or None."""
+        return self.data.get(key)
+
+    @property
+    def person_ids(self) -> np.ndarray:
+        """(P,) int64 track ids; frame-local 0..P-1 when the frame has none."""
+        ids = self.data.get("person_ids")
+        return np.arange(self.n_people, dtype=np.int64) if ids is None else ids.astype(np.int64)
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """Intrinsics stated by the frame itself (``image_size``, ``focal_length`` or ``K``)."""
+        return _intrinsics_from_mapping(self.data, self.source)
+
+    def replace(self, **arrays: np.ndarray) -> "Frame":
+        """Copy with some arrays replaced or added."""
+        data = dict(self.data)
+        data.update(arrays)
+        return Frame(self.name, data, self.source)
+
+
+# ---- validation ------------------------------------------------------------------------------
+def _fail(source: str, message: str) -> InputError:
+    """An InputError whose message starts with the file name."""
+    return InputError(f"{source}: {message}")
+
+
+def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
+    """Check contract keys for shape, dtype, finiteness and a consistent people count."""
+    counts: dict[str, int] = {}
+    for key, trailing in PER_PERSON_KEYS.items():
+        if key not in data:
+            continue
+        arr = data[key]
+        if arr.dtype.kind not in "fiu":
+            raise _fail(source, f"key '{key}' must be numeric, got dtype {arr.dtype}")
+        if arr.ndim != 1 + len(trailing):
+            raise _fail(source, f"key '{key}' must have {1 + len(trailing)} dimensions (P, ...), got shape {list(arr.shape)}")
+        for dim, allowed in zip(arr.shape[1:], trailing):
+            if isinstance(allowed, tuple) and dim not in allowed and arr.shape[0] > 0:
+                raise _fail(source, f"key '{key}' has shape {list(arr.shape)}; expected last axis in {list(allowed)}")
+        if key == "person_ids":
+            if arr.dtype.kind == "f" and arr.size and not np.all(arr == np.round(arr)):
+                raise _fail(source, "key 'person_ids' must hold integers")
+            if len(np.unique(arr)) != len(arr):
+                raise _fail(source, "key 'person_ids' has duplicate ids in one frame")
+        if key not in _NAN_ALLOWED and arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+            raise _fail(source, f"key '{key}' has non-finite values (NaN or inf)")
+        counts[key] = arr.shape[0]
+    if len(set(counts.values())) > 1:
+        detail = ", ".join(f"{k}={v}" for k, v in counts.items())
+        raise _fail(source, f"inconsistent people counts between keys ({detail})")
+    if "faces" in data:
+        faces = data["faces"]
+        if faces.dtype.kind not in "iu" or faces.ndim != 2 or faces.shape[1] != 3:
+            raise _fail(source, f"key 'faces' must be an (F, 3) integer array, got {faces.dtype} {list(faces.shape)}")
+        verts = data.get("vertices")
+        if verts is not None and faces.size and verts.shape[0] and (faces.min() < 0 or faces.max() >= verts.shape[1]):
+            raise _fail(source, f"key 'faces' indexes vertices outside 0..{verts.shape[1] - 1}")
+    _intrinsics_from_mapping(data, source)
+
+
+def _intrinsics_from_mapping(data: Mapping[str, Any], source: str) -> Intrinsics:
+    """Parse ``image_size``, ``focal_length``/``K`` and ``principal_point`` from a frame or meta."""
+    size = focal = pp = None
+    if data.get("image_size") is not None:
+        arr = np.asarray(data["image_size"])
+        if arr.shape != (2,) or arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+            raise _fail(source, f"key 'image_size' must be [W, H] with positive values, got {data['image_size']!r}")
+        size = (int(arr[0]), int(arr[1]))
+    if data.get("K") is not None:
+        K = np.asarray(data["K"], dtype=np.float64)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise _fail(source, "key 'K' must be a finite 3x3 matrix with positive focal lengths")
+        focal = float(0.5 * (K[0, 0] + K[1, 1]))
+        pp = (float(K[0, 2]), float(K[1, 2]))
+    if data.get("focal_length") is not None:
+        try:
+            arr = np.asarray(data["focal_length"], dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise _fail(source, f"key 'focal_length' must be a number, got {data['focal_length']!r}") from None
+        if arr.size not in (1, 2) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+            raise _fail(source, f"key 'focal_length' must be a positive number, got {data['focal_length']!r}")
+        focal = float(arr.mean())
+    if data.get("principal_point") is not None:
+        arr = np.asarray(data["principal_point"], dtype=np.float64)
+        if arr.shape != (2,) or not np.all(np.isfinite(arr)):
+            raise _fail(source, "key 'principal_point' must be [cx, cy]")
+        pp = (float(arr[0]), float(arr[1]))
+    return Intrinsics(size, focal, pp)
+
+
+# ---- frame readers ------------------------------------------------------------------------------
+def read_frame_npz(path: str | Path) -> Frame:
+    """Read and validate one ``.npz`` frame (``allow_pickle=False``)."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            data = {key: npz[key] for key in npz.files}
+    except FileNotFoundError:
+        raise _fail(str(path), "file not found") from None
+    except ValueError as exc:  # object arrays need pickle: refuse
+        raise _fail(str(path), f"cannot read without pickle ({exc})") from None
+    except (OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise _fail(str(path), f"not a readable .npz file ({exc})") from None
+    validate_frame(data, str(path))
+    return Frame(path.stem, data, str(path))
+
+
+def read_frame_obj(folder: str | Path) -> Frame:
+    """Read a frame folder of per-person OBJ files (stem = person id) into contract arrays."""
+    import trimesh
+
+    folder = Path(folder)
+    files = _obj_files(folder)
+    verts, faces, ids = [], None, []
+    for file in files:
+        try:
+            mesh = trimesh.load(file, file_type="obj", process=False, maintain_order=True, force="mesh")
+        except Exception as exc:  # trimesh raises many types on broken files
+            raise _fail(str(file), f"not a readable OBJ file ({exc})") from None
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        if v.ndim != 2 or v.shape[0] == 0:
+            raise _fail(str(file), "OBJ has no vertices")
+        if verts and v.shape != verts[0].shape:
+            raise _fail(str(file), f"has {v.shape[0]} vertices but {files[0].name} has {verts[0].shape[0]}: "
+                        "one frame must share one topology")
+        if faces is None:
+            faces = f
+        verts.append(v)
+        ids.append(_person_id(file))
+    data: dict[str, np.ndarray] = {}
+    if verts:
+        data["vertices"] = np.stack(verts)
+        data["faces"] = faces
+        data["person_ids"] = np.asarray(ids, dtype=np.int64)
+    else:
+        data["vertices"] = np.zeros((0, 0, 3))
+        data["person_ids"] = np.zeros((0,), dtype=np.int64)
+    validate_frame(data, str(folder))
+    return Frame(folder.name, data, str(folder))
+
+
+def _obj_files(folder: Path) -> list[Path]:
+    """OBJ files of a frame folder, sorted by numeric person id when stems are integers."""
+    files = [p for p in folder.iterdir() if p.suffix.lower() == ".obj" and not p.name.startswith(".")]
+    return sorted(files, key=lambda p: (0, int(p.stem), "") if re.fullmatch(r"-?\d+", p.stem) else (1, 0, p.stem))
+
+
+def _person_id(file: Path) -> int:
+    """Person id from an OBJ file stem; stems must be integers."""
+    if not re.fullmatch(r"-?\d+", file.stem):
+        raise _fail(str(file), "OBJ file stem must be an integer person id (e.g. 0.obj)")
+    return int(file.stem)
+
+
+# ---- frame writers ---------------------------------------------------------------------------
+def write_frame(out_dir: str | Path, frame: Frame, form: str) -> Path:
+    """Write a frame atomically in ``form`` ('npz' or 'obj'); returns the written path."""
+    out_dir = Path(out_dir)
+    if form == "npz":
+        target = out_dir / f"{frame.name}.npz"
+        with atomic_open(target, "wb") as handle:
+            np.savez(handle, **dict(frame.data))
+        return target
+    if form == "obj":
+        return _write_frame_obj(out_dir / frame.name, frame)
+    raise ValueError(f"unknown sequence form {form!r} (expected 'npz' or 'obj')")
+
+
+def _write_frame_obj(folder: Path, frame: Frame) -> Path:
+    """One OBJ per person (stem = person id); stale OBJs of that frame folder are removed."""
+    folder.mkdir(parents=True, exist_ok=True)
+    verts = frame.get("vertices")
+    faces = frame.get("faces")
+    if frame.n_people and (verts is None or faces is None):
+        raise ValueError(f"frame {frame.name}: writing OBJ needs 'vertices' and 'faces'")
+    keep = set()
+    for pid, v in zip(frame.person_ids, verts if verts is not None else []):
+        target = folder / f"{int(pid)}.obj"
+        with atomic_open(target, "w") as handle:
+            handle.write(_obj_text(v, faces))
+        keep.add(target.name)
+    for stale in _obj_files(folder):
+        if stale.name not in keep:
+            stale.unlink()
+    return folder
+
+
+def _obj_text(verts: np.ndarray, faces: np.ndarray) -> str:
+    """OBJ text for one mesh: float32 sources keep 9 significant digits (exact), others 17."""
+    digits = 9 if verts.dtype == np.float32 else 17
+    buf = io.StringIO()
+    np.savetxt(buf, np.asarray(verts, dtype=np.float64), fmt=f"v %.{digits}g %.{digits}g %.{digits}g")
+    np.savetxt(buf, np.asarray(faces, dtype=np.int64) + 1, fmt="f %d %d %d")
+    return buf.getvalue()
+
+
+# ---- YAML helpers --------------------------------------------------------------------------
+def read_yaml(path: str | Path) -> dict:
+    """Load a YAML mapping with the safe loader; errors name the file."""
+    path = Path(path)
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = yaml.safe_load(handle)
+    except FileNotFoundError:
+        raise _fail(str(path), "file not found") from None
+    except yaml.YAMLError as exc:
+        raise _fail(str(path), f"invalid YAML ({str(exc).splitlines()[0]})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise _fail(str(path), f"cannot read ({exc})") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise _fail(str(path), "must hold a YAML mapping (key: value)")
+    return data
+
+
+def write_yaml(path: str | Path, data: dict) -> None:
+    """Dump plain-typed data with ``yaml.safe_dump`` atomically."""
+    atomic_write_text(path, yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+
+
+def read_camera_yaml(path: str | Path, image_size: tuple[int, int] | None = None) -> tuple[Camera, dict]:
+    """Read ``camera.yaml`` -> (Camera, fit block or {})."""
+    data = read_yaml(path)
+    try:
+        camera = camera_from_yaml_dict(data, image_size)
+    except ValueError as exc:
+        raise _fail(str(path), str(exc)) from None
+    fit = data.get("fit") or {}
+    return camera, fit if isinstance(fit, dict) else {}
+
+
+def write_camera_yaml(path: str | Path, camera: Camera, fit: dict | None = None) -> None:
+    """Write ``camera.yaml`` per CONVENTIONS.md atomically."""
+    write_yaml(path, camera_to_yaml_dict(camera, fit))
+
+
+def write_meta(out_dir: str | Path, meta: dict) -> None:
+    """Write ``meta.yaml`` (plain types) atomically."""
+    write_yaml(Path(out_dir) / META_FILE, meta)
+
+
+# ---- sequences ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Sequence:
+    """A lazily read sequence directory: frame list, meta.yaml, optional camera.yaml."""
+
+    path: Path
+    form: str  # 'npz' | 'obj'
+    frame_names: tuple[str, ...]
+    meta: dict = field(default_factory=dict)
+    camera: Camera | None = None
+    camera_fit: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.frame_names)
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """Sequence-level intrinsics from meta.yaml (frames may override)."""
+        return _intrinsics_from_mapping(self.meta, str(self.path / META_FILE))
+
+    @property
+    def image_size(self) -> tuple[int, int] | None:
+        """[W, H] from meta.yaml, else the first frame that states it, else camera.yaml."""
+        if self.intrinsics.image_size is not None:
+            return self.intrinsics.image_size
+        for name in self.frame_names[:1]:
+            size = self.read_frame(name).intrinsics.image_size
+            if size is not None:
+                return size
+        return self.camera.image_size if self.camera is not None else None
+
+    def require_image_size(self) -> tuple[int, int]:
+        """Image size, or an InputError saying how to provide it."""
+        size = self.image_size
+        if size is None:
+            raise InputError(f"{self.path}: unknown image size: add 'image_size: [W, H]' to {META_FILE} "
+                             "or an 'image_size' array to the frames")
+        return size
+
+    def frame_intrinsics(self, frame: Frame) -> Intrinsics:
+        """Intrinsics for one frame: meta.yaml overridden by the frame's own keys."""
+        base = Intrinsics(self.image_size, self.intrinsics.focal_px, self.intrinsics.principal_point)
+        return base.override(frame.intrinsics).with_defaults()
+
+    def frame_path(self, name: str) -> Path:
+        """File (npz) or folder (obj) of a frame."""
+        return self.path / (f"{name}.npz" if self.form == "npz" else name)
+
+    def read_frame(self, name: str) -> Frame:
+        """Read and validate one frame by name."""
+        path = self.frame_path(name)
+        return read_frame_npz(path) if self.form == "npz" else read_frame_obj(path)
+
+    def frames(self) -> Iterator[Frame]:
+        """Frames in file-name order, one at a time."""
+        for name in self.frame_names:
+            yield self.read_frame(name)
+
+
+def open_sequence(path: str | Path, read_camera: bool = True) -> Sequence:
+    """List a sequence directory's frames and read its meta.yaml and camera.yaml (not the frames)."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such directory")
+    if not path.is_dir():
+        raise InputError(f"{path}: not a directory (a sequence is a directory of frames)")
+    npz = sorted(p.stem for p in path.glob("*.npz") if not p.name.startswith("."))
+    folders = sorted(p.name for p in path.iterdir() if p.is_dir() and _is_obj_frame_dir(p))
+    if npz and any(_obj_files(path / name) for name in folders):
+        raise InputError(f"{path}: holds both .npz frames and OBJ frame folders; keep one form per sequence")
+    if not npz and not folders:
+        raise InputError(f"{path}: no frames found (expected *.npz files or frame folders of *.obj)")
+    form, names = ("npz", npz) if npz else ("obj", folders)
+    meta = read_yaml(path / META_FILE) if (path / META_FILE).exists() else {}
+    seq = Sequence(path, form, tuple(names), meta)
+    seq.intrinsics  # validates meta.yaml's intrinsics keys early
+    if read_camera and (path / CAMERA_FILE).exists():
+        camera, fit = read_camera_yaml(path / CAMERA_FILE, seq.intrinsics.image_size)
+        seq = Sequence(path, form, tuple(names), meta, camera, fit)
+    return seq
+
+
+def _is_obj_frame_dir(folder: Path) -> bool:
+    """A frame folder holds OBJ files only (an empty folder is an empty frame)."""
+    if folder.name.startswith((".", "_")):
+        return False
+    entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
+    return all(p.is_file() and p.suffix.lower() == ".obj" for p in entries)
+
+
+def summarize_sequence(seq: Sequence) -> dict:
+    """Validate every frame and summarise: form, frames, people, keys, sizes, intrinsics, camera."""
+    people, keys, verts, joints, kps, ids = [], set(), set(), set(), set(), set()
+    frame_sizes = set()
+    for frame in seq.frames():
+        people.append(frame.n_people)
+        keys.update(frame.data.keys())
+        if frame.get("vertices") is not None and frame.n_people:
+            verts.add(int(frame.data["vertices"].shape[1]))
+        if frame.get("joints") is not None and frame.n_people:
+            joints.add(int(frame.data["joints"].shape[1]))
+        if frame.get("keypoints_2d") is not None and frame.n_people:
+            kps.add(int(frame.data["keypoints_2d"].shape[1]))
+        if frame.get("person_ids") is not None:
+            ids.update(int(i) for i in frame.data["person_ids"])
+        if frame.intrinsics.image_size is not None:
+            frame_sizes.add(frame.intrinsics.image_size)
+    counts = np.asarray(people, dtype=np.int64)
+    intr = seq.intrinsics
+    image_size = intr.image_size or (sorted(frame_sizes)[0] if frame_sizes else None) or (seq.camera.image_size if seq.camera else None)
+    return {
+        "path": str(seq.path),
+        "form": seq.form,
+        "frames": len(seq),
+        "people_total": int(counts.sum()),
+        "people_per_frame": {"min": int(counts.min()), "median": float(np.median(counts)), "max": int(counts.max())},
+        "empty_frames": int((counts == 0).sum()),
+        "tracks": len(ids) if ids else None,
+        "keys": sorted(keys),
+        "vertex_counts": sorted(verts),
+        "joint_counts": sorted(joints),
+        "keypoint_counts": sorted(kps),
+        "image_size": list(image_size) if image_size else None,
+        "focal_px": intr.focal_px,
+        "principal_point": list(intr.principal_point) if intr.principal_point else None,
+        "source": seq.meta.get("source"),
+        "camera": camera_to_yaml_dict(seq.camera, seq.camera_fit or None) if seq.camera else None,
+    }
+

@@ -1,0 +1,209 @@
+"""Synthetic static-camera scenes: ground truth plus an "HPS prediction" with the paper's failures.
+
+Ground truth: upright people of varied stature (mean 1.70 m, sd 0.07 m) walking on the ground
+of a random surveillance camera. Prediction: the same people as an HPS method returns them,
+right from the camera's view but wrong in the world: each body leans toward the image plane,
+has a near-average size and lives in the method's own assumed camera (focal ``hps_focal``),
+plus a per-person depth error, small 3D noise, and noisy 2D detections with gross outliers.
+Deterministic for a given seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .bodies import BodyLibrary, load_bodies
+from .camera import Camera
+from .landmarks import foot_head_points
+from .rotations import axis_angle_to_matrix, rotate_about
+from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
+
+__all__ = ["SynthOptions", "random_camera", "sample_walks", "synth_frames", "write_synth_scene"]
+
+FPS = 5.0  # frames per second of the synthetic video
+WALK_SPEED_MPS = (0.8, 1.6)  # walking speeds
+MAX_GROUND_DISTANCE_M = 45.0  # people farther than this are too small to matter
+
+
+@dataclass(frozen=True)
+class SynthOptions:
+    """Everything ``rotavat synth`` can vary (defaults live in configs/default.yaml)."""
+
+    seed: int = 0
+    frames: int = 20
+    people: int = 8
+    image_size: tuple[int, int] = (1280, 720)
+    roll_deg: float | None = None  # None: random in [-3, 3]
+    noise_px: float = 2.0
+    outliers: float = 0.0
+    hps_focal: float | None = None  # None: the true focal
+    depth_sd: float = 0.1
+    lean: float = 0.7
+    stature_sd_m: float = 0.07
+    pred_stature_sd_m: float = 0.03
+    noise_3d_m: float = 0.005
+
+
+def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None) -> Camera:
+    """Realistic surveillance camera: focal 0.6-2.5 H, pitch 10-60 deg, height 2.5-15 m."""
+    H = image_size[1]
+    roll = rng.uniform(-3.0, 3.0) if roll_deg is None else roll_deg
+    return Camera(image_size, rng.uniform(0.6, 2.5) * H, None, np.deg2rad(rng.uniform(10.0, 60.0)),
+                  np.deg2rad(roll), rng.uniform(2.5, 15.0))
+
+
+def _in_view(camera: Camera, ground_world: np.ndarray, stature_m: float = 1.9) -> np.ndarray:
+    """Ground points (..., 3) whose foot and head (at ``stature_m``) project well inside the image."""
+    W, H = camera.image_size
+    foot_px = camera.project(camera.cam_from_world(ground_world))
+    head_px = camera.project(camera.cam_from_world(ground_world + np.array([0.0, stature_m, 0.0])))
+    with np.errstate(invalid="ignore"):
+        ok = (foot_px[..., 0] > 0.04 * W) & (foot_px[..., 0] < 0.96 * W) & (foot_px[..., 1] < 0.97 * H)
+        ok &= (head_px[..., 1] > 0.03 * H) & (head_px[..., 0] > 0.02 * W) & (head_px[..., 0] < 0.98 * W)
+    return ok & (np.linalg.norm(ground_world[..., [0, 2]], axis=-1) < MAX_GROUND_DISTANCE_M)
+
+
+def _sample_ground_points(rng: np.random.Generator, camera: Camera, n: int) -> np.ndarray:
+    """n ground points (n, 3) world frame, uniform over the visible image region."""
+    W, H = camera.image_size
+    found = np.zeros((0, 3))
+    for _ in range(200):
+        px = np.stack([rng.uniform(0, W, 64 * n), rng.uniform(0, H, 64 * n)], axis=-1)
+        ground = camera.world_from_cam(camera.backproject_px_to_ground(px))
+        keep = np.all(np.isfinite(ground), axis=-1)
+        keep[keep] = _in_view(camera, ground[keep])
+        found = np.concatenate([found, ground[keep]])
+        if len(found) >= n:
+            return found[:n]
+    raise ValueError("this camera sees almost no ground where people fit in the image")
+
+
+def sample_walks(rng: np.random.Generator, camera: Camera, n_people: int, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Back-and-forth walks: ground positions (T, P, 3) world frame and headings (T, P) rad."""
+    start = _sample_ground_points(rng, camera, n_people)
+    end = _sample_ground_points(rng, camera, n_people)
+    seg = end - start
+    length = np.maximum(np.linalg.norm(seg, axis=-1), 1e-6)
+    speed = rng.uniform(*WALK_SPEED_MPS, n_people)
+    phase0 = rng.uniform(0.0, 2.0, n_people)
+    t = np.arange(n_frames)[:, None] / FPS
+    phase = (phase0 + t * speed / length) % 2.0  # (T, P): 0..1 forward, 1..2 back
+    frac = np.where(phase < 1.0, phase, 2.0 - phase)
+    pos = start + frac[..., None] * seg
+    forward = np.where(phase < 1.0, 1.0, -1.0)[..., None] * seg / length[:, None]
+    heading = np.arctan2(forward[..., 0], forward[..., 2])  # yaw about +Y taking +Z to the walk direction
+    return pos, heading
+
+
+def _pose_bodies(library: BodyLibrary, body_index: np.ndarray, scale: np.ndarray, heading: np.ndarray,
+                 pos_world: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Scaled, turned, placed bodies in the camera frame: vertices (P, V, 3), joints (P, 24, 3)."""
+    R_world_from_body = axis_angle_to_matrix(np.array([0.0, 1.0, 0.0]), heading)  # (P, 3, 3)
+    R = np.einsum("ij,pjk->pik", camera.R_cam_from_world, R_world_from_body)
+    t = camera.cam_from_world(pos_world)  # (P, 3)
+    verts = np.einsum("pij,pvj->pvi", R, library.vertices[body_index] * scale[:, None, None]) + t[:, None]
+    joints = np.einsum("pij,pvj->pvi", R, library.joints[body_index] * scale[:, None, None]) + t[:, None]
+    return verts, joints
+
+
+def _lean_toward_image_plane(points: list[np.ndarray], feet: np.ndarray, heads: np.ndarray, fraction: np.ndarray) -> list[np.ndarray]:
+    """Rotate bodies about their centre, in the plane of the camera centre and their axis, toward the image plane."""
+    centre = 0.5 * (feet + heads)
+    axis = heads - feet
+    sight = centre / np.linalg.norm(centre, axis=-1, keepdims=True)
+    normal = np.cross(sight, axis)  # rotating about it keeps the axis in the camera-axis plane
+    tilt = np.arcsin(np.clip(np.sum(axis * sight, axis=-1) / np.linalg.norm(axis, axis=-1), -1.0, 1.0))
+    R = axis_angle_to_matrix(normal, -fraction * tilt)  # brings the axis toward perpendicular-to-sight
+    return [rotate_about(p, R, centre) for p in points]
+
+
+def _hps_distort(points: np.ndarray, size_ratio: np.ndarray, depth_scale: np.ndarray, hps_focal: float, focal: float) -> np.ndarray:
+    """Map into the HPS camera: diag(r, r, r F/f) then a depth scale about the camera centre."""
+    diag = np.array([1.0, 1.0, hps_focal / focal])
+    return points * (size_ratio * depth_scale)[:, None, None] * diag
+
+
+def _detections(rng: np.random.Generator, feet_px: np.ndarray, heads_px: np.ndarray, opts: SynthOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Noisy 2D foot/head detections with a fraction of gross outliers (sitting, cropped, children)."""
+    P = len(feet_px)
+    feet = feet_px + rng.normal(0.0, opts.noise_px, (P, 2))
+    heads = heads_px + rng.normal(0.0, opts.noise_px, (P, 2))
+    bad = rng.random(P) < opts.outliers
+    kind = rng.integers(0, 3, P)
+    body = heads_px - feet_px
+    heads = np.where((bad & (kind == 0))[:, None], feet_px + body * rng.uniform(0.55, 0.75, (P, 1)), heads)  # sitting
+    feet = np.where((bad & (kind == 1))[:, None], feet_px + body * rng.uniform(0.25, 0.5, (P, 1)), feet)  # cropped
+    heads = np.where((bad & (kind == 2))[:, None], feet_px + body * rng.uniform(1.2, 1.5, (P, 1))
+                     + rng.normal(0.0, 0.1, (P, 2)) * np.abs(body[:, 1:2]), heads)  # mis-detected
+    return feet, heads
+
+
+def synth_frames(opts: SynthOptions, library: BodyLibrary | None = None) -> tuple[Camera, float, Iterator[tuple[Frame, Frame]]]:
+    """True camera, the HPS focal, and an iterator of (gt frame, pred frame)."""
+    library = library or load_bodies()
+    rng = np.random.default_rng(opts.seed)
+    camera = random_camera(rng, opts.image_size, opts.roll_deg)
+    hps_focal = float(opts.hps_focal or camera.focal_px)
+    P = opts.people
+    pos, heading = sample_walks(rng, camera, P, opts.frames)
+    body_index = rng.integers(0, len(library), P)
+    stature = np.clip(rng.normal(1.70, opts.stature_sd_m, P), 1.45, 2.05)
+    scale = stature / library.stature_m[body_index]
+    pred_size = np.clip(rng.normal(1.70, opts.pred_stature_sd_m, P), 1.55, 1.85) / stature
+    lean = np.clip(rng.normal(opts.lean, 0.15, P), 0.0, 1.0) if opts.lean > 0 else np.zeros(P)
+    ids = np.arange(P, dtype=np.int64)
+    faces = library.faces.astype(np.int32)
+
+    def frames() -> Iterator[tuple[Frame, Frame]]:
+        for t in range(opts.frames):
+            verts, joints = _pose_bodies(library, body_index, scale, heading[t], pos[t], camera)
+            feet, heads = foot_head_points(verts)
+            feet_px, heads_px = camera.project(feet), camera.project(heads)
+            kp_px = camera.project(joints)
+            common = {"faces": faces, "person_ids": ids, "image_size": np.array(camera.image_size, dtype=np.int64)}
+            gt = Frame(f"{t:06d}", {
+                "vertices": verts.astype(np.float32), "joints": joints.astype(np.float32),
+                "feet_2d": feet_px, "heads_2d": heads_px,
+                "keypoints_2d": np.concatenate([kp_px, np.ones(kp_px.shape[:2] + (1,))], axis=-1),
+                "focal_length": np.float64(camera.focal_px), **common})
+            v_pred, j_pred = _lean_toward_image_plane([verts, joints], feet, heads, lean)
+            depth = np.exp(rng.normal(0.0, opts.depth_sd, P))
+            v_pred = _hps_distort(v_pred, pred_size, depth, hps_focal, camera.focal_px)
+            j_pred = _hps_distort(j_pred, pred_size, depth, hps_focal, camera.focal_px)
+            v_pred = v_pred + rng.normal(0.0, opts.noise_3d_m, v_pred.shape)
+            j_pred = j_pred + rng.normal(0.0, opts.noise_3d_m, j_pred.shape)
+            det_feet, det_heads = _detections(rng, feet_px, heads_px, opts)
+            kp_noisy = kp_px + rng.normal(0.0, opts.noise_px, kp_px.shape)
+            pred = Frame(f"{t:06d}", {
+                "vertices": v_pred.astype(np.float32), "joints": j_pred.astype(np.float32),
+                "feet_2d": det_feet, "heads_2d": det_heads,
+                "keypoints_2d": np.concatenate([kp_noisy, np.ones(kp_px.shape[:2] + (1,))], axis=-1),
+                "focal_length": np.float64(hps_focal), **common})
+            yield gt, pred
+
+    return camera, hps_focal, frames()
+
+
+def write_synth_scene(out: str | Path, opts: SynthOptions, progress: Callable[[], None] | None = None) -> dict:
+    """Write ``out/gt`` (truth + camera.yaml) and ``out/pred`` (the HPS prediction); returns a summary."""
+    out = Path(out)
+    camera, hps_focal, frames = synth_frames(opts)
+    for gt, pred in frames:
+        write_frame(out / "gt", gt, "npz")
+        write_frame(out / "pred", pred, "npz")
+        if progress:
+            progress()
+    size = [int(v) for v in camera.image_size]
+    write_meta(out / "gt", {"image_size": size, "focal_length": float(camera.focal_px), "source": "rotavat-synth", "fps": FPS})
+    write_meta(out / "pred", {"image_size": size, "focal_length": hps_focal, "source": "rotavat-synth", "fps": FPS})
+    write_camera_yaml(out / "gt" / "camera.yaml", camera)
+    params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(opts).items()}
+    write_yaml(out / "synth.yaml", params)
+    return {"out": str(out), "gt": str(out / "gt"), "pred": str(out / "pred"), "frames": opts.frames,
+            "people": opts.people, "camera": {"focal_px": camera.focal_px, "pitch_deg": float(np.rad2deg(camera.pitch_rad)),
+                                               "roll_deg": float(np.rad2deg(camera.roll_rad)), "height_m": camera.height_m},
+            "hps_focal_px": hps_focal}

@@ -1,0 +1,57 @@
+"""Config precedence: defaults < --config FILE < flags; unknown keys are errors."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from rotavat_cli.config import DEFAULT_CONFIG_PATH, default_config, load_config
+from rotavat_cli.errors import InputError
+
+
+def test_packaged_defaults_are_the_repo_file():
+    repo_file = Path(__file__).resolve().parents[1] / "configs" / "default.yaml"
+    assert yaml.safe_load(repo_file.read_text()) == yaml.safe_load(DEFAULT_CONFIG_PATH.read_text())
+
+
+def test_paper_grid_defaults():
+    grid = default_config()["calibrate"]["grid"]
+    assert grid == {"focal_range_h": [0.1, 6.0], "pitch_range_deg": [-45.0, 90.0], "height_range_m": [0.5, 40.0], "steps": [50, 50, 50]}
+
+
+def test_precedence(tmp_path: Path):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("calibrate:\n  person_height_m: 1.8\n  method: grid\n")
+    merged = load_config(cfg, {"calibrate": {"method": "refine", "residual": None}})
+    assert merged["calibrate"]["person_height_m"] == 1.8  # from the file
+    assert merged["calibrate"]["method"] == "refine"  # flag wins
+    assert merged["calibrate"]["residual"] == "full"  # unset flag keeps the default
+
+
+def test_defaults_are_not_mutated(tmp_path: Path):
+    load_config(None, {"synth": {"frames": 3}})
+    assert default_config()["synth"]["frames"] == 20
+
+
+@pytest.mark.parametrize("text,message", [
+    ("calibrate:\n  metod: grid\n", "unknown key 'calibrate.metod'"),
+    ("calibrate:\n  person_height_m: tall\n", "person_height_m"),
+    ("calibrate: 3\n", "must be a mapping"),
+    ("- a\n", "mapping"),
+])
+def test_bad_config_names_key_and_file(tmp_path: Path, text, message):
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text(text)
+    with pytest.raises(InputError, match=message) as info:
+        load_config(cfg)
+    assert "bad.yaml" in str(info.value)
+
+
+def test_cli_config_error_exits_2(tmp_path: Path, runner):
+    from conftest import invoke
+
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("synth:\n  peeple: 3\n")
+    result = invoke(runner, "synth", tmp_path / "out", "--config", cfg)
+    assert result.exit_code == 2 and "peeple" in result.stderr and "bad.yaml" in result.stderr
+    assert not (tmp_path / "out").exists()

@@ -1,0 +1,159 @@
+"""Sequence I/O: round trips in both forms, validation errors, CLI `info`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import invoke, tetra_frame, tree_hash
+from rotavat_cli.errors import InputError
+from rotavat_cli.sequence import Frame, open_sequence, read_frame_npz, write_frame, write_camera_yaml, read_camera_yaml
+from rotavat_cli.camera import Camera
+
+
+def test_open_sequence_lists_frames_and_meta(npz_seq: Path):
+    seq = open_sequence(npz_seq)
+    assert seq.form == "npz"
+    assert seq.frame_names == ("000000", "000001", "000002")
+    assert seq.image_size == (640, 480)
+    assert seq.intrinsics.focal_px == 500.0
+    assert [f.n_people for f in seq.frames()] == [3, 0, 2]
+
+
+def test_npz_round_trip_keeps_values_and_dtypes(npz_seq: Path, tmp_path: Path):
+    seq = open_sequence(npz_seq)
+    frame = seq.read_frame("000000")
+    frame = frame.replace(extra_key=np.arange(5, dtype=np.int16))
+    write_frame(tmp_path / "out", frame, "npz")
+    back = read_frame_npz(tmp_path / "out" / "000000.npz")
+    assert set(back.data) == set(frame.data)
+    for key, value in frame.data.items():
+        assert back.data[key].dtype == value.dtype, key
+        np.testing.assert_array_equal(back.data[key], value)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_obj_round_trip(tmp_path: Path, dtype):
+    rng = np.random.default_rng(3)
+    data = tetra_frame(rng, 3, dtype)
+    frame = Frame("000007", {k: data[k] for k in ("vertices", "faces", "person_ids")})
+    write_frame(tmp_path / "objseq", frame, "obj")
+    assert sorted(p.name for p in (tmp_path / "objseq" / "000007").iterdir()) == ["10.obj", "11.obj", "12.obj"]
+    seq = open_sequence(tmp_path / "objseq")
+    assert seq.form == "obj"
+    back = seq.read_frame("000007")
+    np.testing.assert_array_equal(back.data["person_ids"], [10, 11, 12])
+    np.testing.assert_array_equal(back.data["faces"], data["faces"])
+    # float32 sources are written with 9 significant digits: exact after casting back
+    np.testing.assert_array_equal(back.data["vertices"].astype(dtype), data["vertices"])
+
+
+def test_obj_empty_frame_folder_is_a_valid_empty_frame(tmp_path: Path):
+    (tmp_path / "s" / "000000").mkdir(parents=True)
+    seq = open_sequence(tmp_path / "s")
+    assert seq.form == "obj" and seq.read_frame("000000").n_people == 0
+
+
+def test_camera_yaml_round_trip(tmp_path: Path):
+    cam = Camera((800, 600), 700.0, None, 0.3, -0.02, 4.5)
+    write_camera_yaml(tmp_path / "camera.yaml", cam, {"method": "grid", "pairs": 5})
+    cam2, fit = read_camera_yaml(tmp_path / "camera.yaml")
+    assert fit == {"method": "grid", "pairs": 5}
+    assert cam2.pitch_rad == pytest.approx(0.3) and cam2.roll_rad == pytest.approx(-0.02)
+
+
+def _write(seq: Path, name: str, **arrays):
+    np.savez(seq / name, **arrays)
+
+
+BAD_FRAMES = {
+    "shape": ({"vertices": np.zeros((2, 4, 2))}, "vertices"),
+    "nan": ({"vertices": np.full((1, 4, 3), np.nan)}, "non-finite"),
+    "count": ({"vertices": np.zeros((2, 4, 3)), "person_ids": np.arange(3)}, "inconsistent people counts"),
+    "dup_ids": ({"feet_2d": np.zeros((2, 2)), "person_ids": np.array([1, 1])}, "duplicate"),
+    "faces": ({"vertices": np.zeros((1, 4, 3)), "faces": np.array([[0, 1, 9]])}, "faces"),
+    "dtype": ({"feet_2d": np.array([["a", "b"]])}, "numeric"),
+    "image_size": ({"image_size": np.array([640, -1])}, "image_size"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FRAMES))
+def test_bad_frames_exit_2_with_one_line(tmp_path: Path, runner, case):
+    seq = tmp_path / "bad"
+    seq.mkdir()
+    (seq / "meta.yaml").write_text("image_size: [640, 480]\n")
+    arrays, message = BAD_FRAMES[case]
+    _write(seq, "000003.npz", **arrays)
+    result = invoke(runner, "info", seq)
+    assert result.exit_code == 2
+    err = result.stderr.strip()
+    assert "000003.npz" in err and message in err
+    assert len(err.splitlines()) == 1
+    assert "Traceback" not in result.output
+    with pytest.raises(InputError, match="000003.npz"):
+        list(open_sequence(seq).frames())
+
+
+def test_object_array_is_refused_without_pickle(tmp_path: Path, runner):
+    seq = tmp_path / "pk"
+    seq.mkdir()
+    np.save(seq / "x.npy", np.zeros(1))
+    np.savez(seq / "000000.npz", vertices=np.array([{"a": 1}], dtype=object))
+    result = invoke(runner, "info", seq)
+    assert result.exit_code == 2 and "pickle" in result.stderr
+
+
+def test_corrupt_npz(tmp_path: Path, runner):
+    seq = tmp_path / "c"
+    seq.mkdir()
+    (seq / "000000.npz").write_bytes(b"not a zip")
+    result = invoke(runner, "info", seq)
+    assert result.exit_code == 2 and "000000.npz" in result.stderr
+
+
+@pytest.mark.parametrize("setup,message", [
+    (lambda p: None, "no such directory"),
+    (lambda p: p.mkdir(), "no frames found"),
+    (lambda p: (p.mkdir(), (p / "000000.npz").write_bytes(b""), (p / "meta.yaml").write_text("image_size: [1, 2, 3]\n")), "image_size"),
+    (lambda p: (p.mkdir(), (p / "000000.npz").write_bytes(b""), (p / "meta.yaml").write_text("a: [\n")), "invalid YAML"),
+])
+def test_bad_sequences(tmp_path: Path, runner, setup, message):
+    seq = tmp_path / "s"
+    setup(seq)
+    result = invoke(runner, "info", seq)
+    assert result.exit_code == 2 and message in result.stderr, result.stderr
+
+
+def test_unknown_image_size_is_reported(tmp_path: Path):
+    seq = tmp_path / "s"
+    seq.mkdir()
+    np.savez(seq / "000000.npz", feet_2d=np.zeros((1, 2)), heads_2d=np.zeros((1, 2)))
+    with pytest.raises(InputError, match="unknown image size"):
+        open_sequence(seq).require_image_size()
+
+
+def test_info_json_and_input_untouched(npz_seq: Path, runner):
+    before = tree_hash(npz_seq)
+    result = invoke(runner, "info", npz_seq, "--json")
+    assert result.exit_code == 0
+    summary = json.loads(result.stdout)
+    assert summary["frames"] == 3 and summary["people_total"] == 5 and summary["empty_frames"] == 1
+    assert summary["image_size"] == [640, 480] and summary["vertex_counts"] == [4]
+    assert summary["tracks"] == 3
+    assert tree_hash(npz_seq) == before
+
+
+def test_info_table(npz_seq: Path, runner):
+    result = invoke(runner, "info", npz_seq)
+    assert result.exit_code == 0 and "640x480" in result.stderr
+
+
+def test_version_and_help(runner):
+    from rotavat_cli import __version__
+
+    assert invoke(runner, "--version").stdout.strip() == f"rotavat {__version__}"
+    for command in ("info", "synth"):
+        assert invoke(runner, command, "--help").exit_code == 0
