@@ -117,7 +117,7 @@ def _lean_toward_image_plane(points: list[np.ndarray], feet: np.ndarray, heads: 
     sight = centre / np.linalg.norm(centre, axis=-1, keepdims=True)
     normal = np.cross(sight, axis)  # rotating about it keeps the axis in the camera-axis plane
     tilt = np.arcsin(np.clip(np.sum(axis * sight, axis=-1) / np.linalg.norm(axis, axis=-1), -1.0, 1.0))
-    R = axis_angle_to_matrix(normal, -fraction * tilt)  # brings the axis toward perpendicular-to-sight
+    R = axis_angle_to_matrix(normal, fraction * tilt)  # brings the axis toward perpendicular-to-sight
     return [rotate_about(p, R, centre) for p in points]
 
 

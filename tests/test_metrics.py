@@ -1,0 +1,421 @@
+"""Tests for rotavat_cli.metrics: hand-computed cases, cardinality, dtypes, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rotavat_cli.metrics import (
+    camera_errors,
+    detection_scores,
+    height_above_ground_m,
+    lean_deg,
+    mpjpe,
+    normalize_by_f1,
+    point_errors_mm,
+    procrustes_align,
+    pve,
+    root_err_mm,
+    stature_err_mm,
+    stature_m,
+    to_gravity_frame,
+    umeyama,
+    w_spec_errors_mm,
+    w_spec_mpjpe,
+    w_spec_pve,
+)
+
+# Hand-computed cases are exact up to float64 rounding of a few operations on metre-scale
+# numbers, then x1000 to mm: 1e-6 mm (1 nm) is far above that noise and far below any error.
+ATOL_MM = 1e-6
+
+# Pelvis (root, index 0) and three joints 0.1 / 0.2 / 0.3 m from it along x, y, z.
+OFFSETS_M = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.0, 0.3]])
+PELVIS_CAM = np.array([0.4, -0.2, 5.0])
+
+
+def _skeleton() -> np.ndarray:
+    """One person, (1, 4, 3): the joint set above placed 5 m in front of the camera."""
+    return (PELVIS_CAM + OFFSETS_M)[None]
+
+
+def _rot_x(angle_deg: float) -> np.ndarray:
+    """Rotation about the x axis, (3, 3)."""
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_z(angle_deg: float) -> np.ndarray:
+    """Rotation about the z axis, (3, 3)."""
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """n random proper rotations, (n, 3, 3)."""
+    q, r = np.linalg.qr(rng.standard_normal((n, 3, 3)))
+    q = q * np.sign(np.diagonal(r, axis1=1, axis2=2))[:, None, :]
+    q[np.linalg.det(q) < 0, :, 0] *= -1.0
+    return q
+
+
+def _reference_pa_errors_mm(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Per-person textbook Umeyama (SPIN's compute_similarity_transform), (N, 3) -> (N,)."""
+    x = pred.T - pred.mean(axis=0)[:, None]
+    y = gt.T - gt.mean(axis=0)[:, None]
+    u, s, vt = np.linalg.svd(x @ y.T)
+    z = np.eye(3)
+    z[-1, -1] = np.sign(np.linalg.det(u @ vt))
+    rot = vt.T @ z @ u.T
+    scale = np.trace(rot @ x @ y.T) / np.sum(x**2)
+    aligned = scale * rot @ x + gt.mean(axis=0)[:, None]
+    return np.linalg.norm(aligned.T - gt, axis=1) * 1000.0
+
+
+# --------------------------------------------------------------------------- hand-computed
+
+
+def test_translation_only_offset():
+    gt = _skeleton()
+    pred = gt + np.array([0.3, 0.4, 1.2])  # |offset| = 1.3 m
+    assert mpjpe(pred, gt, "none") == pytest.approx([1300.0], abs=ATOL_MM)
+    assert mpjpe(pred, gt, "root") == pytest.approx([0.0], abs=ATOL_MM)
+    assert mpjpe(pred, gt, "procrustes") == pytest.approx([0.0], abs=ATOL_MM)
+
+
+def test_rotation_about_pelvis():
+    # 60 deg about the camera z axis through the pelvis: a joint at distance r from the axis
+    # moves by the chord 2 r sin(30 deg) = r; the z-offset joint lies on the axis.
+    gt = _skeleton()
+    pred = PELVIS_CAM + OFFSETS_M @ _rot_z(60.0).T
+    expected_per_joint = [0.0, 100.0, 200.0, 0.0]
+    assert point_errors_mm(pred[None], gt, "none")[0] == pytest.approx(
+        expected_per_joint, abs=ATOL_MM
+    )
+    assert mpjpe(pred[None], gt, "none") == pytest.approx([75.0], abs=ATOL_MM)
+    assert mpjpe(pred[None], gt, "root") == pytest.approx([75.0], abs=ATOL_MM)
+    assert mpjpe(pred[None], gt, "procrustes") == pytest.approx([0.0], abs=ATOL_MM)
+
+
+def test_rotation_about_camera_moves_pelvis_too():
+    # 90 deg about the camera y axis: every joint X maps to (z, y, -x); W counts the swing.
+    gt = _skeleton()[0]
+    rot_y90 = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    pred = gt @ rot_y90.T
+    expected = np.linalg.norm(pred - gt, axis=1).mean() * 1000.0
+    assert mpjpe(pred[None], gt[None], "none") == pytest.approx([expected], abs=ATOL_MM)
+    # Pelvis at (0.4, -0.2, 5): chord of a 90 deg turn about y is sqrt(2) * sqrt(0.4^2 + 5^2).
+    assert point_errors_mm(pred[None], gt[None])[0, 0] == pytest.approx(
+        1000.0 * np.sqrt(2.0) * np.hypot(0.4, 5.0), abs=ATOL_MM
+    )
+    assert mpjpe(pred[None], gt[None], "procrustes") == pytest.approx([0.0], abs=ATOL_MM)
+
+
+def test_scale_only_about_pelvis():
+    gt = _skeleton()
+    pred = PELVIS_CAM + 1.5 * OFFSETS_M  # joints 0/0.1/0.2/0.3 m out -> errors 0/50/100/150 mm
+    assert mpjpe(pred[None], gt, "root") == pytest.approx([75.0], abs=ATOL_MM)
+    assert mpjpe(pred[None], gt, "none") == pytest.approx([75.0], abs=ATOL_MM)
+    assert mpjpe(pred[None], gt, "procrustes") == pytest.approx([0.0], abs=ATOL_MM)
+
+
+def test_pelvis_offset_spreads_to_every_other_joint_after_root_alignment():
+    gt = _skeleton()
+    pred = gt.copy()
+    pred[0, 0] += [0.0, 0.04, 0.03]  # 50 mm pelvis error only
+    assert mpjpe(pred, gt, "none") == pytest.approx([50.0 / 4], abs=ATOL_MM)
+    assert mpjpe(pred, gt, "root") == pytest.approx([50.0 * 3 / 4], abs=ATOL_MM)
+
+
+def test_reflection_is_not_undone_by_procrustes():
+    # Six points +-a x, +-b y, +-c z (a, b, c = 0.3, 0.2, 0.1 m), mirrored in x. Umeyama with
+    # det(R) = +1 flips the smallest axis (z): R = diag(-1, 1, -1), s = (a²+b²-c²)/(a²+b²+c²)
+    # = 6/7. Errors: x pair (1-s)a, y pair (1-s)b, z pair (1+s)c; mean = ((1-s)(a+b) +
+    # (1+s)c) / 3 = (0.5/7 + 1.3/7) / 3 m = 600/7 mm. An unconstrained (reflecting) fit gives 0.
+    a, b, c = 0.3, 0.2, 0.1
+    base = np.array([[a, 0, 0], [-a, 0, 0], [0, b, 0], [0, -b, 0], [0, 0, c], [0, 0, -c]])
+    gt = (base + PELVIS_CAM)[None]
+    mirror = np.diag([-1.0, 1.0, 1.0])
+    pred = (base @ mirror.T + [2.0, 1.0, 7.0])[None]
+    assert mpjpe(pred, gt, "procrustes") == pytest.approx([600.0 / 7.0], abs=ATOL_MM)
+    scale, rot, _ = umeyama(pred, gt)
+    assert scale == pytest.approx([6.0 / 7.0])
+    assert np.linalg.det(rot) == pytest.approx([1.0])
+    np.testing.assert_allclose(rot[0], np.diag([-1.0, 1.0, -1.0]), atol=1e-12)
+
+
+def test_planar_mirror_is_a_rotation_in_3d():
+    # A mirror image of a planar set is a 180 deg turn about an in-plane axis: PA error 0.
+    gt = np.array([[[0.0, 0.0, 4.0], [0.3, 0.0, 4.0], [0.0, 0.5, 4.0], [0.2, 0.7, 4.0]]])
+    pred = gt * np.array([-1.0, 1.0, 1.0])
+    assert mpjpe(pred, gt, "procrustes") == pytest.approx([0.0], abs=ATOL_MM)
+
+
+def test_procrustes_align_recovers_a_similarity():
+    rng = np.random.default_rng(0)
+    gt = rng.normal(size=(3, 24, 3))
+    rot = _random_rotations(rng, 3)
+    scale = np.array([0.5, 1.0, 2.0])
+    pred = scale[:, None, None] * gt @ np.swapaxes(rot, 1, 2) + rng.normal(size=(3, 1, 3))
+    np.testing.assert_allclose(procrustes_align(pred, gt), gt, atol=1e-12)
+    s_fit, r_fit, t_fit = umeyama(gt, pred)
+    np.testing.assert_allclose(s_fit, scale, rtol=1e-12)
+    np.testing.assert_allclose(r_fit, rot, atol=1e-12)
+
+
+@pytest.mark.parametrize("n_people", [1, 2, 3])
+@pytest.mark.parametrize("n_points", [3, 4, 24])
+def test_procrustes_matches_per_person_reference(n_people, n_points):
+    # N = 3 and P = 3 together catch code that picks a transpose from the array shape.
+    rng = np.random.default_rng(0)
+    gt = rng.normal(size=(n_people, n_points, 3))
+    pred = gt + 0.3 * rng.normal(size=gt.shape)
+    pred[0] = pred[0] @ np.diag([1.0, -1.0, 1.0])  # one reflected person in every batch
+    expected = np.stack([_reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
+    np.testing.assert_allclose(point_errors_mm(pred, gt, "procrustes"), expected, atol=1e-9)
+
+
+def test_pve_root_uses_the_given_pelvis_joint():
+    rng = np.random.default_rng(0)
+    gt_verts = rng.normal(size=(2, 50, 3))
+    gt_pelvis = rng.normal(size=(2, 3))
+    offset = np.array([[0.3, 0.4, 1.2], [0.0, 0.0, -0.5]])
+    pred_verts, pred_pelvis = gt_verts + offset[:, None], gt_pelvis + offset
+    assert pve(pred_verts, gt_verts, "root", pred_pelvis, gt_pelvis) == pytest.approx(
+        [0.0, 0.0], abs=ATOL_MM
+    )
+    assert pve(pred_verts, gt_verts, "none") == pytest.approx([1300.0, 500.0], abs=ATOL_MM)
+    # A pelvis that is off by 50 mm moves every vertex by 50 mm after root alignment.
+    shifted = pred_pelvis + [0.0, 0.03, 0.04]
+    assert pve(pred_verts, gt_verts, "root", shifted, gt_pelvis) == pytest.approx(
+        [50.0, 50.0], abs=ATOL_MM
+    )
+    assert pve(pred_verts, gt_verts, "procrustes") == pytest.approx([0.0, 0.0], abs=ATOL_MM)
+
+
+# --------------------------------------------------------------------------- cardinality
+
+
+def _all_metrics(pred_j, gt_j, pred_v, gt_v, r_pred, r_gt):
+    """Every per-person metric of the module on one batch, as a dict of (P,) arrays."""
+    out = {f"mpjpe_{a}": mpjpe(pred_j, gt_j, a) for a in ("none", "root", "procrustes")}
+    for a in ("none", "root", "procrustes"):
+        out[f"pve_{a}"] = pve(pred_v, gt_v, a, pred_j[:, 0], gt_j[:, 0])
+    out["w_spec_mpjpe"] = w_spec_mpjpe(pred_j, gt_j, r_pred, r_gt)
+    out["w_spec_pve"] = w_spec_pve(pred_v, gt_v, r_pred, r_gt, pred_j[:, 0], gt_j[:, 0])
+    return out
+
+
+@pytest.mark.parametrize("n_people", [0, 1, 2, 3])
+def test_batches_equal_single_person_calls(n_people):
+    rng = np.random.default_rng(0)
+    gt_j = rng.normal(size=(n_people, 24, 3))
+    pred_j = gt_j + 0.05 * rng.normal(size=gt_j.shape)
+    gt_v = rng.normal(size=(n_people, 40, 3))
+    pred_v = gt_v + 0.05 * rng.normal(size=gt_v.shape)
+    r_pred, r_gt = _rot_x(25.0), _rot_x(20.0)
+    batch = _all_metrics(pred_j, gt_j, pred_v, gt_v, r_pred, r_gt)
+    for name, values in batch.items():
+        assert values.shape == (n_people,), name
+        assert values.dtype == np.float64, name
+    for i in range(n_people):
+        single = _all_metrics(
+            pred_j[i : i + 1], gt_j[i : i + 1], pred_v[i : i + 1], gt_v[i : i + 1], r_pred, r_gt
+        )
+        for name, values in single.items():
+            np.testing.assert_allclose(batch[name][i], values[0], rtol=1e-12, err_msg=name)
+
+
+def test_empty_batch_shapes():
+    empty = np.zeros((0, 24, 3))
+    assert procrustes_align(empty, empty).shape == (0, 24, 3)
+    assert point_errors_mm(empty, empty, "procrustes").shape == (0, 24)
+    assert point_errors_mm(empty, empty, "root", np.zeros((0, 3)), np.zeros((0, 3))).shape == (
+        0,
+        24,
+    )
+    assert [x.shape for x in umeyama(empty, empty)] == [(0,), (0, 3, 3), (0, 3)]
+
+
+def test_float32_input_is_computed_in_float64():
+    rng = np.random.default_rng(0)
+    gt = rng.normal(size=(3, 24, 3)).astype(np.float32)
+    pred = (gt + 0.05 * rng.normal(size=gt.shape)).astype(np.float32)
+    for alignment in ("none", "root", "procrustes"):
+        got = mpjpe(pred, gt, alignment)
+        assert got.dtype == np.float64
+        np.testing.assert_array_equal(
+            got, mpjpe(pred.astype(np.float64), gt.astype(np.float64), alignment)
+        )
+
+
+def test_non_finite_person_does_not_poison_the_batch():
+    rng = np.random.default_rng(0)
+    gt = rng.normal(size=(3, 10, 3))
+    pred = gt + 0.01 * rng.normal(size=gt.shape)
+    pred[1, 4] = np.nan
+    pa = mpjpe(pred, gt, "procrustes")
+    assert np.isnan(pa[1])
+    np.testing.assert_allclose(pa[[0, 2]], mpjpe(pred[[0, 2]], gt[[0, 2]], "procrustes"))
+
+
+def test_inputs_are_not_modified():
+    rng = np.random.default_rng(0)
+    gt, pred = rng.normal(size=(2, 2, 24, 3))
+    roots = rng.normal(size=(2, 2, 3))
+    before = [x.copy() for x in (gt, pred, roots)]
+    for alignment in ("none", "root", "procrustes"):
+        point_errors_mm(pred, gt, alignment, roots[0], roots[1])
+    w_spec_errors_mm(pred, gt, _rot_x(10.0), _rot_x(20.0), roots[0], roots[1])
+    for x, x0 in zip((gt, pred, roots), before):
+        np.testing.assert_array_equal(x, x0)
+
+
+# --------------------------------------------------------------------------- errors
+
+
+def test_shape_and_argument_errors():
+    a = np.zeros((2, 24, 3))
+    with pytest.raises(ValueError, match=r"differ in shape"):
+        mpjpe(a, np.zeros((2, 23, 3)))
+    with pytest.raises(ValueError, match=r"\(P, N, 3\)"):
+        point_errors_mm(np.zeros((24, 3)), np.zeros((24, 3)))
+    with pytest.raises(ValueError, match="alignment must be one of"):
+        mpjpe(a, a, "scale")
+    with pytest.raises(ValueError, match="pelvis"):
+        pve(a, a, "root")
+    with pytest.raises(ValueError, match=r"gt_root must have shape \(2, 3\)"):
+        pve(a, a, "root", np.zeros((2, 3)), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="root_index 24 is out of range"):
+        mpjpe(a, a, root_index=24)
+    with pytest.raises(ValueError, match="rotation matrix"):
+        to_gravity_frame(a, 2.0 * np.eye(3))
+    with pytest.raises(ValueError, match="N = 0"):
+        mpjpe(np.zeros((1, 0, 3)), np.zeros((1, 0, 3)), "procrustes")
+
+
+# --------------------------------------------------------------------------- SPEC variant
+
+
+def test_w_spec_with_equal_cameras_is_root_aligned_error():
+    rng = np.random.default_rng(0)
+    gt = rng.normal(size=(3, 24, 3))
+    pred = gt + 0.05 * rng.normal(size=gt.shape)
+    rot = _random_rotations(rng, 1)[0]
+    got = w_spec_errors_mm(pred, gt, rot, rot, pred[:, 0], gt[:, 0])
+    np.testing.assert_allclose(got, point_errors_mm(pred, gt, "root", pred[:, 0], gt[:, 0]))
+
+
+def test_w_spec_counts_camera_pitch_error():
+    # Perfect camera-frame body, but the predicted pitch is 10 deg off: in the gravity frame a
+    # joint at distance r from the x (pitch) axis through the pelvis is off by 2 r sin(5 deg).
+    gt = _skeleton()
+    got = w_spec_errors_mm(gt, gt, _rot_x(40.0), _rot_x(30.0), gt[:, 0], gt[:, 0])
+    chord = 2.0 * np.sin(np.radians(5.0))
+    np.testing.assert_allclose(got[0], [0.0, 0.0, 200.0 * chord, 300.0 * chord], atol=ATOL_MM)
+    per_person_r = np.stack([_rot_x(40.0)])
+    assert w_spec_mpjpe(gt, gt, per_person_r, _rot_x(30.0)) == pytest.approx(
+        [125.0 * chord], abs=ATOL_MM
+    )
+
+
+def _camera(pitch_deg: float, roll_deg: float, height_m: float):
+    """Contract camera: up_cam n, R_cam_from_world (columns X, Y, Z), t_cam_from_world."""
+    th, ph = np.radians(pitch_deg), np.radians(roll_deg)
+    up = np.array([-np.sin(ph) * np.cos(th), -np.cos(ph) * np.cos(th), -np.sin(th)])
+    x_axis = np.array([1.0, 0.0, 0.0]) - up[0] * up
+    x_axis /= np.linalg.norm(x_axis)
+    rot = np.stack([x_axis, up, np.cross(x_axis, up)], axis=1)
+    return up, rot, -height_m * up
+
+
+def test_to_gravity_frame_matches_contract_world_frame():
+    rng = np.random.default_rng(0)
+    up, r_cam_from_world, t_cam_from_world = _camera(25.0, 3.0, 6.0)
+    points_world = rng.normal(size=(2, 5, 3))
+    points_cam = points_world @ r_cam_from_world.T + t_cam_from_world
+    back = to_gravity_frame(points_cam, r_cam_from_world.T, -r_cam_from_world.T @ t_cam_from_world)
+    np.testing.assert_allclose(back, points_world, atol=1e-12)
+    # World Y is the height above ground.
+    np.testing.assert_allclose(height_above_ground_m(points_cam, up, 6.0), back[..., 1], atol=1e-12)
+
+
+# --------------------------------------------------------------------------- ground-aware
+
+
+def test_height_above_ground_on_known_camera():
+    up, _, _ = _camera(30.0, 0.0, 6.0)
+    # The optical axis hits the ground at depth 6 / sin(30 deg) = 12 m.
+    assert height_above_ground_m([0.0, 0.0, 12.0], up, 6.0) == pytest.approx(0.0, abs=1e-12)
+    assert height_above_ground_m(np.zeros((2, 3)), up, 6.0) == pytest.approx([6.0, 6.0])
+    with pytest.raises(ValueError, match="unit vector"):
+        height_above_ground_m(np.zeros(3), 2.0 * up, 6.0)
+
+
+def test_lean_and_stature():
+    up, _, _ = _camera(20.0, 0.0, 5.0)
+    side = np.array([1.0, 0.0, 0.0])  # horizontal, perpendicular to up (roll 0)
+    feet = np.array([[0.0, 1.0, 8.0], [1.0, 1.0, 9.0], [2.0, 1.0, 7.0], [0.0, 0.0, 5.0]])
+    lean = np.radians(10.0)
+    heads = feet + 1.7 * np.array(
+        [up, np.cos(lean) * up + np.sin(lean) * side, -up, np.zeros(3)]
+    )
+    got = lean_deg(feet, heads, up)
+    np.testing.assert_allclose(got[:3], [0.0, 10.0, 180.0], atol=1e-9)
+    assert np.isnan(got[3])
+    assert stature_m(feet[:3], heads[:3]) == pytest.approx([1.7, 1.7, 1.7])
+    assert stature_err_mm(feet[:1], feet[:1] + 1.8 * up, feet[:1], heads[:1]) == pytest.approx(
+        [100.0], abs=ATOL_MM
+    )
+
+
+def test_root_error():
+    got = root_err_mm([[0.0, 0.0, 5.0]], [[0.3, 0.4, 6.2]])
+    assert got == pytest.approx([1300.0], abs=ATOL_MM)
+
+
+# --------------------------------------------------------------------------- detection
+
+
+@pytest.mark.parametrize(
+    ("counts", "expected"),
+    [
+        ((8, 2, 2), (0.8, 0.8, 0.8)),
+        ((3, 1, 0), (1.0, 0.75, 6.0 / 7.0)),
+        ((0, 0, 0), (1.0, 1.0, 1.0)),  # empty frame: nothing to find, nothing wrong
+        ((0, 4, 0), (1.0, 0.0, 0.0)),  # no predictions at all
+        ((0, 0, 3), (0.0, 1.0, 0.0)),  # predictions on an empty scene
+    ],
+)
+def test_detection_scores(counts, expected):
+    got = detection_scores(*counts)
+    assert (got["precision"], got["recall"], got["f1"]) == pytest.approx(expected)
+
+
+def test_detection_scores_rejects_bad_counts():
+    with pytest.raises(ValueError, match="missed must be a non-negative integer"):
+        detection_scores(1, -1, 0)
+
+
+def test_normalize_by_f1():
+    assert normalize_by_f1(80.0, 0.8) == pytest.approx(100.0)
+    assert normalize_by_f1(80.0, 0.0) == np.inf
+    assert np.isnan(normalize_by_f1(np.nan, 0.5))
+    np.testing.assert_allclose(normalize_by_f1(np.array([10.0, 20.0]), 0.5), [20.0, 40.0])
+
+
+# --------------------------------------------------------------------------- camera
+
+
+def test_camera_errors_wraps_angles_and_reports_percentages():
+    gt = {"focal_px": 1400.0, "pitch_deg": 25.0, "roll_deg": -179.0, "height_m": 6.0}
+    pred = {"focal_px": 1330.0, "pitch_deg": 27.5, "roll_deg": 179.0, "height_m": 6.3}
+    got = camera_errors(pred, gt)
+    assert got["focal_pct_signed"] == pytest.approx(-5.0)
+    assert got["focal_pct"] == pytest.approx(5.0)
+    assert got["pitch_deg_signed"] == pytest.approx(2.5)
+    assert got["roll_deg_signed"] == pytest.approx(-2.0)
+    assert got["roll_deg"] == pytest.approx(2.0)
+    assert got["height_pct"] == pytest.approx(5.0)
+    with pytest.raises(ValueError, match="pred camera is missing roll_deg"):
+        camera_errors({k: v for k, v in pred.items() if k != "roll_deg"}, gt)
