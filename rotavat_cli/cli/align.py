@@ -1,0 +1,52 @@
+"""``rotavat align --in SEQ``: RotAvat on every mesh of a sequence."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..align import align_sequence
+from ..sequence import read_camera_yaml, open_sequence
+from . import app
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
+from .calibrate import run_calibration
+
+
+@app.command()
+def align(
+    seq: Annotated[Path, typer.Option("--in", help="Input sequence directory (never modified).")],
+    camera: Annotated[Path | None, typer.Option(help="camera.yaml to use; default SEQ/camera.yaml, else calibrate first.", dir_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input.", file_okay=False)] = None,
+    upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
+    height_from: Annotated[str | None, typer.Option(help="frame: each mesh keeps its stature; track: median stature per person_id.")] = None,
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
+    opts = config_for(config, "align", upright=upright, height_from=height_from)
+    sequence = open_sequence(seq)
+    out = out or seq.with_name(seq.name + "_aligned")
+    if camera is not None:
+        cam, fit = read_camera_yaml(camera, sequence.image_size)
+        origin = str(camera)
+    elif sequence.camera is not None:
+        cam, fit, origin = sequence.camera, sequence.camera_fit, str(seq / "camera.yaml")
+    else:
+        calib = run_calibration(sequence, config, quiet or as_json)
+        cam, fit, origin = calib.result.camera, calib.result.fit_dict(), "calibrated from the people"
+    enabled = progress_enabled(quiet, as_json)
+    with progress_bar("aligning", len(sequence), enabled) as advance:
+        summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance)
+    result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out"}}
+    if as_json:
+        print_json(result)
+        return
+    flagged = sum(summary.flagged.values())
+    info(f"aligned {summary.aligned} of {summary.people} people in {summary.frames} frames ({flagged} flagged"
+         + (": " + ", ".join(f"{k} {v}" for k, v in summary.flagged.items()) if flagged else "") + ")", quiet)
+    info(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
+         f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m", quiet)
+    info(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)

@@ -1,0 +1,78 @@
+"""``rotavat calibrate SEQ``: estimate the static camera from the people (2D foot/head points)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from ..sequence import Sequence, open_sequence, write_camera_yaml
+from . import app
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, console, info, print_json
+
+
+def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> "SequenceCalibration":
+    """Calibrate with defaults < config file < flags, printing warnings unless quiet."""
+    from ..autocalib import calibrate_sequence  # TEMP: lazy until calibrate.py lands
+
+    calib = calibrate_sequence(seq, config_for(config, "calibrate", **flags))
+    for warning in calib.result.warnings:
+        info(f"[yellow]warning:[/] {warning}", quiet)
+    return calib
+
+
+@app.command()
+def calibrate(
+    seq: Annotated[Path, typer.Argument(help="Sequence directory (2D feet_2d/heads_2d, or meshes with their focal).")],
+    out: Annotated[Path | None, typer.Option(help="Where to write camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
+    method: Annotated[str | None, typer.Option(help="grid: the paper's 50^3 search exactly; refine: grid + robust refinement.")] = None,
+    focal: Annotated[float | None, typer.Option("--focal", help="Fix the focal length (px).")] = None,
+    estimate_focal: Annotated[bool | None, typer.Option("--estimate-focal/--keep-focal", help="Estimate f even when the sequence declares it.")] = None,
+    roll: Annotated[bool | None, typer.Option("--roll/--no-roll", help="Estimate roll (refine) or fix it at 0.")] = None,
+    principal_point: Annotated[tuple[float, float] | None, typer.Option(help="Known principal point cx cy (px).")] = None,
+    person_height: Annotated[float | None, typer.Option(help="Mean stature sole->crown (m).")] = None,
+    height_sd: Annotated[float | None, typer.Option(help="Spread of the stature prior (m).")] = None,
+    residual: Annotated[str | None, typer.Option(help="full (head u and v) or vertical (head row only; box-derived points).")] = None,
+    fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Weak prior on the vertical field of view (deg).")] = None,
+    per_frame: Annotated[bool | None, typer.Option("--per-frame/--pooled", help="Also calibrate each frame alone and report the spread.")] = None,
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Estimate focal, pitch, roll and height of the static camera from the people in a sequence."""
+    sequence = open_sequence(seq, read_camera=False)
+    calib = run_calibration(
+        sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
+        estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
+        person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, fov_prior_deg=fov_prior,
+        per_frame=per_frame)
+    target = out or seq / "camera.yaml"
+    fit = {**calib.result.fit_dict(), "focal_policy": calib.focal_policy}
+    write_camera_yaml(target, calib.result.camera, fit)
+    cam = calib.result.camera
+    summary = {"camera_yaml": str(target), "focal_px": cam.focal_px, "pitch_deg": float(np.rad2deg(cam.pitch_rad)),
+               "roll_deg": float(np.rad2deg(cam.roll_rad)), "height_m": cam.height_m, "fit": fit, "per_frame": calib.per_frame}
+    if as_json:
+        print_json(summary)
+        return
+    if not quiet:
+        console.print(_table(summary))
+    info(f"wrote {target}", quiet)
+
+
+def _table(summary: dict) -> Table:
+    """Rich table of the estimate with its standard deviations."""
+    fit = summary["fit"]
+    std = fit.get("std", {})
+    table = Table(title=f"camera ({fit.get('method')}, focal {fit.get('focal_policy')})")
+    for col in ("parameter", "value", "± std"):
+        table.add_column(col)
+    for key, unit in (("focal_px", "px"), ("pitch_deg", "°"), ("roll_deg", "°"), ("height_m", "m")):
+        sd = std.get(key)
+        table.add_row(key, f"{summary[key]:.3f} {unit}", "fixed" if sd is None or not np.isfinite(sd) else f"{sd:.3f}")
+    table.caption = (f"{fit.get('inliers')}/{fit.get('pairs')} pairs inliers over {fit.get('frames')} frames, "
+                     f"head rmse {fit.get('rmse_px', float('nan')):.2f} px")
+    return table

@@ -1,0 +1,68 @@
+"""Foot (mid-sole) and head (crown) points of the people of a frame or a whole sequence.
+
+2D points: explicit ``feet_2d``/``heads_2d`` in a frame take precedence; otherwise they are the
+projections of the mesh landmarks (:mod:`rotavat_cli.landmarks`) through the intrinsics the HPS
+method used (the frame's ``focal_length``/``K`` or meta.yaml's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import project_cam_to_px
+from .errors import InputError
+from .landmarks import foot_head_points
+from .sequence import Frame, Intrinsics, Sequence
+
+__all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
+
+
+@dataclass(frozen=True)
+class FootHeadPairs:
+    """Foot/head pixel pairs pooled over a sequence."""
+
+    feet_px: np.ndarray  # (N, 2)
+    heads_px: np.ndarray  # (N, 2)
+    frame_index: np.ndarray  # (N,) int
+    person_ids: np.ndarray  # (N,) int
+    n_frames: int
+    source: str  # "2d" (explicit points), "mesh" (projected landmarks) or "mixed"
+
+
+def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, str]:
+    """(P, 2) foot and head pixels of a frame and where they came from ('2d' or 'mesh')."""
+    feet, heads = frame.get("feet_2d"), frame.get("heads_2d")
+    if feet is not None and heads is not None:
+        return feet[:, :2].astype(np.float64), heads[:, :2].astype(np.float64), "2d"
+    verts = frame.get("vertices")
+    if verts is None:
+        if frame.n_people == 0:
+            return np.zeros((0, 2)), np.zeros((0, 2)), "2d"
+        raise InputError(f"{frame.source}: needs 'feet_2d' and 'heads_2d', or 'vertices' to find them")
+    if intrinsics.focal_px is None or intrinsics.principal_point is None:
+        raise InputError(f"{frame.source}: projecting the meshes needs the focal length they were made with "
+                         "(meta.yaml 'focal_length' or 'K', or a frame key)")
+    feet_cam, heads_cam = foot_head_points(verts)
+    return (project_cam_to_px(feet_cam, intrinsics.focal_px, intrinsics.principal_point),
+            project_cam_to_px(heads_cam, intrinsics.focal_px, intrinsics.principal_point), "mesh")
+
+
+def gather_pairs(seq: Sequence) -> FootHeadPairs:
+    """Pool every frame's foot/head pixel pairs (non-finite pairs dropped), one frame at a time."""
+    feet, heads, index, ids, sources = [], [], [], [], set()
+    for i, frame in enumerate(seq.frames()):
+        f, h, src = frame_foot_head_px(frame, seq.frame_intrinsics(frame))
+        if len(f):
+            sources.add(src)
+        feet.append(f)
+        heads.append(h)
+        index.append(np.full(len(f), i, dtype=np.int64))
+        ids.append(frame.person_ids)
+    feet_px = np.concatenate(feet) if feet else np.zeros((0, 2))
+    heads_px = np.concatenate(heads) if heads else np.zeros((0, 2))
+    keep = np.all(np.isfinite(feet_px), axis=1) & np.all(np.isfinite(heads_px), axis=1)
+    source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
+    return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
+                         np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), len(seq), source)
