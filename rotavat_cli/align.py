@@ -113,6 +113,8 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
         raise InputError(f"{out}: the output directory must differ from the input sequence")
     if height_from not in ("frame", "track"):
         raise InputError(f"height_from must be 'frame' or 'track', got {height_from!r}")
+    if upright not in ("paper", "full"):
+        raise InputError(f"upright must be 'paper' or 'full', got {upright!r}")
     stature_by_id = track_statures(seq, camera, upright) if height_from == "track" else None
     summary = AlignSummary(out)
     depth, rotation, stature, flags = [], [], [], defaultdict(int)

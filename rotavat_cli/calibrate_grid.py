@@ -48,7 +48,8 @@ _RAY_EPS = 1e-12  # same "ray parallel to the ground" threshold as camera.backpr
 _BLOCK_ELEMS = 200_000  # float32 cells x pairs per block: ~0.8 MB, stays in L2
 _RECHECK_REL = 2e-3  # float32 costs are trusted to this relative error; closer cells are re-checked
 _RECHECK_MAX = 4096  # at most this many cells are re-evaluated in float64
-_DOT = np.matmul
+# Row-wise dot product without BLAS gemv (OpenBLAS worker threads spin and starve the grid's threads).
+_DOT = getattr(np, "vecdot", lambda a, b: np.einsum("ij,j->i", a, b))
 
 
 @dataclass(frozen=True)
@@ -214,15 +215,15 @@ def grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point, focal
     vertical = residual == "vertical"
 
     def one(j: int) -> np.ndarray:
-        return _paper_costs_one_pitch(rel_feet, diff, focal, ups[j], inv_k, vertical)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # per thread
+            return _paper_costs_one_pitch(rel_feet, diff, focal, ups[j], inv_k, vertical)
 
     n_threads = _workers(len(pitches), float(len(feet)) * len(focal) * len(pitches) * len(inv_k), workers)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        if n_threads == 1:
-            per_pitch = [one(j) for j in range(len(pitches))]
-        else:
-            with ThreadPoolExecutor(n_threads) as pool:
-                per_pitch = list(pool.map(one, range(len(pitches))))
+    if n_threads == 1:
+        per_pitch = [one(j) for j in range(len(pitches))]
+    else:
+        with ThreadPoolExecutor(n_threads) as pool:
+            per_pitch = list(pool.map(one, range(len(pitches))))
     return np.stack(per_pitch, axis=1)
 
 

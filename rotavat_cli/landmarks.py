@@ -224,7 +224,7 @@ def _lowest_patch_point(centered: np.ndarray, axis: np.ndarray, lateral: np.ndar
         coord = np.einsum("pvi,pi->pv", centered, direction)
         lo = np.where(patch, coord, np.inf).min(axis=1)
         hi = np.where(patch, coord, -np.inf).max(axis=1)
-        centre.append(np.where(count > 0, 0.5 * (lo + hi), 0.0))
+        centre.append(0.5 * (np.where(count > 0, lo, 0.0) + np.where(count > 0, hi, 0.0)))
     lowest = np.where(count > 0, lowest, 0.0)  # an empty side has lowest = inf
     point = centre[0][:, None] * lateral + centre[1][:, None] * forward + lowest[:, None] * axis
     point[count == 0] = np.nan

@@ -25,7 +25,7 @@ import numpy as np
 
 from .rotations import axis_angle_to_matrix
 
-__all__ = ["FLAGS", "AlignTransform", "rotavat_transforms", "apply_transforms"]
+__all__ = ["FLAGS", "AlignTransform", "rotavat_transforms", "apply_transforms", "closest_scale_on_line"]
 
 # Flag codes of people that are left unchanged (0 = aligned).
 FLAGS = {
@@ -62,7 +62,7 @@ def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.divide(v, norm[..., None], out=np.zeros_like(v), where=norm[..., None] > 0), norm
 
 
-def _closest_scale_on_line(origin: np.ndarray, direction: np.ndarray, ray: np.ndarray) -> np.ndarray:
+def closest_scale_on_line(origin: np.ndarray, direction: np.ndarray, ray: np.ndarray) -> np.ndarray:
     """k (P,) such that ``origin + k direction`` is closest to the line through 0 along ``ray``."""
     d = direction
     r, _ = _unit(ray)
@@ -121,7 +121,7 @@ def rotavat_transforms(
     R = axis_angle_to_matrix(rot_axis, angle)
 
     # (iii) scale about F1 so the crown is back on its ray (or has the given stature)
-    k = _closest_scale_on_line(F1, target, H)  # F1 + k target meets (or nears) the crown ray
+    k = closest_scale_on_line(F1, target, H)  # F1 + k target meets (or nears) the crown ray
     s3 = k / np.where(length > 0, length, 1.0)
     if stature_m is not None:
         fixed = np.isfinite(np.asarray(stature_m, dtype=np.float64))

@@ -2,8 +2,9 @@
 
 Ground truth: upright people of varied stature (mean 1.70 m, sd 0.07 m) walking on the ground
 of a random surveillance camera. Prediction: the same people as an HPS method returns them,
-right from the camera's view but wrong in the world: each body leans toward the image plane,
-has a near-average size and lives in the method's own assumed camera (focal ``hps_focal``),
+right from the camera's view but wrong in the world: each body leans toward the image plane
+(keeping its foot and crown pixels), has a near-average size and lives in the method's own
+assumed camera (focal ``hps_focal``, mapped by ``diag(r, r, r F / f)`` so its image is unchanged),
 plus a per-person depth error, small 3D noise, and noisy 2D detections with gross outliers.
 Deterministic for a given seed.
 """
@@ -20,6 +21,7 @@ from .bodies import BodyLibrary, load_bodies
 from .camera import Camera
 from .landmarks import foot_head_points
 from .rotations import axis_angle_to_matrix, rotate_about
+from .rotavat import closest_scale_on_line
 from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 
 __all__ = ["SynthOptions", "random_camera", "sample_walks", "synth_frames", "write_synth_scene"]
@@ -111,14 +113,25 @@ def _pose_bodies(library: BodyLibrary, body_index: np.ndarray, scale: np.ndarray
 
 
 def _lean_toward_image_plane(points: list[np.ndarray], feet: np.ndarray, heads: np.ndarray, fraction: np.ndarray) -> list[np.ndarray]:
-    """Rotate bodies about their centre, in the plane of the camera centre and their axis, toward the image plane."""
+    """Lean bodies toward the image plane while keeping their foot and crown pixels.
+
+    Each body's axis turns, in the plane of the camera centre and the axis, by ``fraction`` of the
+    angle between the axis and the image plane (the failure the paper shows); the rigidly turned
+    body is then slid inside that plane so its foot and crown stay on their camera rays, as an
+    HPS fit to the image would place it.
+    """
     centre = 0.5 * (feet + heads)
     axis = heads - feet
+    length = np.linalg.norm(axis, axis=-1)
     sight = centre / np.linalg.norm(centre, axis=-1, keepdims=True)
     normal = np.cross(sight, axis)  # rotating about it keeps the axis in the camera-axis plane
-    tilt = np.arcsin(np.clip(np.sum(axis * sight, axis=-1) / np.linalg.norm(axis, axis=-1), -1.0, 1.0))
+    tilt = np.arcsin(np.clip(np.sum(axis * sight, axis=-1) / length, -1.0, 1.0))
     R = axis_angle_to_matrix(normal, fraction * tilt)  # brings the axis toward perpendicular-to-sight
-    return [rotate_about(p, R, centre) for p in points]
+    new_axis = np.einsum("pij,pj->pi", R, axis)
+    foot_ray = feet / np.linalg.norm(feet, axis=-1, keepdims=True)
+    # new foot a * foot_ray such that new foot + new_axis lies on the crown ray
+    new_feet = closest_scale_on_line(new_axis, foot_ray, heads)[:, None] * foot_ray
+    return [new_feet[:, None] + np.einsum("pij,pnj->pni", R, p - feet[:, None]) for p in points]
 
 
 def _hps_distort(points: np.ndarray, size_ratio: np.ndarray, depth_scale: np.ndarray, hps_focal: float, focal: float) -> np.ndarray:

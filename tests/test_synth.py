@@ -60,10 +60,11 @@ def test_prediction_leans_and_errs_in_depth():
     lean = np.degrees(np.arccos(np.sum((heads_p - feet_p) * camera.up_cam, -1) / np.linalg.norm(heads_p - feet_p, axis=-1)))
     assert np.median(lean) > 3.0  # leaning toward the image plane
     assert np.median(np.abs(camera.height_above_ground(feet_p))) > 0.05  # floating or sunk
-    # image roughly right: the lean about the body centre moves feet along the body's image axis only
-    shift = np.linalg.norm(camera.project(feet_p) - camera.project(feet_gt), axis=-1)
+    # image right: foot and crown pixels move by the 3D noise only
     body_px = np.linalg.norm(camera.project(heads_gt) - camera.project(feet_gt), axis=-1)
-    assert np.all(shift < 0.25 * body_px) and np.median(shift / body_px) < 0.15
+    for pred_cam, gt_cam in ((feet_p, feet_gt), (heads_p, heads_gt)):
+        shift = np.linalg.norm(camera.project(pred_cam) - camera.project(gt_cam), axis=-1)
+        assert np.all(shift < 0.03 * body_px)
 
 
 @pytest.mark.parametrize("geometry", [False, True])
@@ -83,11 +84,11 @@ def test_landmarks_match_generator_truth(geometry):
     truth_feet = camera.cam_from_world(pos)
     heights = camera.height_above_ground(verts)
     truth_heads = verts[np.arange(P), np.argmax(heights, axis=1)]
-    # the registered topology meets the 1 cm; geometry mode (any mesh) defines the mid-sole
-    # as the footprint's centre, within 2 cm of the generator's sole-vertex definition
+    # the registered topology meets the 1 cm; geometry mode (any mesh) takes the centre of
+    # the footprint / head-top patch, within 2 cm of the generator's vertex definitions
     tol = 0.02 if geometry else 0.01
     np.testing.assert_array_less(np.linalg.norm(feet - truth_feet, axis=-1), tol)
-    np.testing.assert_array_less(np.linalg.norm(heads - truth_heads, axis=-1), 0.01)
+    np.testing.assert_array_less(np.linalg.norm(heads - truth_heads, axis=-1), tol)
 
 
 def test_bad_synth_options_exit_2(tmp_path, runner):

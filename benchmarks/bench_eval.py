@@ -1,0 +1,235 @@
+"""Throughput of rotavat's batched evaluation metrics vs a per-person Python loop.
+
+Usage: python benchmarks/bench_eval.py [--pairs 100000] [--chunk 500] [--loop-pairs 2000]
+
+Person-pairs (prediction + ground truth, SMPL-sized: 24 joints, 6,890 vertices, float32 as HPS
+tools dump them) go through the eight per-person metrics of ``rotavat_cli.metrics``: W-MPJPE,
+MPJPE, PA-MPJPE, SPEC W-MPJPE and the same four on vertices. The batched path converts each
+chunk to float64 once and calls the public functions; the baseline is the straightforward
+per-person loop (per-person ``np.linalg.svd`` Procrustes in SPIN's ``compute_similarity_transform``
+style), run on a subset of ``--loop-pairs`` in the same process and extrapolated. Both see the
+same data; their results are compared before timing.
+
+Memory: chunks of ``--chunk`` people bound the peak. One float64 vertex array of 500 people is
+6,890 x 3 x 8 B x 500 = 83 MB; the Procrustes path holds about six of them, so ~0.5 GB plus the
+float32 data pool. Random data are drawn once into a pool of a few chunks (``--pool``) and
+cycled, so the timings measure the metrics, not the random number generator.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from rotavat_cli.metrics import mpjpe, pve, w_spec_mpjpe, w_spec_pve  # noqa: E402
+
+N_JOINTS = 24
+N_VERTS = 6890
+METRICS = (
+    "w_mpjpe", "mpjpe", "pa_mpjpe", "w_spec_mpjpe",
+    "w_pve", "pve", "pa_pve", "w_spec_pve",
+)
+
+
+def rot_x(angle_deg: float) -> np.ndarray:
+    """Rotation about the camera x axis (a pitch), (3, 3)."""
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+R_WORLD_FROM_CAM_PRED = rot_x(-22.0)  # estimated camera: pitch 22 deg
+R_WORLD_FROM_CAM_GT = rot_x(-25.0)    # true camera: pitch 25 deg
+
+
+def make_chunk(rng: np.random.Generator, n_people: int) -> tuple[np.ndarray, ...]:
+    """Random body-sized pred/gt joints (P, 24, 3) and vertices (P, 6890, 3), float32 metres."""
+    place = rng.uniform([-3.0, 0.5, 4.0], [3.0, 2.0, 20.0], size=(n_people, 1, 3))
+    gt_joints = place + rng.normal(0.0, 0.3, size=(n_people, N_JOINTS, 3))
+    gt_verts = place + rng.normal(0.0, 0.3, size=(n_people, N_VERTS, 3))
+    shift = rng.normal(0.0, 0.2, size=(n_people, 1, 3))  # depth / placement error
+    pred_joints = gt_joints + shift + rng.normal(0.0, 0.03, size=gt_joints.shape)
+    pred_verts = gt_verts + shift + rng.normal(0.0, 0.03, size=gt_verts.shape)
+    return tuple(x.astype(np.float32) for x in (pred_joints, gt_joints, pred_verts, gt_verts))
+
+
+# --------------------------------------------------------------------------- batched
+
+
+def batched_metrics(
+    pred_pts: np.ndarray, gt_pts: np.ndarray, pred_root: np.ndarray, gt_root: np.ndarray
+) -> dict[str, Callable[[], np.ndarray]]:
+    """The four metrics of one point kind (float64 arrays), as zero-argument calls -> (P,) mm."""
+    rp, rg = R_WORLD_FROM_CAM_PRED, R_WORLD_FROM_CAM_GT
+    if pred_pts.shape[1] == N_JOINTS:
+        return {
+            "w_mpjpe": lambda: mpjpe(pred_pts, gt_pts, "none"),
+            "mpjpe": lambda: mpjpe(pred_pts, gt_pts, "root"),
+            "pa_mpjpe": lambda: mpjpe(pred_pts, gt_pts, "procrustes"),
+            "w_spec_mpjpe": lambda: w_spec_mpjpe(pred_pts, gt_pts, rp, rg),
+        }
+    return {
+        "w_pve": lambda: pve(pred_pts, gt_pts, "none"),
+        "pve": lambda: pve(pred_pts, gt_pts, "root", pred_root, gt_root),
+        "pa_pve": lambda: pve(pred_pts, gt_pts, "procrustes"),
+        "w_spec_pve": lambda: w_spec_pve(pred_pts, gt_pts, rp, rg, pred_root, gt_root),
+    }
+
+
+def time_batched(pool: list, n_pairs: int, chunk_size: int, verts: bool) -> dict[str, float]:
+    """Seconds spent per metric (and on float64 conversion) over ``n_pairs`` in chunks."""
+    seconds: dict[str, float] = {}
+    done, i = 0, 0
+    while done < n_pairs:
+        size = min(chunk_size, n_pairs - done)
+        pj, gj, pv, gv = (x[:size] for x in pool[i % len(pool)])
+        t0 = time.perf_counter()
+        if verts:
+            pred64, gt64 = np.asarray(pv, np.float64), np.asarray(gv, np.float64)
+            roots = np.asarray(pj[:, 0], np.float64), np.asarray(gj[:, 0], np.float64)
+        else:
+            pred64, gt64 = np.asarray(pj, np.float64), np.asarray(gj, np.float64)
+            roots = pred64[:, 0], gt64[:, 0]
+        key = "to_float64_verts" if verts else "to_float64_joints"
+        seconds[key] = seconds.get(key, 0.0) + time.perf_counter() - t0
+        for name, call in batched_metrics(pred64, gt64, *roots).items():
+            t0 = time.perf_counter()
+            call()
+            seconds[name] = seconds.get(name, 0.0) + time.perf_counter() - t0
+        done += size
+        i += 1
+    return seconds
+
+
+# --------------------------------------------------------------------------- loop baseline
+
+
+def loop_pa_error_mm(pred: np.ndarray, gt: np.ndarray) -> float:
+    """One person's PA error, textbook per-person Umeyama (as SPIN/mmhuman3d loop it)."""
+    x = pred.T - pred.mean(axis=0)[:, None]
+    y = gt.T - gt.mean(axis=0)[:, None]
+    u, _, vt = np.linalg.svd(x @ y.T)
+    z = np.eye(3)
+    z[-1, -1] = np.sign(np.linalg.det(u @ vt))
+    rot = vt.T @ z @ u.T
+    scale = np.trace(rot @ x @ y.T) / np.sum(x**2)
+    aligned = scale * rot @ x + gt.mean(axis=0)[:, None]
+    return float(np.linalg.norm(aligned.T - gt, axis=1).mean() * 1000.0)
+
+
+def loop_metric(name: str, pj, gj, pv, gv) -> float:
+    """One metric for one person, the straightforward way: (J, 3) / (V, 3) -> mm."""
+    rp, rg = R_WORLD_FROM_CAM_PRED, R_WORLD_FROM_CAM_GT
+    on_verts = name.endswith("pve")
+    pred = np.asarray(pv if on_verts else pj, dtype=np.float64)
+    gt = np.asarray(gv if on_verts else gj, dtype=np.float64)
+    pr, gr = np.asarray(pj[0], np.float64), np.asarray(gj[0], np.float64)
+    if name.startswith("w_spec"):
+        diff = (pred - pr) @ rp.T - (gt - gr) @ rg.T
+    elif name.startswith("pa_"):
+        return loop_pa_error_mm(pred, gt)
+    elif name.startswith("w_"):
+        diff = pred - gt
+    else:
+        diff = (pred - pr) - (gt - gr)
+    return float(np.linalg.norm(diff, axis=1).mean() * 1000.0)
+
+
+# --------------------------------------------------------------------------- driver
+
+
+def run(n_pairs: int, chunk_joints: int, chunk_verts: int, n_loop: int, seed: int) -> dict:
+    """Time both paths; returns per-metric seconds per pair and a consistency check."""
+    rng = np.random.default_rng(seed)
+    n_pool = max(4, -(-min(n_loop, n_pairs) // chunk_verts))
+    pool = [make_chunk(rng, chunk_verts) for _ in range(n_pool)]
+    pooled = [np.concatenate([c[j] for c in pool]) for j in range(4)]
+    joint_pool = [
+        tuple(x[k : k + chunk_joints] for x in pooled)
+        for k in range(0, len(pooled[0]), chunk_joints)
+    ]
+
+    batched_s = time_batched(joint_pool, n_pairs, chunk_joints, verts=False)
+    batched_s.update(time_batched(pool, n_pairs, chunk_verts, verts=True))
+
+    n_loop = min(n_loop, n_pairs, len(pooled[0]))
+    subset = tuple(x[:n_loop] for x in pooled)
+    loop_s, loop_vals = {}, {}
+    for name in METRICS:
+        t0 = time.perf_counter()
+        loop_vals[name] = np.array(
+            [loop_metric(name, *(x[i] for x in subset)) for i in range(n_loop)]
+        )
+        loop_s[name] = time.perf_counter() - t0
+
+    pj, gj, pv, gv = (np.asarray(x, np.float64) for x in subset)
+    calls = batched_metrics(pj, gj, pj[:, 0], gj[:, 0])
+    calls.update(batched_metrics(pv, gv, pj[:, 0], gj[:, 0]))
+    max_diff_mm = max(float(np.abs(calls[n]() - loop_vals[n]).max()) for n in METRICS)
+    return {
+        "batched": {n: t / n_pairs for n, t in batched_s.items()},
+        "loop": {n: loop_s[n] / n_loop for n in METRICS},
+        "batched_total_s": sum(batched_s.values()),
+        "n_loop": n_loop,
+        "max_diff_mm": max_diff_mm,
+    }
+
+
+def print_report(res: dict, n_pairs: int, chunk_size: int) -> None:
+    """Print the per-metric table, subtotals and the overall ratio."""
+    b, lp = res["batched"], res["loop"]
+    print(
+        f"rotavat metrics: {n_pairs:,} person-pairs x ({N_JOINTS} joints + {N_VERTS:,} vertices),"
+        f" float32 in, chunk {chunk_size}; loop baseline on {res['n_loop']:,} pairs, extrapolated"
+    )
+    print(f"{'metric':<16}{'batched us/pair':>17}{'loop us/pair':>14}{'speed-up':>10}")
+    for name in METRICS:
+        print(f"{name:<16}{b[name] * 1e6:>17.1f}{lp[name] * 1e6:>14.1f}{lp[name] / b[name]:>9.1f}x")
+    groups = {
+        "joints (4)": [n for n in METRICS if n.endswith("mpjpe")],
+        "vertices (4)": [n for n in METRICS if n.endswith("pve")],
+        "all 8": list(METRICS),
+    }
+    print()
+    print(f"{'subtotal':<16}{'batched pairs/s':>17}{'loop pairs/s':>14}{'speed-up':>10}")
+    for label, names in groups.items():
+        tb, tl = sum(b[n] for n in names), sum(lp[n] for n in names)
+        print(f"{label:<16}{1 / tb:>17,.0f}{1 / tl:>14,.0f}{tl / tb:>9.1f}x")
+    total_b, total_l = sum(b.values()), sum(lp.values())
+    print()
+    print(
+        f"all 8 metrics on {n_pairs:,} pairs: batched {res['batched_total_s']:.1f} s measured, "
+        f"loop {total_l * n_pairs:.1f} s extrapolated -> ratio {total_l / total_b:.1f}x"
+    )
+    print(f"max |batched - loop| over the subset: {res['max_diff_mm']:.2e} mm")
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak resident memory: {peak_mb:,.0f} MB")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Parse arguments, run the benchmark and print the report."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pairs", type=int, default=100_000, help="person-pairs to evaluate")
+    parser.add_argument("--chunk", type=int, default=500, help="people per batched call")
+    parser.add_argument("--loop-pairs", type=int, default=2_000, help="pairs for the loop")
+    parser.add_argument("--pool", type=int, default=4, help="distinct random chunks to cycle")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    if min(args.pairs, args.chunk, args.loop_pairs, args.pool) < 1:
+        parser.error("--pairs, --chunk, --loop-pairs and --pool must be >= 1")
+    chunk = min(args.chunk, args.pairs)
+    # The loop subset is drawn from the pool: make the pool big enough to hold it.
+    pool = max(args.pool, -(-min(args.loop_pairs, args.pairs) // chunk))
+    res = run(args.pairs, chunk, args.loop_pairs, pool, args.seed)
+    print_report(res, args.pairs, chunk)
+
+
+if __name__ == "__main__":
+    main()
