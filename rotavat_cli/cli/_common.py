@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -17,6 +15,7 @@ from typer.core import TyperGroup
 
 from ..config import load_config
 from ..errors import RotavatError
+from ..plain import to_plain
 
 console = Console(stderr=True)
 T = TypeVar("T")
@@ -65,26 +64,9 @@ def track(items: Iterable[T], description: str, total: int | None, enabled: bool
             advance()
 
 
-def _plain(value: Any) -> Any:
-    """JSON-safe plain types (NaN/inf become null)."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return _plain(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
 def print_json(data: Any) -> None:
     """Write ``data`` as JSON to stdout."""
-    typer.echo(json.dumps(_plain(data), indent=2))
+    typer.echo(json.dumps(to_plain(data), indent=2))
 
 
 def info(message: str, quiet: bool) -> None:

@@ -1,0 +1,599 @@
+"""Calibrate a static camera from the people it sees: foot (mid-sole) and head (crown) pixels only.
+
+Two methods (conventions: CONVENTIONS.md; the model and the fast grid: :mod:`.calibrate_grid`):
+
+- ``"grid"``: the seed paper exactly. Focal, pitch and camera height on a 50^3 grid, roll 0,
+  principal point at the image centre, stature 1.70 m, least squares on the head pixels; the
+  result is the grid's best cell.
+- ``"refine"`` (default): a robust grid on a subsample seeds a few starts along the focal/pitch
+  valley; each is refined continuously (``scipy.optimize.least_squares``, Cauchy then soft-L1
+  loss) over log-focal, pitch, roll and log-height, with rounds of outlier rejection (a chi-square
+  test on each pair's whitened residual). Residuals are whitened per pair: along the person's
+  image axis by ``sqrt(noise^2 + (L * sd_S / S)^2)`` (``L`` its pixel length: the stature prior's
+  spread), across it by the point noise. Optional: known principal point, fixed focal, no roll,
+  head-row-only residuals (box-derived points), and a weak prior on the vertical field of view.
+
+From upright people on a plane the horizon (~ f tan(pitch)) and the camera height are well
+determined, but focal and pitch slide along a valley; :class:`CalibrationResult` reports
+standard deviations (Gauss-Newton at the optimum, or a cluster-robust sandwich over tracks or
+frames when that is larger), the focal/pitch correlation, and warnings in plain words.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .calibrate_grid import GridSpec, paper_grid_search, robust_grid_costs
+from .camera import Camera, horizon_v_px, up_vector_cam
+from .errors import DegenerateSceneError
+
+__all__ = ["CalibrationResult", "PerFrameSummary", "GridSpec", "fit_camera", "calibrate", "fit_per_frame"]
+
+METHODS = ("grid", "refine")
+RESIDUALS = ("full", "vertical")
+PARAM_NAMES = ("focal_px", "pitch_deg", "roll_deg", "height_m")
+
+_RAY_EPS = 1e-12  # foot ray "parallel to the ground" (as camera.backproject_px_to_plane)
+_Z_MIN = 0.05  # head depth / foot depth below this: head (nearly) behind the camera -> invalid pair
+_INIT_PAIRS = 1000  # robust grid and multi-start run on at most this many pairs
+_INIT_TRUNCATE = 0.25  # robust grid: head errors beyond 25% of the person's pixel length are outliers
+_CHI2_99 = {2: 9.2103, 1: 6.6349}  # chi-square 99% quantiles (pair residual: 2 or 1 components)
+_CHI2_MEDIAN = {2: 1.3863, 1: 0.4549}  # chi-square medians, for the robust residual scale
+_FD_STEP = 1e-6  # finite-difference step in the internal parameters (log f, rad, rad, log h)
+_MIN_SCALE = 1e-3  # floor of the robust residual scale (noise-free data)
+
+# Warning thresholds: a parameter is "poorly determined" past these standard deviations.
+WARN_FOCAL_REL_SD = 0.10
+WARN_FOCAL_PITCH_CORR = 0.95
+WARN_PITCH_SD_DEG = 2.0
+WARN_HEIGHT_REL_SD = 0.10
+WARN_INLIER_FRACTION = 0.6
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """An estimated camera with the diagnostics of its fit (never a silent default camera)."""
+
+    camera: Camera
+    method: str  # "grid" | "refine"
+    person_height_m: float
+    pairs: int  # foot-head pairs offered
+    inliers: int  # pairs kept by the fit
+    frames: int  # distinct frames among the pairs
+    rmse_px: float  # head reprojection residual over the inliers (2D, or rows only if vertical)
+    std: dict[str, float]  # focal_px, pitch_deg, roll_deg, height_m; NaN when fixed
+    corr_focal_pitch: float  # NaN when either is fixed
+    inlier_mask: np.ndarray  # (N,) bool
+    warnings: tuple[str, ...] = ()
+    residual: str = "full"
+
+    @property
+    def horizon_v_px(self) -> float:
+        """Image row of the horizon at the image's centre column."""
+        cam = self.camera
+        return float(horizon_v_px(cam.image_size[0] / 2.0, cam.focal_px, cam.principal_point, cam.up_cam))
+
+    def fit_dict(self) -> dict:
+        """Plain-typed ``fit:`` block of camera.yaml (CONVENTIONS.md); NaN becomes None."""
+        return {
+            "method": self.method,
+            "residual": self.residual,
+            "person_height_m": float(self.person_height_m),
+            "pairs": int(self.pairs),
+            "inliers": int(self.inliers),
+            "frames": int(self.frames),
+            "rmse_px": _plain(self.rmse_px),
+            "std": {k: _plain(self.std.get(k, math.nan)) for k in PARAM_NAMES},
+            "corr_focal_pitch": _plain(self.corr_focal_pitch),
+            "warnings": list(self.warnings),
+        }
+
+
+def _plain(x: float) -> float | None:
+    """Float for YAML/JSON, None for NaN."""
+    x = float(x)
+    return None if math.isnan(x) else x
+
+
+@dataclass(frozen=True)
+class PerFrameSummary:
+    """Every frame calibrated alone: per-frame results and the spread of each parameter."""
+
+    frame_ids: tuple[int, ...]  # frames that were fitted
+    results: tuple[CalibrationResult, ...]
+    skipped: dict[int, str]  # frame id -> why it could not be fitted
+    median: dict[str, float]  # per parameter (PARAM_NAMES), over the fitted frames
+    iqr: dict[str, float]  # 75th minus 25th percentile
+
+
+# ---- input checks ----------------------------------------------------------------------------------
+def _check_image_size(image_size) -> tuple[int, int]:
+    """(W, H) as positive ints, or ValueError."""
+    try:
+        w, h = (float(v) for v in image_size)
+    except (TypeError, ValueError):
+        raise ValueError(f"image_size must be [W, H] in pixels, got {image_size!r}") from None
+    if not (math.isfinite(w) and math.isfinite(h) and w >= 1 and h >= 1):
+        raise ValueError(f"image_size must be two positive numbers [W, H], got {image_size!r}")
+    return int(round(w)), int(round(h))
+
+
+def _check_points(feet_px, heads_px) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Float64 (N, 2) feet and heads and the (N,) mask of usable pairs (head above the foot)."""
+    feet, heads = np.asarray(feet_px, np.float64), np.asarray(heads_px, np.float64)
+    if feet.ndim != 2 or feet.shape[1:] != (2,) or heads.shape != feet.shape:
+        raise ValueError(f"feet_px and heads_px must both have shape (N, 2), got {feet.shape} and {heads.shape}")
+    bad = ~(np.isfinite(feet).all(axis=1) & np.isfinite(heads).all(axis=1))
+    if bad.any():
+        raise ValueError(f"{int(bad.sum())} foot-head pairs have NaN or infinite pixels (first: pair "
+                         f"{int(np.flatnonzero(bad)[0])}); drop them before calibrating")
+    below = heads[:, 1] >= feet[:, 1]
+    if len(feet) and below.sum() * 2 > len(feet):
+        raise ValueError(f"the head is not above the foot (head v >= foot v) in {int(below.sum())} of {len(feet)} "
+                         "pairs; image v points down, so heads need smaller v: are feet and heads swapped?")
+    return feet, heads, ~below
+
+
+def _check_index(values, n: int, name: str) -> np.ndarray | None:
+    """(N,) int64 array or None, or ValueError."""
+    if values is None:
+        return None
+    arr = np.asarray(values)
+    if arr.shape != (n,) or not (np.issubdtype(arr.dtype, np.integer) or n == 0):
+        raise ValueError(f"{name} must be an (N,) integer array matching the {n} pairs, got {arr.dtype} {arr.shape}")
+    return arr.astype(np.int64)
+
+
+# ---- the model (closed form, broadcast over Q parameter sets) ----------------------------------------
+def _head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray,
+                 person_height_m: float) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Head errors predicted minus observed, (u, v) each (Q, N) px, and validity (Q, N) for params (Q, 4).
+
+    params rows: (focal_px, pitch_rad, roll_rad, height_m); rel_feet = feet - pp, diff = feet - heads.
+    Same model as :func:`.calibrate_grid.predict_heads_px`: the head is ``F + k M / z``.
+    """
+    f, pitch, roll, h = (params[:, i : i + 1] for i in range(4))
+    n = up_vector_cam(pitch[:, 0], roll[:, 0])
+    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
+    u, v = rel_feet[:, 0], rel_feet[:, 1]
+    k = person_height_m / h
+    d = -(nx * u + ny * v) / f - nz
+    z = 1.0 + k * nz * d
+    valid = (d > _RAY_EPS) & (z > _Z_MIN)
+    coef = k * d / np.maximum(z, _Z_MIN)
+    return (diff[:, 0] + coef * (f * nx - nz * u), diff[:, 1] + coef * (f * ny - nz * v)), valid
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """Pairs and weights of one refinement (all arrays over the usable pairs, (N, ...))."""
+
+    rel_feet: np.ndarray  # (N, 2) feet minus principal point
+    diff: np.ndarray  # (N, 2) feet minus heads
+    axis: np.ndarray  # (N, 2) unit vector foot -> head (observed)
+    sd_along: np.ndarray  # (N,) px, noise plus stature spread along the person
+    sd_across: float  # px
+    person_height_m: float
+    vertical: bool
+    image_height_px: float
+    fov_prior: tuple[float, float] | None  # (mean, sd) of the vertical field of view, degrees
+
+    def subset(self, idx: np.ndarray) -> "_Problem":
+        """The same problem on pairs ``idx``."""
+        return _Problem(self.rel_feet[idx], self.diff[idx], self.axis[idx], self.sd_along[idx], self.sd_across,
+                        self.person_height_m, self.vertical, self.image_height_px, self.fov_prior)
+
+    @property
+    def dof(self) -> int:
+        """Residual components per pair."""
+        return 1 if self.vertical else 2
+
+
+def _make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_height_m: float,
+                  person_height_sd_m: float, noise_px: float, vertical: bool, image_height_px: float,
+                  fov_prior: tuple[float, float] | None) -> _Problem:
+    """Whitening weights from the observed pixel lengths (so they do not depend on the camera)."""
+    diff = feet - heads
+    length = np.linalg.norm(diff, axis=1)
+    axis = -diff / np.maximum(length, 1e-9)[:, None]
+    axis[length < 1e-9] = (0.0, -1.0)
+    sd_along = np.sqrt(noise_px**2 + (length * person_height_sd_m / person_height_m) ** 2)
+    return _Problem(feet - pp, diff, axis, sd_along, float(noise_px), person_height_m, vertical, image_height_px,
+                    fov_prior)
+
+
+def _whitened(prob: _Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whitened residuals (Q, N, dof) and validity (Q, N) for params (Q, 4)."""
+    e, valid = _head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m)
+    eu, ev = e
+    if prob.vertical:
+        return (ev / prob.sd_along)[..., None], valid
+    au, av = prob.axis[:, 0], prob.axis[:, 1]
+    along = (eu * au + ev * av) / prob.sd_along
+    across = (ev * au - eu * av) / prob.sd_across
+    return np.stack([along, across], axis=-1), valid
+
+
+def _prior_rows(prob: _Problem, params: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Prior residuals (Q, R): the field-of-view prior when the focal is free."""
+    if prob.fov_prior is None or not free[0]:
+        return np.zeros((len(params), 0))
+    mean, sd = prob.fov_prior
+    fov = np.rad2deg(2.0 * np.arctan(prob.image_height_px / (2.0 * params[:, 0])))
+    return ((fov - mean) / sd)[:, None]
+
+
+# ---- refinement ---------------------------------------------------------------------------------------
+def _to_params(x: np.ndarray, full0: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Internal vectors x (Q, n_free) -> params (Q, 4) = (f, pitch, roll, h); log f and log h inside."""
+    internal = np.repeat(_to_internal(full0)[None], len(x), axis=0)
+    internal[:, free] = x
+    return np.stack([np.exp(internal[:, 0]), internal[:, 1], internal[:, 2], np.exp(internal[:, 3])], axis=1)
+
+
+def _to_internal(params: np.ndarray) -> np.ndarray:
+    """(4,) params -> (log f, pitch, roll, log h)."""
+    return np.array([math.log(params[0]), params[1], params[2], math.log(params[3])])
+
+
+def _residual_and_jacobian(prob: _Problem, x: np.ndarray, full0: np.ndarray, free: np.ndarray,
+                           scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Residual vector (M,) and its Jacobian (M, n_free) by one vectorised forward difference."""
+    xs = np.vstack([x, x + _FD_STEP * np.eye(len(x))])
+    params = _to_params(xs, full0, free)
+    r, _ = _whitened(prob, params)
+    r = np.concatenate([r.reshape(len(xs), -1) / scale, _prior_rows(prob, params, free)], axis=1)
+    return r[0], ((r[1:] - r[0]) / _FD_STEP).T
+
+
+def _least_squares(prob: _Problem, params0: np.ndarray, free: np.ndarray, scale: float, loss: str,
+                   f_scale: float) -> np.ndarray:
+    """Robust least squares from params0 (4,); returns the params (4,)."""
+    cache: dict = {}
+
+    def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = x.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = _residual_and_jacobian(prob, x, params0, free, scale)
+        return cache[key]
+
+    lo, hi = _bounds(prob.image_height_px)
+    x0 = np.clip(_to_internal(params0), lo + 1e-6, hi - 1e-6)[free]
+    sol = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo[free], hi[free]),
+                        loss=loss, f_scale=f_scale, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
+                        gtol=1e-10, max_nfev=200)
+    return _to_params(sol.x[None], params0, free)[0]
+
+
+def _bounds(image_height_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Internal-parameter bounds: focal 0.02-50 H, pitch -80..89.9 deg, roll +-45 deg, height 0.05-1000 m."""
+    lo = np.array([math.log(0.02 * image_height_px), np.deg2rad(-80.0), np.deg2rad(-45.0), math.log(0.05)])
+    hi = np.array([math.log(50.0 * image_height_px), np.deg2rad(89.9), np.deg2rad(45.0), math.log(1000.0)])
+    return lo, hi
+
+
+def _pair_chi2(prob: _Problem, params: np.ndarray) -> np.ndarray:
+    """(N,) squared whitened residual norm per pair at params (4,); inf where the model is invalid."""
+    r, valid = _whitened(prob, params[None])
+    chi2 = r[0, :, 0] ** 2 if prob.vertical else r[0, :, 0] ** 2 + r[0, :, 1] ** 2
+    return np.where(valid[0], chi2, np.inf)
+
+
+def _robust_scale(chi2: np.ndarray, dof: int) -> float:
+    """Residual scale from the median of chi2 values (1 for correctly whitened residuals)."""
+    finite = chi2[np.isfinite(chi2)]
+    if finite.size == 0:
+        return 1.0
+    return max(math.sqrt(float(np.median(finite)) / _CHI2_MEDIAN[dof]), _MIN_SCALE)
+
+
+def _fit_with_rejection(prob: _Problem, params0: np.ndarray, free: np.ndarray, mask0: np.ndarray,
+                        max_rounds: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Alternate robust fits and chi-square rejection; returns (params, inlier mask, scale)."""
+    n_free = int(free.sum())
+    need = max(3, math.ceil(n_free / prob.dof))
+    params, mask = params0, mask0.copy()
+    scale = _robust_scale(_pair_chi2(prob, params)[mask], prob.dof)
+    thr = _CHI2_99[prob.dof]
+    for round_ in range(max_rounds):
+        sub = prob.subset(np.flatnonzero(mask))
+        loss, f_scale = ("cauchy", 2.0) if round_ == 0 else ("soft_l1", 3.0)
+        params = _least_squares(sub, params, free, scale, loss, f_scale)
+        chi2 = _pair_chi2(prob, params)
+        scale = _robust_scale(chi2[mask], prob.dof)
+        new_mask = chi2 <= thr * scale**2
+        if new_mask.sum() < need:
+            break
+        if np.array_equal(new_mask, mask) and round_ > 0:
+            break
+        mask = new_mask
+    scale = _robust_scale(_pair_chi2(prob, params)[mask], prob.dof)
+    return params, mask, scale
+
+
+def _order_invariant_subset(feet: np.ndarray, heads: np.ndarray, m: int) -> np.ndarray:
+    """Indices of at most ``m`` pairs, chosen from the sorted pairs (independent of their order)."""
+    order = np.lexsort((heads[:, 1], heads[:, 0], feet[:, 1], feet[:, 0]))
+    if len(order) <= m:
+        return np.sort(order)
+    return np.sort(order[np.linspace(0, len(order) - 1, m).round().astype(int)])
+
+
+def _seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list[tuple[int, int, int]]:
+    """Start cells (F, P, C indices) of a robust grid: the best, other minima along the valley, f x 0.5 and x 2.
+
+    The profile runs over the focal axis, or over the pitch axis when the focal is fixed.
+    """
+    ax = 0 if costs.shape[0] > 1 else 1
+    moved = np.moveaxis(costs, ax, 0)
+    flat = moved.reshape(moved.shape[0], -1)
+    prof, best_at = flat.min(axis=1), flat.argmin(axis=1)
+    n = len(prof)
+    i0 = int(np.argmin(prof))
+    picks = [i0]
+    local = sorted((i for i in range(n) if i != i0 and prof[i] <= prof[max(i - 1, 0)]
+                    and prof[i] <= prof[min(i + 1, n - 1)] and prof[i] <= 1.5 * prof[i0]), key=lambda i: prof[i])
+    picks += local[:2]
+    if ax == 0:
+        for factor in (0.5, 2.0):  # along the focal/pitch valley
+            i = int(np.argmin(np.abs(focal - focal[i0] * factor)))
+            if i not in picks:
+                picks.append(i)
+    cells = []
+    for i in picks[:max_seeds]:
+        rest = np.unravel_index(best_at[i], moved.shape[1:])
+        cell = [int(v) for v in rest]
+        cell.insert(ax, int(i))
+        cells.append(tuple(cell))
+    return cells
+
+
+def _refine(prob: _Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_size: tuple[int, int],
+            focal_px: float | None, estimate_roll: bool, grid: GridSpec, max_rounds: int
+            ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Grid seeds, multi-start on a subsample, then the full fit; returns (params, mask, scale, free)."""
+    free = np.array([focal_px is None, True, estimate_roll, True])
+    sub_idx = _order_invariant_subset(feet, heads, _INIT_PAIRS)
+    focal = grid.focal_values_px(image_size[1]) if focal_px is None else np.array([float(focal_px)])
+    pitch, height = grid.pitch_values_rad(), grid.height_values_m()
+    costs = robust_grid_costs(feet[sub_idx], heads[sub_idx], pp, focal, pitch, height, prob.person_height_m,
+                              "vertical" if prob.vertical else "full", _INIT_TRUNCATE)
+    seeds = [np.array([focal[i], pitch[j], 0.0, height[c]]) for i, j, c in _seed_cells(costs, focal)]
+    sub = prob.subset(sub_idx)
+    best = None
+    for seed in seeds:
+        seed = seed.copy()
+        seed[1] = min(seed[1], np.deg2rad(89.0))
+        chi2 = _pair_chi2(sub, seed)
+        mask0 = np.isfinite(chi2)
+        if mask0.sum() < 3:
+            continue
+        params, mask, scale = _fit_with_rejection(sub, seed, free, mask0, max_rounds=3)
+        best = _better(sub, best, (params, mask, scale))
+    if best is None:
+        raise DegenerateSceneError("no camera explains the pairs: every start put the feet above the horizon "
+                                   "or the heads behind the camera (are these pixels of this image?)")
+    start = best[0]
+    chi2 = _pair_chi2(prob, start)
+    mask0 = chi2 <= _CHI2_99[prob.dof] * best[2] ** 2 * 4.0
+    if mask0.sum() < 3:
+        mask0 = np.isfinite(chi2)
+    params, mask, scale = _fit_with_rejection(prob, start, free, mask0, max_rounds)
+    return params, mask, scale, free
+
+
+def _better(prob: _Problem, a, b):
+    """The better of two (params, mask, scale) fits by a common truncated chi-square cost."""
+    if a is None:
+        return b
+    ref = min(a[2], b[2])
+    thr = _CHI2_99[prob.dof]
+    cost = [np.minimum(_pair_chi2(prob, fit[0]) / ref**2, thr).sum() for fit in (a, b)]
+    return b if cost[1] < cost[0] else a
+
+
+# ---- uncertainty ---------------------------------------------------------------------------------
+def _covariance(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float,
+                clusters: np.ndarray | None) -> np.ndarray:
+    """Covariance (4, 4) of (log f, pitch, roll, log h), zero rows for fixed parameters.
+
+    Gauss-Newton ``(J^T J)^-1`` of the whitened residuals; when clusters (tracks or frames) are
+    given and there are >= 10 of them, the larger of it and a cluster-robust sandwich per parameter.
+    """
+    x = _to_internal(params)[free]
+    r, J = _residual_and_jacobian(prob, x, params, free, scale)
+    n_data = len(prob.rel_feet) * prob.dof
+    Jd, rd = J[:n_data], r[:n_data]
+    A = J.T @ J
+    A_inv = np.linalg.pinv(A)
+    cov = A_inv
+    if clusters is not None:
+        groups, inv = np.unique(clusters, return_inverse=True)
+        if len(groups) >= 10:
+            per_pair = (Jd * rd[:, None]).reshape(len(prob.rel_feet), prob.dof, -1).sum(axis=1)
+            scores = np.zeros((len(groups), J.shape[1]))
+            np.add.at(scores, inv, per_pair)
+            Jp = J[n_data:]
+            B = scores.T @ scores * len(groups) / (len(groups) - 1) + Jp.T @ Jp
+            sandwich = A_inv @ B @ A_inv
+            if np.trace(sandwich / np.maximum(np.diag(A_inv), 1e-300)) > np.trace(np.eye(len(A))):
+                cov = sandwich
+            var = np.maximum(np.diag(A_inv), np.diag(sandwich))
+            d_old = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+            cov = cov / np.outer(d_old, d_old) * np.outer(np.sqrt(var), np.sqrt(var))
+    full = np.zeros((4, 4))
+    full[np.ix_(free, free)] = cov
+    return full
+
+
+def _std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple[dict[str, float], float]:
+    """Per-parameter standard deviations (px, deg, deg, m; NaN if fixed) and corr(focal, pitch)."""
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    values = [params[0] * sd[0], math.degrees(sd[1]), math.degrees(sd[2]), params[3] * sd[3]]
+    std = {k: (float(v) if free[i] else math.nan) for i, (k, v) in enumerate(zip(PARAM_NAMES, values))}
+    corr = float(cov[0, 1] / (sd[0] * sd[1])) if free[0] and free[1] and sd[0] > 0 and sd[1] > 0 else math.nan
+    return std, corr
+
+
+def _warnings(camera: Camera, std: dict[str, float], corr: float, inliers: int, usable: int,
+              pairs: int) -> list[str]:
+    """Plain-words warnings about what the data could not determine."""
+    out = []
+    f_sd = std["focal_px"]
+    if math.isfinite(f_sd) and (f_sd > WARN_FOCAL_REL_SD * camera.focal_px or abs(corr) > WARN_FOCAL_PITCH_CORR):
+        out.append(f"focal length poorly determined: {camera.focal_px:.0f} +- {f_sd:.0f} px "
+                   f"({100 * f_sd / camera.focal_px:.0f}%), focal and pitch trade off (correlation {corr:+.2f}); "
+                   "the horizon and the camera height are reliable, the pitch less so: give the focal length "
+                   "if it is known, or a field-of-view prior")
+    if math.isfinite(std["pitch_deg"]) and std["pitch_deg"] > WARN_PITCH_SD_DEG:
+        out.append(f"pitch poorly determined: +- {std['pitch_deg']:.1f} deg")
+    if math.isfinite(std["height_m"]) and std["height_m"] > WARN_HEIGHT_REL_SD * camera.height_m:
+        out.append(f"camera height poorly determined: {camera.height_m:.2f} +- {std['height_m']:.2f} m")
+    if inliers < WARN_INLIER_FRACTION * usable:
+        out.append(f"only {inliers} of {usable} usable pairs fit upright people of the given stature "
+                   "(sitting, cropped or mis-detected people, or a wrong stature?)")
+    if usable < pairs:
+        out.append(f"{pairs - usable} pairs with the head below the foot were ignored")
+    return out
+
+
+# ---- public API -----------------------------------------------------------------------------------
+def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int], *, method: str = "refine",
+               frame_index: np.ndarray | None = None, track_id: np.ndarray | None = None,
+               focal_px: float | None = None, estimate_roll: bool = True,
+               principal_point: tuple[float, float] | None = None, person_height_m: float = 1.70,
+               person_height_sd_m: float = 0.07, residual: str = "full", fov_prior_deg: float | None = None,
+               fov_prior_sd_deg: float = 10.0, noise_px: float = 2.0, grid: GridSpec = GridSpec(),
+               max_rounds: int = 6, workers: int | None = None) -> CalibrationResult:
+    """Estimate the static camera from foot/head pixel pairs pooled over all frames.
+
+    feet_px, heads_px: (N, 2) px, mid-sole and crown; image_size: (W, H) px.
+    frame_index, track_id: (N,) int, optional (frame count; clusters for the uncertainty).
+    focal_px: fix the focal length (else estimated). principal_point: (cx, cy), default the centre.
+    method: "grid" (the paper: roll 0, no robustness) or "refine". residual: "full" (head u and v)
+    or "vertical" (head row only: box-derived points). fov_prior_deg: mean of a weak prior on the
+    vertical field of view (sd fov_prior_sd_deg), used when the focal is estimated (refine only).
+    noise_px: pixel noise of the points (refine weights). workers: grid threads (None = auto).
+    Raises ValueError for malformed input and DegenerateSceneError when the pairs cannot
+    determine a camera (fewer than 3 usable pairs, or no candidate camera is valid).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if residual not in RESIDUALS:
+        raise ValueError(f"residual must be one of {RESIDUALS}, got {residual!r}")
+    size = _check_image_size(image_size)
+    feet, heads, usable = _check_points(feet_px, heads_px)
+    frames = _check_index(frame_index, len(feet), "frame_index")
+    tracks = _check_index(track_id, len(feet), "track_id")
+    for name, value in (("person_height_m", person_height_m), ("noise_px", noise_px)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a positive number, got {value}")
+    if not (math.isfinite(person_height_sd_m) and person_height_sd_m >= 0):
+        raise ValueError(f"person_height_sd_m must be >= 0, got {person_height_sd_m}")
+    if focal_px is not None and not (math.isfinite(focal_px) and focal_px > 0):
+        raise ValueError(f"focal_px must be a positive number of pixels, got {focal_px}")
+    pp = np.array([size[0] / 2.0, size[1] / 2.0]) if principal_point is None else np.asarray(principal_point, float)
+    if pp.shape != (2,) or not np.all(np.isfinite(pp)):
+        raise ValueError(f"principal_point must be (cx, cy) in pixels, got {principal_point!r}")
+    n_usable = int(usable.sum())
+    n_free = (focal_px is None) + 2 + (estimate_roll and method == "refine")
+    dof = 1 if residual == "vertical" else 2
+    if n_usable < 3:
+        raise DegenerateSceneError(f"only {n_usable} usable foot-head pairs (need >= 3)")
+    if n_usable * dof < n_free:
+        raise DegenerateSceneError(f"{n_usable} usable pairs with {residual} residuals cannot determine "
+                                   f"{n_free} parameters; fix the focal length or add pairs")
+    n_frames = 1 if frames is None else len(np.unique(frames[usable]))
+    idx = np.flatnonzero(usable)
+    fov = None
+    if fov_prior_deg is not None:
+        if not (0 < fov_prior_deg < 180 and fov_prior_sd_deg > 0):
+            raise ValueError(f"fov_prior_deg must be in (0, 180) with a positive sd, got {fov_prior_deg}")
+        fov = (float(fov_prior_deg), float(fov_prior_sd_deg))
+    prob = _make_problem(feet[idx], heads[idx], pp, float(person_height_m), float(person_height_sd_m),
+                         float(noise_px), residual == "vertical", float(size[1]), fov)
+    extra: list[str] = []
+    if method == "grid":
+        params, mask_u, free, scale, extra, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
+                                                             person_height_m, residual, grid, workers, prob)
+    else:
+        params, mask_u, scale, free = _refine(prob, feet[idx], heads[idx], pp, size, focal_px, estimate_roll, grid,
+                                              max_rounds)
+    camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])
+    inlier_mask = np.zeros(len(feet), bool)
+    inlier_mask[idx[mask_u]] = True
+    clusters = tracks if tracks is not None else frames
+    inl = prob.subset(np.flatnonzero(mask_u))
+    cov = _covariance(inl, params, free, scale, None if clusters is None else clusters[idx[mask_u]])
+    std, corr = _std_and_corr(params, cov, free)
+    (eu, ev), _ = _head_errors(inl.rel_feet, inl.diff, params[None], inl.person_height_m)
+    sq = ev[0] ** 2 if residual == "vertical" else eu[0] ** 2 + ev[0] ** 2
+    rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
+    warns = extra + _warnings(camera, std, corr, int(mask_u.sum()), n_usable, len(feet))
+    return CalibrationResult(camera, method, float(person_height_m), len(feet), int(mask_u.sum()), n_frames, rmse,
+                             std, corr, inlier_mask, tuple(warns), residual)
+
+
+def _grid_fit(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, size: tuple[int, int], focal_px: float | None,
+              person_height_m: float, residual: str, grid: GridSpec, workers: int | None, prob: _Problem):
+    """The paper's grid: (params, all-inlier mask, free, scale, warnings, unweighted problem)."""
+    focal = grid.focal_values_px(size[1]) if focal_px is None else np.array([float(focal_px)])
+    fit = paper_grid_search(feet, heads, pp, focal, grid.pitch_values_rad(), grid.height_values_m(),
+                            person_height_m, residual, 0.0, workers)
+    if fit is None:
+        raise DegenerateSceneError("no grid cell explains the pairs: every candidate camera puts a foot above the "
+                                   "horizon or a head behind the camera (are these pixels of this image?)")
+    params = np.array([fit.focal_px, fit.pitch_rad, 0.0, fit.height_m])
+    free = np.array([focal_px is None, True, False, True])
+    extra = []
+    names = ("focal", "pitch", "height")
+    for axis, (i, n) in enumerate(zip(fit.index, fit.costs.shape)):
+        if n > 1 and i in (0, n - 1):
+            extra.append(f"the best {names[axis]} is on the edge of the search grid; the camera may lie outside it")
+    # Unweighted residuals for the paper's uncertainty: equal weights, scale from the residual sum.
+    flat = _Problem(prob.rel_feet, prob.diff, prob.axis, np.ones(len(feet)), 1.0, prob.person_height_m,
+                    prob.vertical, prob.image_height_px, None)
+    dof_total = max(1, len(feet) * flat.dof - int(free.sum()))
+    scale = max(math.sqrt(fit.cost / dof_total), _MIN_SCALE)
+    return params, np.ones(len(feet), bool), free, scale, extra, flat
+
+
+def calibrate(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int], **options) -> Camera:
+    """The camera of :func:`fit_camera` (same arguments), without the diagnostics."""
+    return fit_camera(feet_px, heads_px, image_size, **options).camera
+
+
+def fit_per_frame(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
+                  frame_index: np.ndarray, **options) -> PerFrameSummary:
+    """Calibrate every frame alone (same options as :func:`fit_camera`) and summarise the spread."""
+    feet, heads = np.asarray(feet_px, np.float64), np.asarray(heads_px, np.float64)
+    frames = _check_index(frame_index, len(feet), "frame_index")
+    if frames is None:
+        raise ValueError("fit_per_frame needs frame_index")
+    track = options.pop("track_id", None)
+    ids, results, skipped = [], [], {}
+    for t in np.unique(frames):
+        sel = frames == t
+        try:
+            res = fit_camera(feet[sel], heads[sel], image_size, frame_index=frames[sel],
+                             track_id=None if track is None else np.asarray(track)[sel], **options)
+        except DegenerateSceneError as err:
+            skipped[int(t)] = str(err)
+            continue
+        ids.append(int(t))
+        results.append(res)
+    values = {k: np.array([_param_value(r.camera, k) for r in results]) for k in PARAM_NAMES}
+    median = {k: float(np.median(v)) if len(v) else math.nan for k, v in values.items()}
+    iqr = {k: float(np.subtract(*np.percentile(v, [75, 25]))) if len(v) else math.nan for k, v in values.items()}
+    return PerFrameSummary(tuple(ids), tuple(results), skipped, median, iqr)
+
+
+def _param_value(camera: Camera, name: str) -> float:
+    """A camera parameter in report units (px, deg, deg, m)."""
+    return {"focal_px": camera.focal_px, "pitch_deg": math.degrees(camera.pitch_rad),
+            "roll_deg": math.degrees(camera.roll_rad), "height_m": camera.height_m}[name]

@@ -1,0 +1,73 @@
+"""``rotavat eval PRED... --gt GT``: before/after metrics side by side, with CI gates."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from ..errors import GateError
+from ..evaluate import EvalOptions, evaluate, parse_joints, write_per_person_csv
+from ..report import check_gates, format_value, metric_value, parse_gate, report_rows, write_reports
+from ..sequence import open_sequence
+from . import app
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, console, info, print_json, progress_bar, progress_enabled
+
+
+@app.command("eval")
+def eval_(
+    pred: Annotated[list[Path] | None, typer.Argument(help="Prediction sequence directories (default: the current directory).")] = None,
+    gt: Annotated[Path, typer.Option("--gt", help="Ground-truth sequence directory (its camera.yaml enables ground-aware metrics).")] = ...,
+    out: Annotated[Path, typer.Option(help="Where to write metrics.json and metrics.md.", file_okay=False)] = Path("."),
+    per_person: Annotated[Path | None, typer.Option("--per-person", help="Also write one CSV row per matched person.", dir_okay=False)] = None,
+    fail_if: Annotated[list[str] | None, typer.Option("--fail-if", help="Gate, e.g. 'w_mpjpe>300' or 'pred_aligned:f1<0.9'; exit 1 if true.")] = None,
+    match: Annotated[str | None, typer.Option(help="auto (ids if both sides have them, else hungarian), ids, hungarian, agora.")] = None,
+    threshold_px: Annotated[float | None, typer.Option(help="hungarian: max mean 2D joint distance of a match (px).")] = None,
+    iou_threshold: Annotated[float | None, typer.Option(help="agora: min keypoint-box IoU of a match.")] = None,
+    joints: Annotated[str | None, typer.Option(help="Joint subset used by both sides: '0-23', '0,1,2' or SMPL names.")] = None,
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Score predictions against ground truth: MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera."""
+    opts = config_for(config, "eval", match=match, threshold_px=threshold_px, iou_threshold=iou_threshold)
+    gates = [parse_gate(text) for text in fail_if or []]
+    options = EvalOptions(opts["match"], float(opts["threshold_px"]), float(opts["iou_threshold"]), parse_joints(joints))
+    preds = pred or [Path(".")]
+    total = sum(len(open_sequence(p)) for p in preds)
+    with progress_bar("evaluating", total, progress_enabled(quiet, as_json)) as advance:
+        results = [evaluate(p, gt, options, advance) for p in preds]
+    json_path, md_path = write_reports(out, results, str(gt), {**opts, "joints": joints})
+    if per_person:
+        write_per_person_csv(per_person, results)
+    reasons = check_gates(results, gates)
+    if as_json:
+        print_json({"metrics_json": str(json_path), "metrics_md": str(md_path), "gates_failed": reasons,
+                    "predictions": [r.as_dict() for r in results]})
+    elif not quiet:
+        console.print(_table(results))
+        info(f"wrote {json_path} and {md_path}", quiet)
+    if reasons:
+        raise GateError("quality gate failed: " + "; ".join(reasons))
+
+
+def _table(results) -> Table:
+    """Rich table: one row per metric, one column per prediction, plus the change of the last vs the first."""
+    table = Table(title="rotavat eval (mm; lean and pitch/roll in °; camera in %)")
+    table.add_column("metric")
+    for r in results:
+        table.add_column(Path(r.pred).name or r.pred, justify="right")
+    if len(results) > 1:
+        table.add_column("change", justify="right")
+    table.add_row("matched / gt", *(f"{r.matched}/{r.people_gt}" for r in results), *([""] if len(results) > 1 else []))
+    for metric in report_rows(results):
+        values = [metric_value(r, metric) for r in results]
+        change = []
+        if len(results) > 1:
+            first, last = values[0], values[-1]
+            change = [f"{100.0 * (last - first) / abs(first):+.0f}%" if math.isfinite(first) and math.isfinite(last) and first else ""]
+        table.add_row(metric, *(format_value(metric, v) for v in values), *change)
+    return table

@@ -1,0 +1,274 @@
+"""Sequence-level evaluation: match people per frame, score every matched pair, aggregate.
+
+One :func:`evaluate` call scores one prediction directory against the ground truth, streaming
+frame by frame. Metric names (all mm unless stated):
+
+- ``mpjpe`` / ``pve``: pelvis-aligned; ``pa_mpjpe`` / ``pa_pve``: per-person similarity;
+- ``w_mpjpe`` / ``w_pve``: no alignment at all (the seed paper's definition);
+- ``w_mpjpe_spec`` / ``w_pve_spec``: SPEC's variant (gravity frames from both cameras, then
+  pelvis-aligned); only when the prediction and the ground truth both have a camera.yaml;
+- with the true camera: ``root_err`` (pelvis position error), ``foot_height`` (|height of the
+  predicted mid-sole above the true ground|), ``lean_deg`` (predicted foot->crown axis vs the
+  true vertical), ``stature_err`` (|predicted - true sole->crown length|);
+- detection: matched, missed, false positives, precision, recall, f1, and AGORA's
+  ``nmje = mpjpe / f1`` and ``nmve = pve / f1``;
+- camera errors (``cam_focal_pct``, ``cam_pitch_deg``, ``cam_roll_deg``, ``cam_height_pct``)
+  when both directories have a camera.yaml.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable, Sequence as Seq
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import metrics as M
+from .atomic import atomic_open
+from .camera import Camera, project_cam_to_px
+from .errors import InputError
+from .landmarks import foot_head_points
+from .matching import match_agora, match_by_ids, match_hungarian
+from .sequence import Frame, Intrinsics, Sequence, open_sequence
+
+__all__ = ["PERSON_METRICS", "EvalOptions", "EvalResult", "evaluate", "parse_joints"]
+
+# Per-person metrics, in report order.
+PERSON_METRICS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
+                  "root_err", "foot_height", "lean_deg", "stature_err")
+PELVIS = 0  # root joint index (SMPL order); see bodies.SMPL_JOINT_NAMES
+
+
+@dataclass(frozen=True)
+class EvalOptions:
+    """How to match and which joints to use."""
+
+    match: str = "auto"  # auto | ids | hungarian | agora
+    threshold_px: float = 100.0
+    iou_threshold: float = 0.1
+    joints: tuple[int, ...] | None = None  # subset of joint indices (both sides)
+
+
+@dataclass
+class EvalResult:
+    """Scores of one prediction directory."""
+
+    pred: str
+    gt: str
+    frames: int = 0
+    frames_pred_only: int = 0
+    frames_gt_only: int = 0
+    people_gt: int = 0
+    people_pred: int = 0
+    matched: int = 0
+    missed: int = 0
+    false_positives: int = 0
+    metrics: dict[str, float] = field(default_factory=dict)
+    camera: dict[str, float] = field(default_factory=dict)
+    per_person: dict[str, list] = field(default_factory=dict)
+
+    def as_dict(self, per_person: bool = False) -> dict:
+        """Plain dict for JSON (per-person rows only when asked)."""
+        d = {k: v for k, v in vars(self).items() if k != "per_person"}
+        return {**d, "per_person": self.per_person} if per_person else d
+
+
+def parse_joints(spec: str | None, n_joints: int | None = None) -> tuple[int, ...] | None:
+    """``"0,1,2"`` or ``"0-23"`` or SMPL joint names -> joint indices."""
+    if not spec:
+        return None
+    from .bodies import SMPL_JOINT_NAMES
+
+    out: list[int] = []
+    for token in (t.strip() for t in spec.split(",") if t.strip()):
+        if token in SMPL_JOINT_NAMES:
+            out.append(SMPL_JOINT_NAMES.index(token))
+        elif "-" in token[1:]:
+            lo, hi = token.split("-", 1)
+            out.extend(range(int(lo), int(hi) + 1))
+        elif token.lstrip("-").isdigit():
+            out.append(int(token))
+        else:
+            raise InputError(f"--joints: '{token}' is neither an index, a range nor an SMPL joint name")
+    if n_joints is not None and any(not 0 <= j < n_joints for j in out):
+        raise InputError(f"--joints: indices must be within 0..{n_joints - 1}")
+    return tuple(out)
+
+
+def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | None) -> np.ndarray | None:
+    """2D points per person used for matching: projected joints, else 2D keypoints, else foot/head."""
+    if frame.get("joints") is not None and intrinsics.focal_px is not None:
+        j = frame.data["joints"]
+        return project_cam_to_px(j[:, list(joints)] if joints else j, intrinsics.focal_px, intrinsics.principal_point)
+    if frame.get("keypoints_2d") is not None:
+        return frame.data["keypoints_2d"].astype(np.float64)
+    if frame.get("feet_2d") is not None and frame.get("heads_2d") is not None:
+        return np.stack([frame.data["feet_2d"], frame.data["heads_2d"]], axis=1).astype(np.float64)
+    return None
+
+
+def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame one-to-one matching (pred_idx, gt_idx)."""
+    both_ids = pred.get("person_ids") is not None and gt.get("person_ids") is not None
+    if opts.match == "ids" or (opts.match == "auto" and both_ids):
+        if not both_ids:
+            raise InputError(f"{pred.source}: --match ids needs 'person_ids' on both sides")
+        return match_by_ids(pred.person_ids, gt.person_ids)
+    pred_px, gt_px = _people_px(pred, pred_intr, opts.joints), _people_px(gt, gt_intr, opts.joints)
+    if pred_px is None or gt_px is None or pred_px.shape[1] != gt_px.shape[1]:
+        raise InputError(f"{pred.source}: cannot match people in 2D (need joints with a known focal, "
+                         "keypoints_2d or feet_2d/heads_2d with the same count on both sides; or use --joints)")
+    if opts.match == "agora":
+        return match_agora(pred_px, gt_px, opts.iou_threshold)
+    return match_hungarian(pred_px, gt_px, opts.threshold_px)
+
+
+def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_cam: Camera | None,
+                  gt_cam: Camera | None, opts: EvalOptions) -> dict[str, np.ndarray]:
+    """Every per-person metric for matched pairs (M,) each; NaN where not computable."""
+    M_ = len(pi)
+    nan = np.full(M_, np.nan)
+    out = {name: nan for name in PERSON_METRICS}
+    pj, gj = pred.get("joints"), gt.get("joints")
+    pelvis_p = pelvis_g = None
+    if pj is not None and gj is not None:
+        pj, gj = pj[pi].astype(np.float64), gj[gi].astype(np.float64)
+        if opts.joints:
+            pj, gj = pj[:, list(opts.joints)], gj[:, list(opts.joints)]
+        if pj.shape[1] != gj.shape[1]:
+            raise InputError(f"{pred.source}: prediction has {pj.shape[1]} joints, ground truth {gj.shape[1]}: "
+                             "pass --joints to choose a common subset")
+        pelvis_p, pelvis_g = pj[:, PELVIS], gj[:, PELVIS]
+        out["mpjpe"] = M.mpjpe(pj, gj, "root", PELVIS)
+        out["pa_mpjpe"] = M.mpjpe(pj, gj, "procrustes")
+        out["w_mpjpe"] = M.mpjpe(pj, gj, "none")
+        if pred_cam is not None and gt_cam is not None:
+            out["w_mpjpe_spec"] = M.w_spec_mpjpe(pj, gj, pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T, PELVIS)
+        if gt_cam is not None:
+            out["root_err"] = M.root_err_mm(pelvis_p, pelvis_g)
+    pv, gv = pred.get("vertices"), gt.get("vertices")
+    if pv is not None and gv is not None and pv.shape[1] == gv.shape[1] and pv.shape[1] > 0:
+        pv, gv = pv[pi].astype(np.float64), gv[gi].astype(np.float64)
+        roots_p = pelvis_p if pelvis_p is not None else pv.mean(axis=1)
+        roots_g = pelvis_g if pelvis_g is not None else gv.mean(axis=1)
+        out["pve"] = M.pve(pv, gv, "root", roots_p, roots_g)
+        out["pa_pve"] = M.pve(pv, gv, "procrustes")
+        out["w_pve"] = M.pve(pv, gv, "none")
+        if pred_cam is not None and gt_cam is not None:
+            out["w_pve_spec"] = M.w_spec_pve(pv, gv, pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T, roots_p, roots_g)
+    elif pv is not None and gv is not None and pv.shape[1] != gv.shape[1]:
+        raise InputError(f"{pred.source}: PVE needs equal vertex counts ({pv.shape[1]} vs {gv.shape[1]} in ground truth)")
+    if gt_cam is not None and pred.get("vertices") is not None and gt.get("vertices") is not None:
+        feet_p, heads_p = foot_head_points(pred.data["vertices"][pi])
+        feet_g, heads_g = foot_head_points(gt.data["vertices"][gi])
+        out["foot_height"] = np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0
+        out["lean_deg"] = M.lean_deg(feet_p, heads_p, gt_cam.up_cam)
+        out["stature_err"] = M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)
+    return out
+
+
+def _camera_dict(cam: Camera) -> dict[str, float]:
+    """Camera parameters in report units."""
+    return {"focal_px": cam.focal_px, "pitch_deg": float(np.rad2deg(cam.pitch_rad)),
+            "roll_deg": float(np.rad2deg(cam.roll_rad)), "height_m": cam.height_m}
+
+
+def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
+    """Camera errors under report names."""
+    err = M.camera_errors(_camera_dict(pred_cam), _camera_dict(gt_cam))
+    return {f"cam_{k}": float(v) for k, v in err.items()}
+
+
+def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | None = None,
+             progress: Callable[[], None] | None = None) -> EvalResult:
+    """Score one prediction sequence against the ground truth, frame by frame."""
+    opts = options or EvalOptions()
+    if opts.match not in ("auto", "ids", "hungarian", "agora"):
+        raise InputError(f"--match must be auto, ids, hungarian or agora, got {opts.match!r}")
+    pred_seq, gt_seq = open_sequence(pred_dir), open_sequence(gt_dir)
+    result = EvalResult(str(pred_dir), str(gt_dir))
+    pred_cam, gt_cam = pred_seq.camera, gt_seq.camera
+    if pred_cam is not None and gt_cam is not None:
+        result.camera = _camera_errors(pred_cam, gt_cam)
+    pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
+    columns: dict[str, list] = {k: [] for k in ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)}
+    for name in sorted(pred_names | gt_names):
+        _score_frame(name, pred_seq, gt_seq, pred_names, gt_names, pred_cam, gt_cam, opts, result, columns)
+        if progress:
+            progress()
+    result.per_person = columns
+    result.metrics = _aggregate(result, columns)
+    return result
+
+
+def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: set, gt_names: set,
+                 pred_cam: Camera | None, gt_cam: Camera | None, opts: EvalOptions,
+                 result: EvalResult, columns: dict[str, list]) -> None:
+    """Match and score one frame into ``result`` counts and ``columns``."""
+    if name not in gt_names:
+        n = pred_seq.read_frame(name).n_people
+        result.frames_pred_only += 1
+        result.people_pred += n
+        result.false_positives += n
+        return
+    if name not in pred_names:
+        n = gt_seq.read_frame(name).n_people
+        result.frames_gt_only += 1
+        result.people_gt += n
+        result.missed += n
+        return
+    pred, gt = pred_seq.read_frame(name), gt_seq.read_frame(name)
+    result.frames += 1
+    result.people_pred += pred.n_people
+    result.people_gt += gt.n_people
+    if pred.n_people == 0 or gt.n_people == 0:
+        pi = gi = np.zeros(0, dtype=np.int64)
+    else:
+        pi, gi = _match(pred, gt, pred_seq.frame_intrinsics(pred), gt_seq.frame_intrinsics(gt), opts)
+    result.matched += len(pi)
+    result.missed += gt.n_people - len(gi)
+    result.false_positives += pred.n_people - len(pi)
+    if len(pi) == 0:
+        return
+    values = _pair_metrics(pred, gt, pi, gi, pred_cam, gt_cam, opts)
+    columns["frame"].extend([name] * len(pi))
+    columns["pred_index"].extend(pi.tolist())
+    columns["gt_index"].extend(gi.tolist())
+    columns["person_id"].extend(gt.person_ids[gi].tolist())
+    for key in PERSON_METRICS:
+        columns[key].extend(np.asarray(values[key], dtype=np.float64).tolist())
+
+
+def _aggregate(result: EvalResult, columns: dict[str, list]) -> dict[str, float]:
+    """Means over matched pairs, detection scores and AGORA's F1-normalised errors."""
+    out: dict[str, float] = {}
+    for key in PERSON_METRICS:
+        values = np.asarray(columns[key], dtype=np.float64)
+        finite = values[np.isfinite(values)]
+        out[key] = float(finite.mean()) if finite.size else float("nan")
+    scores = M.detection_scores(result.matched, result.missed, result.false_positives)
+    out.update(scores)
+    out["nmje"] = float(M.normalize_by_f1(out["mpjpe"], scores["f1"]))
+    out["nmve"] = float(M.normalize_by_f1(out["pve"], scores["f1"]))
+    return out
+
+
+def write_per_person_csv(path: str | Path, results: Seq[EvalResult]) -> None:
+    """One row per matched pair of every prediction (atomic)."""
+    with atomic_open(path, "w") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        keys = ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)
+        writer.writerow(("pred", *keys))
+        for res in results:
+            cols = res.per_person
+            for i in range(len(cols["frame"])):
+                writer.writerow([res.pred, *(_fmt(cols[k][i]) for k in keys)])
+
+
+def _fmt(value: object) -> str:
+    """CSV cell text (6 significant digits; NaN empty)."""
+    if isinstance(value, float):
+        return "" if not np.isfinite(value) else f"{value:.6g}"
+    return str(value)

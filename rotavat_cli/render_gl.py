@@ -1,0 +1,160 @@
+"""OpenGL rasteriser (moderngl, headless EGL; Mesa's llvmpipe on a CPU-only machine) and the renderer choice.
+
+Contract shared with :func:`rotavat_cli.render_fallback.rasterize_numpy`: points ``(N, 3)``,
+triangles ``(F, 3)`` and per-vertex colours go through one ``clip_from_points`` 4x4 matrix
+(OpenGL clip space); the result is an ``(H, W, 4)`` float32 image, row 0 at the top, alpha =
+coverage (4x multisampled, so edges are anti-aliased).
+
+``moderngl`` is imported inside :func:`open_gl_rasterizer` only; :func:`open_rasterizer` with
+``kind="auto"`` tries it and falls back to the NumPy rasteriser, recording why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from .errors import RotavatError
+from .render_fallback import rasterize_numpy
+
+__all__ = ["Rasterizer", "open_rasterizer", "open_gl_rasterizer", "RENDERERS", "GL_SYSTEM_PACKAGES"]
+
+RENDERERS = ("auto", "gl", "fallback")
+GL_SYSTEM_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"  # Debian packages moderngl's EGL backend needs
+_SAMPLES = 4  # multisample count (anti-aliasing); 0 if the driver refuses
+
+_VERTEX_SHADER = """
+#version 330
+uniform mat4 clip_from_points;
+in vec3 in_pos;
+in vec3 in_color;
+out vec3 v_color;
+void main() {
+    gl_Position = clip_from_points * vec4(in_pos, 1.0);
+    v_color = in_color;
+}
+"""
+_FRAGMENT_SHADER = """
+#version 330
+in vec3 v_color;
+out vec4 f_color;
+void main() {
+    f_color = vec4(v_color, 1.0);
+}
+"""
+
+
+@dataclass
+class Rasterizer:
+    """A rasterise function plus which renderer it is (``gl`` or ``fallback``) and why, if it fell back."""
+
+    name: str
+    rasterize: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[int, int]], np.ndarray]
+    note: str = ""
+    detail: str = ""  # e.g. the GL renderer string
+    _release: Callable[[], None] | None = field(default=None, repr=False)
+
+    def release(self) -> None:
+        """Free the GL context, if any."""
+        if self._release is not None:
+            self._release()
+            self._release = None
+
+    def __enter__(self) -> "Rasterizer":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()
+
+
+class _GLState:
+    """A standalone moderngl context with one program and framebuffers resized on demand."""
+
+    def __init__(self, moderngl: Any) -> None:
+        self.mgl = moderngl
+        self.ctx = moderngl.create_context(standalone=True, backend="egl")
+        self.prog = self.ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
+        self.size: tuple[int, int] | None = None
+        self.samples = _SAMPLES
+        self.fbos: tuple[Any, Any] | None = None
+
+    def _framebuffers(self, size: tuple[int, int]) -> tuple[Any, Any]:
+        """(draw, resolve) framebuffers of ``size``; multisampled draw target when the driver allows."""
+        if self.size != size or self.fbos is None:
+            for fbo in self.fbos or ():
+                fbo.release()
+            resolve = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer(size, 4)])
+            try:
+                draw = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer(size, 4, samples=self.samples)],
+                                            depth_attachment=self.ctx.depth_renderbuffer(size, samples=self.samples))
+            except self.mgl.Error:
+                self.samples = 0
+                draw = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer(size, 4)],
+                                            depth_attachment=self.ctx.depth_renderbuffer(size))
+            self.fbos, self.size = (draw, resolve), size
+        return self.fbos
+
+    def rasterize(self, points: np.ndarray, faces: np.ndarray, colors: np.ndarray, clip_from_points: np.ndarray,
+                  size: tuple[int, int]) -> np.ndarray:
+        """(N, 3) points, (F, 3) faces, (N, 3) colours -> (H, W, 4) float32 RGBA, row 0 at the top."""
+        W, H = int(size[0]), int(size[1])
+        draw, resolve = self._framebuffers((W, H))
+        draw.use()
+        self.ctx.enable(self.mgl.DEPTH_TEST)
+        self.ctx.disable(self.mgl.CULL_FACE)
+        draw.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        faces = np.asarray(faces, dtype=np.uint32).reshape(-1, 3)
+        if faces.shape[0] and len(points):
+            self.prog["clip_from_points"].write(np.asarray(clip_from_points, dtype="f4").T.tobytes())  # column-major
+            vbo = self.ctx.buffer(np.hstack([np.asarray(points, "f4"), np.asarray(colors, "f4")]).tobytes())
+            ibo = self.ctx.buffer(faces.tobytes())
+            vao = self.ctx.vertex_array(self.prog, [(vbo, "3f 3f", "in_pos", "in_color")], index_buffer=ibo, index_element_size=4)
+            vao.render(self.mgl.TRIANGLES)
+            for obj in (vao, ibo, vbo):
+                obj.release()
+        self.ctx.copy_framebuffer(resolve, draw)
+        data = np.frombuffer(resolve.read(components=4, dtype="f1"), dtype=np.uint8).reshape(H, W, 4)
+        rgba = data[::-1].astype(np.float32) / 255.0  # GL rows run bottom-up
+        alpha = rgba[..., 3:4]
+        with np.errstate(divide="ignore", invalid="ignore"):  # un-premultiply the resolved edge pixels
+            rgba[..., :3] = np.where(alpha > 0, rgba[..., :3] / np.maximum(alpha, 1e-6), 0.0)
+        return np.clip(rgba, 0.0, 1.0)
+
+    def release(self) -> None:
+        """Free GL objects and the context."""
+        for fbo in self.fbos or ():
+            fbo.release()
+        self.prog.release()
+        self.ctx.release()
+
+
+def open_gl_rasterizer() -> Rasterizer:
+    """The moderngl/EGL rasteriser; raises RotavatError (exit 2) saying what is missing."""
+    try:
+        import moderngl
+    except ImportError as exc:
+        raise RotavatError(f"OpenGL renderer unavailable: moderngl is not installed ({exc}); "
+                           "pip install 'moderngl>=5.13' or use --renderer fallback") from None
+    try:
+        state = _GLState(moderngl)
+    except Exception as exc:  # glcontext raises plain Exception when EGL/Mesa is missing
+        raise RotavatError(f"OpenGL renderer unavailable: no EGL context ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "
+                           f"install the system packages {GL_SYSTEM_PACKAGES} or use --renderer fallback") from None
+    detail = str(state.ctx.info.get("GL_RENDERER", ""))
+    return Rasterizer("gl", state.rasterize, detail=detail, _release=state.release)
+
+
+def open_rasterizer(kind: str = "auto") -> Rasterizer:
+    """``gl`` (moderngl via EGL), ``fallback`` (NumPy z-buffer), or ``auto``: gl if it starts, else fallback."""
+    if kind not in RENDERERS:
+        raise ValueError(f"unknown renderer {kind!r} (expected one of {', '.join(RENDERERS)})")
+    if kind == "fallback":
+        return Rasterizer("fallback", rasterize_numpy, note="requested", detail="numpy z-buffer")
+    if kind == "gl":
+        return open_gl_rasterizer()
+    try:
+        return open_gl_rasterizer()
+    except RotavatError as exc:
+        return Rasterizer("fallback", rasterize_numpy, note=str(exc), detail="numpy z-buffer")

@@ -1,0 +1,134 @@
+"""Evaluation reports (metrics.json, metrics.md) and ``--fail-if`` quality gates."""
+
+from __future__ import annotations
+
+import json
+import math
+import operator
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from .atomic import atomic_write_text
+from .errors import InputError
+from .evaluate import PERSON_METRICS, EvalResult
+from .plain import to_plain
+
+__all__ = ["REPORT_COLUMNS", "Gate", "parse_gate", "check_gates", "report_rows", "format_value", "metric_value",
+           "markdown_report", "write_reports"]
+
+# Columns of the summary table, in order (camera columns appear when present).
+REPORT_COLUMNS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
+                  "root_err", "foot_height", "lean_deg", "stature_err", "precision", "recall", "f1", "nmje", "nmve")
+_OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt, ">": operator.gt}
+_GATE = re.compile(r"^\s*(?:(?P<row>[^:]+):)?\s*(?P<metric>[a-z_0-9]+)\s*(?P<op><=|>=|==|!=|<|>)\s*(?P<value>[-+0-9.eE]+)\s*$")
+
+
+@dataclass(frozen=True)
+class Gate:
+    """``[row:]metric OP value``: trips when the comparison is true (e.g. ``w_mpjpe>300``)."""
+
+    metric: str
+    op: str
+    value: float
+    row: str | None = None  # restrict to the prediction whose path or folder name matches
+
+    def __str__(self) -> str:
+        return f"{self.row + ':' if self.row else ''}{self.metric}{self.op}{self.value:g}"
+
+
+def parse_gate(text: str) -> Gate:
+    """Parse a ``--fail-if`` condition; InputError if malformed or the metric is unknown."""
+    m = _GATE.match(text)
+    if not m:
+        raise InputError(f"--fail-if '{text}': expected METRIC OP NUMBER, e.g. 'w_mpjpe>300'")
+    known = set(REPORT_COLUMNS) | {"matched", "missed", "false_positives", "cam_focal_pct", "cam_pitch_deg",
+                                   "cam_roll_deg", "cam_height_pct"}
+    if m["metric"] not in known:
+        raise InputError(f"--fail-if '{text}': unknown metric '{m['metric']}' (known: {', '.join(sorted(known))})")
+    try:
+        value = float(m["value"])
+    except ValueError:
+        raise InputError(f"--fail-if '{text}': '{m['value']}' is not a number") from None
+    return Gate(m["metric"], m["op"], value, m["row"])
+
+
+def metric_value(result: EvalResult, metric: str) -> float:
+    """A metric of a result by report name."""
+    if metric in result.metrics:
+        return result.metrics[metric]
+    if metric in result.camera:
+        return result.camera[metric]
+    return float(getattr(result, metric, math.nan))
+
+
+def check_gates(results: Sequence[EvalResult], gates: Sequence[Gate]) -> list[str]:
+    """Reasons of the gates that tripped (a NaN metric trips its gate: it cannot be vouched for)."""
+    reasons = []
+    for gate in gates:
+        rows = [r for r in results if gate.row is None or gate.row in (r.pred, Path(r.pred).name)]
+        if gate.row is not None and not rows:
+            reasons.append(f"{gate}: no prediction named '{gate.row}'")
+        for r in rows:
+            value = metric_value(r, gate.metric)
+            if math.isnan(value) or _OPS[gate.op](value, gate.value):
+                reasons.append(f"{Path(r.pred).name}: {gate.metric} = {value:.4g} ({gate})")
+    return reasons
+
+
+def report_rows(results: Sequence[EvalResult]) -> list[str]:
+    """Metric columns that have a value in at least one row."""
+    cols = [c for c in REPORT_COLUMNS if any(math.isfinite(r.metrics.get(c, math.nan)) for r in results)]
+    cams = sorted({k for r in results for k in r.camera if not k.endswith("_signed")})
+    return cols + cams
+
+
+_RATIOS = ("precision", "recall", "f1")
+
+
+def format_value(metric: str, value: float) -> str:
+    """Table cell: 3 decimals for ratios, 1 for mm, degrees and percentages."""
+    if value is None or not math.isfinite(value):
+        return "–"
+    return f"{value:.3f}" if metric in _RATIOS else f"{value:.1f}"
+
+
+def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
+    """metrics.md: one row per prediction, then the change of each row against the first."""
+    cols = report_rows(results)
+    lines = [f"# rotavat eval against `{gt}`", "", "Errors in mm (lean in degrees); lower is better. "
+             "`w_*` = no alignment at all; `pa_*` = Procrustes-aligned; `*_spec` = SPEC's gravity-frame variant.", ""]
+    lines.append("| prediction | frames | matched | missed | FP | " + " | ".join(cols) + " |")
+    lines.append("|---" * (5 + len(cols)) + "|")
+    for r in results:
+        vals = [metric_value(r, c) for c in cols]
+        lines.append(f"| `{r.pred}` | {r.frames} | {r.matched} | {r.missed} | {r.false_positives} | "
+                     + " | ".join(format_value(c, v) for c, v in zip(cols, vals)) + " |")
+    if len(results) > 1:
+        lines += ["", f"Relative change against `{results[0].pred}`:", ""]
+        lines.append("| prediction | " + " | ".join(cols) + " |")
+        lines.append("|---" * (1 + len(cols)) + "|")
+        base = results[0]
+        for r in results[1:]:
+            cells = []
+            for c in cols:
+                b, v = metric_value(base, c), metric_value(r, c)
+                cells.append("–" if not (math.isfinite(b) and math.isfinite(v)) or b == 0 else f"{100.0 * (v - b) / abs(b):+.1f}%")
+            lines.append(f"| `{r.pred}` | " + " | ".join(cells) + " |")
+    frames_note = [f"- `{r.pred}`: {r.frames_pred_only} frames only in the prediction, {r.frames_gt_only} only in the ground truth"
+                   for r in results if r.frames_pred_only or r.frames_gt_only]
+    if frames_note:
+        lines += ["", "Unpaired frames (counted as false positives / misses):", *frames_note]
+    return "\n".join(lines) + "\n"
+
+
+def write_reports(out_dir: str | Path, results: Sequence[EvalResult], gt: str, options: dict) -> tuple[Path, Path]:
+    """Write metrics.json and metrics.md atomically into ``out_dir``."""
+    out_dir = Path(out_dir)
+    payload = {"gt": gt, "options": options, "metric_names": list(PERSON_METRICS),
+               "predictions": [r.as_dict() for r in results]}
+    json_path, md_path = out_dir / "metrics.json", out_dir / "metrics.md"
+    atomic_write_text(json_path, json.dumps(to_plain(payload), indent=2) + "\n")
+    atomic_write_text(md_path, markdown_report(results, gt))
+    return json_path, md_path
