@@ -1,0 +1,158 @@
+"""Sequence-level evaluation: hand-computed metrics, matching, unpaired frames, gates, the paper's point."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import invoke
+from rotavat_cli.camera import Camera
+from rotavat_cli.errors import InputError
+from rotavat_cli.evaluate import EvalOptions, evaluate, parse_joints
+from rotavat_cli.report import parse_gate
+from rotavat_cli.sequence import write_camera_yaml
+
+JOINTS = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [0.0, -0.5, 0.0], [0.0, 0.0, 0.3]])
+
+
+def write_seq(path: Path, frames: dict[str, dict], focal: float = 500.0) -> Path:
+    path.mkdir(parents=True, exist_ok=True)
+    for name, data in frames.items():
+        np.savez(path / f"{name}.npz", **data)
+    (path / "meta.yaml").write_text(f"image_size: [640, 480]\nfocal_length: {focal}\n")
+    return path
+
+
+def people(offsets, ids=None, joints=JOINTS):
+    offsets = np.asarray(offsets, dtype=np.float64).reshape(-1, 3)
+    out = {"joints": joints[None] + offsets[:, None]}
+    if ids is not None:
+        out["person_ids"] = np.asarray(ids)
+    return out
+
+
+def test_translation_only_offset(tmp_path):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[0.03, 0.04, 5]], [1])})
+    r = evaluate(pred, gt)
+    assert r.metrics["w_mpjpe"] == pytest.approx(50.0)
+    assert r.metrics["mpjpe"] == pytest.approx(0.0, abs=1e-9)
+    assert r.metrics["pa_mpjpe"] == pytest.approx(0.0, abs=1e-6)
+    assert (r.matched, r.missed, r.false_positives) == (1, 0, 0)
+
+
+def test_rotation_about_pelvis(tmp_path):
+    c, s = np.cos(np.pi / 2), np.sin(np.pi / 2)
+    Rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5]], [1], joints=JOINTS @ Rz.T)})
+    r = evaluate(pred, gt)
+    # joint 1 (0.2 m) and 2 (0.5 m) each move by r*sqrt(2); joint 3 lies on the axis
+    expected = 1000.0 * (0.2 * np.sqrt(2) + 0.5 * np.sqrt(2)) / 4
+    assert r.metrics["mpjpe"] == pytest.approx(expected)
+    assert r.metrics["w_mpjpe"] == pytest.approx(expected)
+    assert r.metrics["pa_mpjpe"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_scale_only_about_pelvis(tmp_path):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5]], [1], joints=JOINTS * 1.5)})
+    r = evaluate(pred, gt)
+    assert r.metrics["mpjpe"] == pytest.approx(1000.0 * 0.5 * (0.2 + 0.5 + 0.3) / 4)
+    assert r.metrics["pa_mpjpe"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_id_swap_misses_and_false_positives(tmp_path):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5], [1, 0, 5], [2, 0, 5]], [1, 2, 3]),
+                                     "000001": people([[0, 0, 5]], [1])})
+    # person 2 and 1 swapped in order, person 3 missed, person 9 a false positive; frame 000002 pred-only
+    pred = write_seq(tmp_path / "pred", {"000000": people([[1, 0, 5], [0, 0, 5], [5, 0, 5]], [2, 1, 9]),
+                                         "000001": {"joints": np.zeros((0, 4, 3)), "person_ids": np.zeros(0, int)},
+                                         "000002": people([[0, 0, 5]], [1])})
+    r = evaluate(pred, gt)
+    assert (r.matched, r.missed, r.false_positives) == (2, 2, 2)
+    assert r.frames == 2 and r.frames_pred_only == 1
+    assert r.metrics["w_mpjpe"] == pytest.approx(0.0)
+    assert r.metrics["precision"] == pytest.approx(0.5) and r.metrics["recall"] == pytest.approx(0.5)
+    assert r.metrics["nmje"] == pytest.approx(r.metrics["mpjpe"] / 0.5)
+
+
+def test_hungarian_without_ids_and_threshold(tmp_path):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5], [1, 0, 5]])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[1.01, 0, 5], [0.01, 0, 5], [3, 0, 5]])})
+    r = evaluate(pred, gt, EvalOptions(match="hungarian", threshold_px=20.0))
+    assert (r.matched, r.missed, r.false_positives) == (2, 0, 1)
+    assert r.metrics["w_mpjpe"] == pytest.approx(10.0)
+    assert r.per_person["pred_index"] == [1, 0]
+    r2 = evaluate(pred, gt, EvalOptions(match="hungarian", threshold_px=0.5))
+    assert r2.matched == 0 and r2.missed == 2
+
+
+def test_joint_count_mismatch_needs_joints_option(tmp_path):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5]], [1], joints=np.vstack([JOINTS, JOINTS]))})
+    with pytest.raises(InputError, match="--joints"):
+        evaluate(pred, gt)
+    r = evaluate(pred, gt, EvalOptions(joints=parse_joints("0-3")))
+    assert r.metrics["w_mpjpe"] == pytest.approx(0.0)
+
+
+def test_gates_and_exit_codes(tmp_path, runner):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[0.03, 0.04, 5]], [1])})
+    ok = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "o", "--fail-if", "w_mpjpe>60", "-q")
+    assert ok.exit_code == 0
+    bad = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "o", "--fail-if", "w_mpjpe>40", "-q")
+    assert bad.exit_code == 1 and "w_mpjpe" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    typo = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "o", "--fail-if", "w_mpjpf>40")
+    assert typo.exit_code == 2 and "unknown metric" in typo.stderr
+    data = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert data["predictions"][0]["metrics"]["w_mpjpe"] == pytest.approx(50.0)
+
+
+def test_gate_parsing():
+    g = parse_gate("pred_aligned:f1 <= 0.9")
+    assert (g.row, g.metric, g.op, g.value) == ("pred_aligned", "f1", "<=", 0.9)
+    with pytest.raises(InputError):
+        parse_gate("w_mpjpe > lots")
+
+
+def test_pred_defaults_to_current_directory(tmp_path, runner, monkeypatch):
+    gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
+    pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5.1]], [1])})
+    monkeypatch.chdir(pred)
+    result = invoke(runner, "eval", "--gt", gt, "--json")
+    assert result.exit_code == 0
+    assert json.loads(result.stdout)["predictions"][0]["metrics"]["w_mpjpe"] == pytest.approx(100.0)
+    assert (pred / "metrics.md").exists()
+
+
+def test_ground_aware_metrics_and_camera_errors(tmp_path):
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=3, frames=2, people=4))
+    gt_cam = Camera((1280, 720), 1000.0, None, 0.3, 0.0, 5.0)
+    r_self = evaluate(tmp_path / "s" / "gt", tmp_path / "s" / "gt")
+    assert r_self.metrics["w_mpjpe"] == 0.0 and r_self.metrics["foot_height"] < 10.0
+    assert r_self.metrics["stature_err"] == 0.0 and r_self.metrics["lean_deg"] < 5.0
+    assert r_self.camera["cam_focal_pct"] == 0.0
+    write_camera_yaml(tmp_path / "s" / "pred" / "camera.yaml", gt_cam)
+    r = evaluate(tmp_path / "s" / "pred", tmp_path / "s" / "gt")
+    assert np.isfinite(r.metrics["w_mpjpe_spec"]) and "cam_pitch_deg" in r.camera
+
+
+def test_paper_point_on_synth(tmp_path, runner):
+    """PA-MPJPE nearly unchanged, W-MPJPE far lower after RotAvat: the paper's argument in numbers."""
+    s = tmp_path / "s"
+    assert invoke(runner, "synth", s, "--seed", "21", "--frames", "4", "--people", "6", "-q").exit_code == 0
+    assert invoke(runner, "align", "--in", s / "pred", "--camera", s / "gt" / "camera.yaml", "--out", s / "al", "-q").exit_code == 0
+    result = invoke(runner, "eval", s / "pred", s / "al", "--gt", s / "gt", "--out", tmp_path, "--json")
+    before, after = (p["metrics"] for p in json.loads(result.stdout)["predictions"])
+    assert after["pa_mpjpe"] == pytest.approx(before["pa_mpjpe"], rel=0.02)
+    assert after["w_mpjpe"] < 0.2 * before["w_mpjpe"]
+    assert after["foot_height"] < 5.0 < before["foot_height"]
+    md = (tmp_path / "metrics.md").read_text()
+    assert "Relative change" in md and "`" + str(s / "al") + "`" in md
