@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_open
+from .parallel import ordered_map
 from .camera import Camera
 from .errors import InputError
 from .landmarks import foot_head_points
@@ -41,6 +42,15 @@ def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: 
     return rotavat_transforms(feet_cam, heads_cam, camera.up_cam, camera.ground_offset_m, upright, stature), feet_cam, heads_cam
 
 
+def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, focal_px: float) -> np.ndarray:
+    """Image motion (P, V) in px of points (P, V, 3) that moved; float32 suffices for a report."""
+    a = np.asarray(before_cam, dtype=np.float32)
+    b = np.asarray(after_cam, dtype=np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = b[..., :2] / b[..., 2:3] - a[..., :2] / a[..., 2:3]
+    return np.float32(focal_px) * np.sqrt(np.einsum("pvi,pvi->pv", d, d))
+
+
 def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
                 stature_by_id: dict[int, float] | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
     """Align one frame: the new frame and per-person columns (see ``PEOPLE_COLUMNS``)."""
@@ -49,11 +59,11 @@ def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
         return frame, {c: np.zeros(0) for c in PEOPLE_COLUMNS}
     transform, feet_cam, heads_cam = _frame_transform(frame, camera, upright, stature_by_id)
     verts = frame.data["vertices"]
-    new_verts = apply_transforms(verts, transform)
-    arrays = {"vertices": new_verts.astype(verts.dtype)}
+    new_verts = apply_transforms(verts, transform).astype(verts.dtype)
+    arrays = {"vertices": new_verts}
     if frame.get("joints") is not None:
         arrays["joints"] = apply_transforms(frame.data["joints"], transform).astype(frame.data["joints"].dtype)
-    drift = np.linalg.norm(camera.project(new_verts) - camera.project(verts), axis=-1)  # (P, V)
+    drift = _pixel_drift_px(verts, new_verts, camera.focal_px)  # (P, V)
     new_heads = apply_transforms(heads_cam[:, None], transform)[:, 0]
     foot_world = camera.world_from_cam(transform.pivot_cam)
     ok = transform.ok
@@ -106,8 +116,13 @@ class AlignSummary:
 
 
 def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str = "paper", height_from: str = "frame",
-                   camera_fit: dict | None = None, progress: Callable[[], None] | None = None) -> AlignSummary:
-    """Align every frame of ``seq`` into ``out`` (mirrored form) with camera.yaml and people.csv."""
+                   camera_fit: dict | None = None, progress: Callable[[], None] | None = None,
+                   workers: int = 2) -> AlignSummary:
+    """Align every frame of ``seq`` into ``out`` (mirrored form) with camera.yaml and people.csv.
+
+    Frames stream through ``workers`` threads (numpy and file I/O release the GIL), a bounded
+    window ahead of the in-order writer of people.csv, so memory stays flat.
+    """
     out = Path(out)
     if out.resolve() == seq.path.resolve():
         raise InputError(f"{out}: the output directory must differ from the input sequence")
@@ -119,16 +134,22 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
     summary = AlignSummary(out)
     depth, rotation, stature, flags = [], [], [], defaultdict(int)
     out.mkdir(parents=True, exist_ok=True)
+
+    def one(name: str) -> tuple[int, dict[str, np.ndarray]]:
+        """Read, align and write one frame (runs in a worker thread)."""
+        frame = seq.read_frame(name)
+        new_frame, cols = align_frame(frame, camera, upright, stature_by_id)
+        write_frame(out, new_frame, seq.form)
+        return frame.n_people, cols
+
     with atomic_open(out / "people.csv", "w") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(PEOPLE_COLUMNS)
-        for frame in seq.frames():
-            new_frame, cols = align_frame(frame, camera, upright, stature_by_id)
-            write_frame(out, new_frame, seq.form)
+        for n_people, cols in ordered_map(one, seq.frame_names, workers):
             _write_rows(writer, cols)
             ok = cols["flag"] == ""
             summary.frames += 1
-            summary.people += frame.n_people
+            summary.people += n_people
             summary.aligned += int(ok.sum())
             for name in cols["flag"][~ok]:
                 flags[str(name)] += 1

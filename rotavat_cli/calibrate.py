@@ -39,7 +39,8 @@ PARAM_NAMES = ("focal_px", "pitch_deg", "roll_deg", "height_m")
 
 _RAY_EPS = 1e-12  # foot ray "parallel to the ground" (as camera.backproject_px_to_plane)
 _Z_MIN = 0.05  # head depth / foot depth below this: head (nearly) behind the camera -> invalid pair
-_INIT_PAIRS = 1000  # robust grid and multi-start run on at most this many pairs
+_INIT_PAIRS = 600  # robust grid and multi-start run on at most this many pairs
+_INIT_STEPS = (40, 30)  # robust grid: log-spaced focal and height values over the GridSpec ranges
 _INIT_TRUNCATE = 0.25  # robust grid: head errors beyond 25% of the person's pixel length are outliers
 _CHI2_99 = {2: 9.2103, 1: 6.6349}  # chi-square 99% quantiles (pair residual: 2 or 1 components)
 _CHI2_MEDIAN = {2: 1.3863, 1: 0.4549}  # chi-square medians, for the robust residual scale
@@ -69,7 +70,8 @@ class CalibrationResult:
     corr_focal_pitch: float  # NaN when either is fixed
     inlier_mask: np.ndarray  # (N,) bool
     warnings: tuple[str, ...] = ()
-    residual: str = "full"
+    residual: str = "full"  # "full" | "vertical"
+    std_statistical: dict[str, float] = field(default_factory=dict)  # the fit's own part of ``std``
 
     @property
     def horizon_v_px(self) -> float:
@@ -359,8 +361,9 @@ def _refine(prob: _Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray,
     """Grid seeds, multi-start on a subsample, then the full fit; returns (params, mask, scale, free)."""
     free = np.array([focal_px is None, True, estimate_roll, True])
     sub_idx = _order_invariant_subset(feet, heads, _INIT_PAIRS)
-    focal = grid.focal_values_px(image_size[1]) if focal_px is None else np.array([float(focal_px)])
-    pitch, height = grid.pitch_values_rad(), grid.height_values_m()
+    lo, hi = (v * image_size[1] for v in grid.focal_range_h)
+    focal = np.geomspace(lo, hi, _INIT_STEPS[0]) if focal_px is None else np.array([float(focal_px)])
+    pitch, height = grid.pitch_values_rad(), np.geomspace(*grid.height_range_m, _INIT_STEPS[1])
     costs = robust_grid_costs(feet[sub_idx], heads[sub_idx], pp, focal, pitch, height, prob.person_height_m,
                               "vertical" if prob.vertical else "full", _INIT_TRUNCATE)
     seeds = [np.array([focal[i], pitch[j], 0.0, height[c]]) for i, j, c in _seed_cells(costs, focal)]
@@ -398,37 +401,90 @@ def _better(prob: _Problem, a, b):
 
 
 # ---- uncertainty ---------------------------------------------------------------------------------
-def _covariance(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float,
-                clusters: np.ndarray | None) -> np.ndarray:
-    """Covariance (4, 4) of (log f, pitch, roll, log h), zero rows for fixed parameters.
+@dataclass(frozen=True)
+class _Systematics:
+    """Prior sds of what the model assumes but does not fit (propagated into the reported std)."""
 
-    Gauss-Newton ``(J^T J)^-1`` of the whitened residuals; when clusters (tracks or frames) are
-    given and there are >= 10 of them, the larger of it and a cluster-robust sandwich per parameter.
+    principal_point_px: float  # per axis
+    distortion: float  # radial displacement at the image corner / half-diagonal
+    stature_mean_m: float  # population mean stature
+    half_diagonal_px: float
+
+
+def _statistical_cov(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float,
+                     clusters: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Covariance (n_free, n_free) of the free internal parameters, with the residuals and Jacobian.
+
+    Gauss-Newton ``(J^T J)^-1`` of the whitened residuals; with >= 10 clusters (tracks, else frames)
+    each variance is the larger of it and a cluster-robust sandwich's (correlated errors of a person).
     """
-    x = _to_internal(params)[free]
-    r, J = _residual_and_jacobian(prob, x, params, free, scale)
+    r, J = _residual_and_jacobian(prob, _to_internal(params)[free], params, free, scale)
+    A_inv = np.linalg.pinv(J.T @ J)
+    if clusters is None or len(np.unique(clusters)) < 10:
+        return A_inv, r, J
     n_data = len(prob.rel_feet) * prob.dof
-    Jd, rd = J[:n_data], r[:n_data]
-    A = J.T @ J
-    A_inv = np.linalg.pinv(A)
-    cov = A_inv
-    if clusters is not None:
-        groups, inv = np.unique(clusters, return_inverse=True)
-        if len(groups) >= 10:
-            per_pair = (Jd * rd[:, None]).reshape(len(prob.rel_feet), prob.dof, -1).sum(axis=1)
-            scores = np.zeros((len(groups), J.shape[1]))
-            np.add.at(scores, inv, per_pair)
-            Jp = J[n_data:]
-            B = scores.T @ scores * len(groups) / (len(groups) - 1) + Jp.T @ Jp
-            sandwich = A_inv @ B @ A_inv
-            if np.trace(sandwich / np.maximum(np.diag(A_inv), 1e-300)) > np.trace(np.eye(len(A))):
-                cov = sandwich
-            var = np.maximum(np.diag(A_inv), np.diag(sandwich))
-            d_old = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-            cov = cov / np.outer(d_old, d_old) * np.outer(np.sqrt(var), np.sqrt(var))
-    full = np.zeros((4, 4))
-    full[np.ix_(free, free)] = cov
-    return full
+    groups, inv = np.unique(clusters, return_inverse=True)
+    per_pair = (J[:n_data] * r[:n_data, None]).reshape(len(prob.rel_feet), prob.dof, -1).sum(axis=1)
+    scores = np.zeros((len(groups), J.shape[1]))
+    np.add.at(scores, inv, per_pair)
+    Jp = J[n_data:]
+    sandwich = A_inv @ (scores.T @ scores * len(groups) / (len(groups) - 1) + Jp.T @ Jp) @ A_inv
+    ratio = np.diag(sandwich) / np.maximum(np.diag(A_inv), 1e-300)
+    base = sandwich if np.mean(ratio) > 1.0 else A_inv  # correlations from the larger of the two
+    sd_base = np.sqrt(np.maximum(np.diag(base), 1e-300))
+    sd = np.sqrt(np.maximum(np.diag(A_inv), np.diag(sandwich)))
+    return base / np.outer(sd_base, sd_base) * np.outer(sd, sd), r, J
+
+
+def _perturbed(prob: _Problem, which: str, amount: float, half_diagonal_px: float) -> _Problem:
+    """The problem with its principal point, lens distortion or stature moved by ``amount``."""
+    rel_feet, diff, height = prob.rel_feet, prob.diff, prob.person_height_m
+    if which == "cx":
+        rel_feet = rel_feet - (amount, 0.0)
+    elif which == "cy":
+        rel_feet = rel_feet - (0.0, amount)
+    elif which == "distortion":
+        rel_heads = rel_feet - diff
+        def undistort(p: np.ndarray) -> np.ndarray:
+            return p * (1.0 + amount * np.sum(p * p, axis=1, keepdims=True) / half_diagonal_px**2)
+        rel_feet = undistort(rel_feet)
+        diff = rel_feet - undistort(rel_heads)
+    else:
+        height = height + amount
+    return _Problem(rel_feet, diff, prob.axis, prob.sd_along, prob.sd_across, height, prob.vertical,
+                    prob.image_height_px, prob.fov_prior)
+
+
+def _systematic_cov(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float, r: np.ndarray,
+                    J: np.ndarray, sys: _Systematics) -> np.ndarray:
+    """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
+    sds = {"cx": sys.principal_point_px, "cy": sys.principal_point_px, "distortion": sys.distortion,
+           "stature": sys.stature_mean_m}
+    x = _to_internal(params)[free]
+    gain = -np.linalg.pinv(J.T @ J) @ J.T
+    cov = np.zeros((len(x), len(x)))
+    for name, sd in sds.items():
+        if sd <= 0:
+            continue
+        step = 0.1 * sd
+        r_moved, _ = _residual_and_jacobian(_perturbed(prob, name, step, sys.half_diagonal_px), x, params, free,
+                                            scale)
+        shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
+        cov += np.outer(shift, shift)
+    return cov
+
+
+def _covariances(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
+                 sys: _Systematics) -> tuple[np.ndarray, np.ndarray]:
+    """(total, statistical) covariances (4, 4) of (log f, pitch, roll, log h); zero for fixed ones."""
+    stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
+    total = stat + _systematic_cov(prob, params, free, scale, r, J, sys)
+    out = []
+    for cov in (total, stat):
+        full = np.zeros((4, 4))
+        full[np.ix_(free, free)] = cov
+        out.append(full)
+    return out[0], out[1]
 
 
 def _std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple[dict[str, float], float]:
@@ -445,11 +501,12 @@ def _warnings(camera: Camera, std: dict[str, float], corr: float, inliers: int, 
     """Plain-words warnings about what the data could not determine."""
     out = []
     f_sd = std["focal_px"]
-    if math.isfinite(f_sd) and (f_sd > WARN_FOCAL_REL_SD * camera.focal_px or abs(corr) > WARN_FOCAL_PITCH_CORR):
+    if math.isfinite(f_sd) and f_sd > WARN_FOCAL_REL_SD * camera.focal_px:
+        valley = (f"; focal and pitch trade off (correlation {corr:+.2f}): the horizon is better determined than "
+                  "either") if abs(corr) > WARN_FOCAL_PITCH_CORR else ""
         out.append(f"focal length poorly determined: {camera.focal_px:.0f} +- {f_sd:.0f} px "
-                   f"({100 * f_sd / camera.focal_px:.0f}%), focal and pitch trade off (correlation {corr:+.2f}); "
-                   "the horizon and the camera height are reliable, the pitch less so: give the focal length "
-                   "if it is known, or a field-of-view prior")
+                   f"({100 * f_sd / camera.focal_px:.0f}%){valley}; give the focal length if it is known, "
+                   "or a field-of-view prior")
     if math.isfinite(std["pitch_deg"]) and std["pitch_deg"] > WARN_PITCH_SD_DEG:
         out.append(f"pitch poorly determined: +- {std['pitch_deg']:.1f} deg")
     if math.isfinite(std["height_m"]) and std["height_m"] > WARN_HEIGHT_REL_SD * camera.height_m:
@@ -469,7 +526,9 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
                principal_point: tuple[float, float] | None = None, person_height_m: float = 1.70,
                person_height_sd_m: float = 0.07, residual: str = "full", fov_prior_deg: float | None = None,
                fov_prior_sd_deg: float = 10.0, noise_px: float = 2.0, grid: GridSpec = GridSpec(),
-               max_rounds: int = 6, workers: int | None = None) -> CalibrationResult:
+               principal_point_sd_px: float | None = None, distortion_sd: float = 0.01,
+               person_height_mean_sd_m: float = 0.04, max_rounds: int = 6,
+               workers: int | None = None) -> CalibrationResult:
     """Estimate the static camera from foot/head pixel pairs pooled over all frames.
 
     feet_px, heads_px: (N, 2) px, mid-sole and crown; image_size: (W, H) px.
@@ -479,6 +538,10 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     or "vertical" (head row only: box-derived points). fov_prior_deg: mean of a weak prior on the
     vertical field of view (sd fov_prior_sd_deg), used when the focal is estimated (refine only).
     noise_px: pixel noise of the points (refine weights). workers: grid threads (None = auto).
+    The reported std adds, to the fit's own uncertainty, what the model assumes but cannot know:
+    the principal point (sd principal_point_sd_px per axis; None = 2% of the larger image side,
+    or 0 when principal_point is given), radial lens distortion (sd of the corner displacement
+    over the half-diagonal, distortion_sd) and the people's mean stature (person_height_mean_sd_m).
     Raises ValueError for malformed input and DegenerateSceneError when the pairs cannot
     determine a camera (fewer than 3 usable pairs, or no candidate camera is valid).
     """
@@ -524,19 +587,33 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     else:
         params, mask_u, scale, free = _refine(prob, feet[idx], heads[idx], pp, size, focal_px, estimate_roll, grid,
                                               max_rounds)
+        extra = _bound_warnings(params, free, size[1])
     camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])
     inlier_mask = np.zeros(len(feet), bool)
     inlier_mask[idx[mask_u]] = True
     clusters = tracks if tracks is not None else frames
     inl = prob.subset(np.flatnonzero(mask_u))
-    cov = _covariance(inl, params, free, scale, None if clusters is None else clusters[idx[mask_u]])
+    pp_sd = (0.02 * max(size) if principal_point is None else 0.0) if principal_point_sd_px is None \
+        else float(principal_point_sd_px)
+    sys = _Systematics(pp_sd, float(distortion_sd), float(person_height_mean_sd_m), 0.5 * math.hypot(*size))
+    cov, cov_stat = _covariances(inl, params, free, scale, None if clusters is None else clusters[idx[mask_u]], sys)
     std, corr = _std_and_corr(params, cov, free)
+    std_stat, _ = _std_and_corr(params, cov_stat, free)
     (eu, ev), _ = _head_errors(inl.rel_feet, inl.diff, params[None], inl.person_height_m)
     sq = ev[0] ** 2 if residual == "vertical" else eu[0] ** 2 + ev[0] ** 2
     rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
     warns = extra + _warnings(camera, std, corr, int(mask_u.sum()), n_usable, len(feet))
     return CalibrationResult(camera, method, float(person_height_m), len(feet), int(mask_u.sum()), n_frames, rmse,
-                             std, corr, inlier_mask, tuple(warns), residual)
+                             std, corr, inlier_mask, tuple(warns), residual, std_stat)
+
+
+def _bound_warnings(params: np.ndarray, free: np.ndarray, image_height_px: float) -> list[str]:
+    """Warnings for refined parameters stopped at their search bounds."""
+    lo, hi = _bounds(image_height_px)
+    x = _to_internal(params)
+    names = ("focal length", "pitch", "roll", "camera height")
+    return [f"the {names[i]} stopped at its search bound; the data do not determine it"
+            for i in range(4) if free[i] and min(x[i] - lo[i], hi[i] - x[i]) < 1e-3]
 
 
 def _grid_fit(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, size: tuple[int, int], focal_px: float | None,

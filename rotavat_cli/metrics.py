@@ -180,8 +180,9 @@ def _centroid(points: np.ndarray) -> np.ndarray:
 # that ratio squared passes 1e8 (a 0.3 m body 3 km from the origin) are centred first instead,
 # which bounds the loss at ~1e-8 relative, far below a micrometre.
 _MAX_OFFSET_TO_SPREAD_SQ = 1e8
-# A source whose spread is below 1e-6 of its distance to the origin counts as collapsed.
-_COLLAPSED_SPREAD_SQ = 1e-12
+# A source counts as collapsed (all points equal) when its variance is within the rounding noise
+# of centred coordinates, ~(eps * |centroid|)^2 per point.
+_COLLAPSED_SPREAD_SQ = (16.0 * np.finfo(np.float64).eps) ** 2
 
 
 def _similarity(
@@ -195,10 +196,9 @@ def _similarity(
     second_src = np.einsum("pni,pni->p", src, src)
     var_src = second_src - offset_src
     var_dst = np.einsum("pni,pni->p", dst, dst) - offset_dst
-    with np.errstate(divide="ignore", invalid="ignore"):
-        far = (offset_src > _MAX_OFFSET_TO_SPREAD_SQ * var_src) | (
-            offset_dst > _MAX_OFFSET_TO_SPREAD_SQ * var_dst
-        )
+    far = (offset_src > _MAX_OFFSET_TO_SPREAD_SQ * var_src) | (
+        offset_dst > _MAX_OFFSET_TO_SPREAD_SQ * var_dst
+    )
     if far.any():
         src_c, dst_c = _shift_rows(src, -mu_src), _shift_rows(dst, -mu_dst)
         cov = np.swapaxes(src_c, 1, 2) @ dst_c

@@ -147,9 +147,14 @@ def rotavat_transforms(
 
 
 def apply_transforms(points_cam: np.ndarray, transform: AlignTransform) -> np.ndarray:
-    """Apply per-person transforms to points (P, N, 3); flagged people are returned unchanged."""
-    X = np.asarray(points_cam, dtype=np.float64)
+    """Apply per-person transforms to points (P, N, 3) -> float64; flagged people come back unchanged.
+
+    ``X' = pivot + s3 R (s1 X - pivot)`` is one affine map ``X' = A X + b`` per person, applied
+    with a single batched matmul (flagged people have ``A = I``, ``b = 0`` exactly).
+    """
     t = transform
-    moved = np.einsum("pij,pnj->pni", t.rotation, t.depth_scale[:, None, None] * X - t.pivot_cam[:, None])
-    out = t.pivot_cam[:, None] + t.final_scale[:, None, None] * moved
-    return np.where(t.ok[:, None, None], out, X)
+    A = (t.depth_scale * t.final_scale)[:, None, None] * t.rotation  # (P, 3, 3)
+    b = t.pivot_cam - t.final_scale[:, None] * np.einsum("pij,pj->pi", t.rotation, t.pivot_cam)
+    out = np.matmul(np.asarray(points_cam, dtype=np.float64), np.swapaxes(A, 1, 2))
+    out += b[:, None, :]
+    return out

@@ -164,7 +164,7 @@ def test_procrustes_align_recovers_a_similarity():
 
 
 @pytest.mark.parametrize("n_people", [1, 2, 3])
-@pytest.mark.parametrize("n_points", [3, 4, 24])
+@pytest.mark.parametrize("n_points", [3, 4, 24, 67, 6890])  # 67: prime, 6890 = 130 x 53
 def test_procrustes_matches_per_person_reference(n_people, n_points):
     # N = 3 and P = 3 together catch code that picks a transpose from the array shape.
     rng = np.random.default_rng(0)
@@ -173,6 +173,47 @@ def test_procrustes_matches_per_person_reference(n_people, n_points):
     pred[0] = pred[0] @ np.diag([1.0, -1.0, 1.0])  # one reflected person in every batch
     expected = np.stack([_reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
     np.testing.assert_allclose(point_errors_mm(pred, gt, "procrustes"), expected, atol=1e-9)
+
+
+@pytest.mark.parametrize("distance_m", [0.0, 100.0, 1e4, 1e6])
+def test_procrustes_far_from_the_origin(distance_m):
+    # Moments are taken about the origin unless a person is far relative to its spread
+    # (1e4 m and 1e6 m here); either way the result matches the centred reference.
+    rng = np.random.default_rng(0)
+    gt = rng.normal(0.0, 0.3, size=(2, 24, 3)) + [0.0, 0.0, distance_m]
+    pred = gt + 0.02 * rng.normal(size=gt.shape)
+    expected = np.stack([_reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
+    np.testing.assert_allclose(point_errors_mm(pred, gt, "procrustes"), expected, atol=1e-6)
+    exact = 1.2 * (gt - gt.mean(axis=1, keepdims=True)) @ _rot_z(30.0).T + [1.0, 2.0, 3.0]
+    assert mpjpe(exact, gt, "procrustes") == pytest.approx([0.0, 0.0], abs=1e-6)
+
+
+def test_procrustes_mixed_near_and_far_batch_equals_single_calls():
+    rng = np.random.default_rng(0)
+    gt = rng.normal(0.0, 0.3, size=(2, 24, 3)) + [[[0.0, 0.0, 5.0]], [[0.0, 0.0, 1e5]]]
+    pred = gt + 0.02 * rng.normal(size=gt.shape)
+    batch = mpjpe(pred, gt, "procrustes")
+    singles = [mpjpe(pred[i : i + 1], gt[i : i + 1], "procrustes")[0] for i in range(2)]
+    np.testing.assert_allclose(batch, singles, atol=1e-9)
+
+
+def test_procrustes_collapsed_prediction_lands_on_gt_centroid():
+    gt = _skeleton()
+    pred = np.broadcast_to(PELVIS_CAM + 1.0, gt.shape)
+    aligned = procrustes_align(pred, gt)
+    np.testing.assert_allclose(aligned, np.broadcast_to(gt.mean(axis=1, keepdims=True), gt.shape))
+    expected = np.linalg.norm(gt[0] - gt[0].mean(axis=0), axis=1).mean() * 1000.0
+    assert mpjpe(pred, gt, "procrustes") == pytest.approx([expected], abs=ATOL_MM)
+
+
+@pytest.mark.parametrize("n_points", [1, 7, 67, 6890])
+def test_root_alignment_for_any_point_count(n_points):
+    rng = np.random.default_rng(0)
+    pred, gt = rng.normal(size=(2, 3, n_points, 3))
+    pred_root, gt_root = rng.normal(size=(2, 3, 3))
+    expected = np.linalg.norm((pred - pred_root[:, None]) - (gt - gt_root[:, None]), axis=-1)
+    got = point_errors_mm(pred, gt, "root", pred_root, gt_root)
+    np.testing.assert_allclose(got, expected * 1000.0, rtol=1e-12)
 
 
 def test_pve_root_uses_the_given_pelvis_joint():
@@ -304,6 +345,21 @@ def test_w_spec_with_equal_cameras_is_root_aligned_error():
     rot = _random_rotations(rng, 1)[0]
     got = w_spec_errors_mm(pred, gt, rot, rot, pred[:, 0], gt[:, 0])
     np.testing.assert_allclose(got, point_errors_mm(pred, gt, "root", pred[:, 0], gt[:, 0]))
+
+
+def test_w_spec_with_per_person_cameras_matches_its_definition():
+    # Literal SPEC definition: rotate each side into its own gravity frame, subtract pelvis.
+    rng = np.random.default_rng(0)
+    gt = rng.normal(size=(3, 30, 3))
+    pred = gt + 0.05 * rng.normal(size=gt.shape)
+    r_pred, r_gt = _random_rotations(rng, 3), _random_rotations(rng, 1)[0]
+    pr, gr = pred[:, 0], gt[:, 0]
+    expected = np.linalg.norm(
+        to_gravity_frame(pred - pr[:, None], r_pred) - to_gravity_frame(gt - gr[:, None], r_gt),
+        axis=-1,
+    )
+    got = w_spec_errors_mm(pred, gt, r_pred, r_gt, pr, gr)
+    np.testing.assert_allclose(got, expected * 1000.0, rtol=1e-10, atol=1e-9)
 
 
 def test_w_spec_counts_camera_pitch_error():

@@ -1,0 +1,41 @@
+"""``rotavat export SEQ --frame N --out scene.glb``: one frame as a glTF scene (people, ground, camera)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import InputError
+from ..figure import export_frame
+from ..render import RenderStyle
+from . import app
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json
+
+
+@app.command()
+def export(
+    seq: Annotated[Path, typer.Argument(help="Sequence directory.", file_okay=False)],
+    frame: Annotated[int, typer.Option(help="Frame index (negative counts from the end).")] = 0,
+    out: Annotated[Path | None, typer.Option(help="Output .glb file; default <SEQ>_<frame>.glb beside SEQ.", dir_okay=False)] = None,
+    camera: Annotated[Path | None, typer.Option(help="camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Write one frame as a .glb (glTF 2.0, Y up, metres): people coloured by id, ground quad, camera frustum and camera."""
+    opts = config_for(config, "render")
+    try:
+        palette = RenderStyle.from_config(opts).palette
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if out is not None and out.suffix.lower() != ".glb":
+        raise InputError(f"--out must end in .glb, got {out}")
+    target = out or seq.with_name(f"{seq.name}_{frame}.glb")
+    summary = export_frame(seq, target, frame, camera, palette)
+    if as_json:
+        print_json(summary)
+        return
+    info(f"wrote {summary['out']}: frame {summary['frame']}, {summary['people']} people, ground, camera "
+         f"({summary['image_size'][0]}x{summary['image_size'][1]}, vertical FOV {summary['yfov_deg']:.1f}°)", quiet)

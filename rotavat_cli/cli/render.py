@@ -1,0 +1,61 @@
+"""``rotavat render SEQ [SEQ2 ...]``: front / side / top pictures of the people, one grid row per sequence."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import InputError
+from ..figure import FigureOptions, parse_views, render_sequences
+from ..render import RenderStyle
+from ..render_gl import RENDERERS
+from . import app
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
+
+
+@app.command()
+def render(
+    seqs: Annotated[list[Path], typer.Argument(help="Sequence directories: one grid row each (e.g. pred/ pred_aligned/).", file_okay=False)],
+    camera: Annotated[Path | None, typer.Option(help="camera.yaml for every row; default each SEQ/camera.yaml.", dir_okay=False)] = None,
+    frames: Annotated[str | None, typer.Option(help="Frame indices, comma-separated (e.g. 0,10,-1); default the first.")] = None,
+    every: Annotated[int | None, typer.Option(help="Render every N-th frame instead.", min=1)] = None,
+    views: Annotated[str | None, typer.Option(help="Columns, comma-separated: front, side, top.")] = None,
+    image: Annotated[Path | None, typer.Option(help="Folder of video frames (matched by frame name) under the front view.", file_okay=False, exists=True)] = None,
+    out: Annotated[Path | None, typer.Option(help="Output folder; default <first SEQ>_render beside it.", file_okay=False)] = None,
+    size: Annotated[tuple[int, int] | None, typer.Option(help="One panel's width and height (px).")] = None,
+    renderer: Annotated[str | None, typer.Option(help="auto (OpenGL via EGL, else fallback) | gl | fallback (numpy).")] = None,
+    gif: Annotated[bool | None, typer.Option("--gif/--no-gif", help="Also write render.gif of the rendered frames.")] = None,
+    glb: Annotated[bool | None, typer.Option("--glb/--no-glb", help="Also write a glTF scene (.glb) per frame.")] = None,
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Draw the meshes from the camera (front) and orthographically from the side and top, where floating, sunk and leaning bodies show."""
+    opts = config_for(config, "render", views=views, frames=frames, every=every, size=list(size) if size else None,
+                      renderer=renderer, gif=gif, glb=glb)
+    try:
+        style = RenderStyle.from_config(opts)
+        chosen_views = parse_views(opts["views"])
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if opts["renderer"] not in RENDERERS:
+        raise InputError(f"--renderer must be one of {', '.join(RENDERERS)}, got {opts['renderer']!r}")
+    if min(opts["size"]) < 16 or max(opts["size"]) > 8192:
+        raise InputError(f"--size must be between 16 and 8192 px, got {opts['size']}")
+    if opts["fps"] <= 0:
+        raise InputError(f"render.fps must be > 0, got {opts['fps']}")
+    options = FigureOptions(chosen_views, tuple(opts["size"]), None if opts["frames"] is None else str(opts["frames"]),
+                            opts["every"], opts["renderer"], camera, image, opts["gif"], float(opts["fps"]), opts["glb"], style)
+    out = out or seqs[0].with_name(seqs[0].name + "_render")
+    with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance:
+        summary = render_sequences(seqs, out, options, advance)
+    if as_json:
+        print_json(vars(summary))
+        return
+    fallback = f" (fallback: {summary.renderer_note})" if summary.renderer == "fallback" and summary.renderer_note else ""
+    info(f"rendered {len(summary.frames)} frame(s) x {len(summary.rows)} row(s) x {len(summary.views)} view(s) with "
+         f"{summary.renderer} [{summary.renderer_detail}]{fallback} in {summary.seconds:.2f} s", quiet)
+    for path in summary.files:
+        info(f"wrote {path}", quiet)

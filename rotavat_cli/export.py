@@ -1,0 +1,166 @@
+"""A frame as a glTF 2.0 binary scene (``.glb``): people, a ground quad, the camera frustum and a glTF camera.
+
+World frame = CONVENTIONS' world (origin on the ground below the camera, ``Y`` up, right-handed),
+which is glTF's own convention (``+Y`` up, metres), so vertices go in untouched. The glTF camera
+looks along its local ``-Z`` with ``+Y`` up, while the OpenCV camera looks along ``+z`` with
+``y`` down: the camera node's transform is ``world_from_cv @ R_CV_FROM_GL``.
+
+trimesh (checked on 4.x/5.x: ``exchange/gltf.py::_convert_camera``) writes ``aspectRatio`` as
+``fov_x / fov_y``, a ratio of angles, not ``W / H``; the exporter's tree post-processor here
+rewrites the camera with ``aspectRatio = W / H`` and ``yfov`` = the vertical field of view.
+
+Examples
+--------
+>>> R_CV_FROM_GL @ np.array([0.0, 0.0, -1.0])  # glTF forward is OpenCV forward
+array([0., 0., 1.])
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Sequence as SequenceABC
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .atomic import atomic_open
+from .camera import Camera
+from .render import RowFrame, person_colors
+
+__all__ = [
+    "R_CV_FROM_GL",
+    "world_from_gl_camera",
+    "frustum_segments_world",
+    "ground_quad_world",
+    "build_scene",
+    "glb_bytes",
+    "write_glb",
+    "read_glb_json",
+    "gltf_camera",
+]
+
+# glTF/OpenGL camera axes (x right, y up, looking along -z) -> OpenCV camera axes (x right, y down, z forward).
+R_CV_FROM_GL = np.diag([1.0, -1.0, -1.0])
+_GROUND_RGBA = (150, 150, 140, 255)
+_FRUSTUM_RGBA = (190, 56, 43, 255)
+_GROUND_MARGIN_M = 2.0  # ground quad reaches this far beyond the people and the camera
+_Z_NEAR_M = 0.05
+
+
+def world_from_gl_camera(camera: Camera) -> np.ndarray:
+    """(4, 4) pose of the glTF camera node in the world (columns: its x, y, z axes and the centre)."""
+    M = np.eye(4)
+    M[:3, :3] = camera.R_cam_from_world.T @ R_CV_FROM_GL
+    M[:3, 3] = camera.center_world
+    return M
+
+
+def frustum_segments_world(camera: Camera, depth_m: float) -> np.ndarray:
+    """(8, 2, 3) line segments of the image pyramid to ``depth_m``: 4 edges from the centre, 4 around the far rectangle."""
+    W, H = camera.image_size
+    corners_px = np.array([[0.0, 0.0], [W, 0.0], [W, H], [0.0, H]])
+    rays = np.concatenate([(corners_px - camera.principal_point) / camera.focal_px, np.ones((4, 1))], axis=1)
+    far_world = camera.world_from_cam(rays * depth_m)
+    center = np.broadcast_to(camera.center_world, (4, 3))
+    return np.concatenate([np.stack([center, far_world], axis=1), np.stack([far_world, np.roll(far_world, -1, axis=0)], axis=1)])
+
+
+def ground_quad_world(points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rectangle on Y = 0 around (N, 3) points plus a margin -> vertices (4, 3), faces (2, 3) facing up."""
+    p = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)]
+    lo = p[:, [0, 2]].min(axis=0) - _GROUND_MARGIN_M if len(p) else np.array([-5.0, -10.0])
+    hi = p[:, [0, 2]].max(axis=0) + _GROUND_MARGIN_M if len(p) else np.array([5.0, 0.0])
+    verts = np.array([[lo[0], 0.0, lo[1]], [hi[0], 0.0, lo[1]], [hi[0], 0.0, hi[1]], [lo[0], 0.0, hi[1]]])
+    return verts, np.array([[0, 2, 1], [0, 3, 2]])  # counter-clockwise seen from +Y: normal = +Y
+
+
+def gltf_camera(camera: Camera, name: str = "camera") -> dict:
+    """glTF perspective camera dict: aspectRatio = W / H, yfov = vertical field of view (rad)."""
+    W, H = camera.image_size
+    return {"name": name, "type": "perspective",
+            "perspective": {"aspectRatio": W / H, "yfov": camera.vertical_fov_rad, "znear": _Z_NEAR_M}}
+
+
+def _material(rgba: tuple[int, int, int, int]) -> Any:
+    """A double-sided PBR material of one colour."""
+    from trimesh.visual.material import PBRMaterial
+
+    return PBRMaterial(baseColorFactor=list(rgba), metallicFactor=0.0, roughnessFactor=0.8, doubleSided=True)
+
+
+def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[tuple[float, float, float], ...],
+                frustum_depth_m: float | None = None) -> Any:
+    """trimesh.Scene of rows' people (world frame, coloured by id), ground quad, frustum and camera node.
+
+    Each row's people go to the world through the row's own camera (``camera`` if it has none);
+    node names are ``<row label>/person_<id>``. ``camera`` gives the frustum and the glTF camera.
+    """
+    import trimesh
+
+    scene = trimesh.Scene()
+    everything = [camera.center_world[None] * [1.0, 0.0, 1.0]]
+    for row in rows:
+        cam = row.camera or camera
+        verts = np.asarray(row.verts_cam, dtype=np.float64)
+        if verts.ndim != 3 or verts.shape[0] == 0:
+            continue
+        colors = np.round(255 * person_colors(row.person_ids, palette)).astype(np.uint8)
+        for verts_cam, pid, rgb in zip(verts, row.person_ids, colors):
+            if not np.isfinite(verts_cam).all():
+                continue
+            verts_world = cam.world_from_cam(verts_cam)
+            everything.append(verts_world)
+            mesh = trimesh.Trimesh(verts_world, np.asarray(row.faces, dtype=np.int64), process=False)
+            mesh.visual = trimesh.visual.TextureVisuals(material=_material((*map(int, rgb), 255)))
+            scene.add_geometry(mesh, geom_name=f"{row.label}/person_{int(pid)}", node_name=f"{row.label}/person_{int(pid)}")
+    pts = np.concatenate(everything)
+    quad_v, quad_f = ground_quad_world(pts)
+    ground = trimesh.Trimesh(quad_v, quad_f, process=False)
+    ground.visual = trimesh.visual.TextureVisuals(material=_material(_GROUND_RGBA))
+    scene.add_geometry(ground, geom_name="ground", node_name="ground")
+    if frustum_depth_m is None:
+        dist = np.linalg.norm(pts - camera.center_world, axis=1)
+        frustum_depth_m = float(np.clip(0.25 * dist.max(), 1.0, 10.0)) if len(pts) > 1 else 2.0
+    segments = frustum_segments_world(camera, frustum_depth_m)
+    frustum = trimesh.load_path(segments)
+    frustum.colors = np.tile(np.array(_FRUSTUM_RGBA, dtype=np.uint8), (len(frustum.entities), 1))
+    scene.add_geometry(frustum, geom_name="camera_frustum", node_name="camera_frustum")
+    W, H = camera.image_size
+    scene.camera = trimesh.scene.Camera(name="camera", resolution=(W, H), focal=(camera.focal_px, camera.focal_px), z_near=_Z_NEAR_M)
+    scene.camera_transform = world_from_gl_camera(camera)
+    return scene
+
+
+def glb_bytes(scene: Any, camera: Camera) -> bytes:
+    """Export a scene to GLB with the camera rewritten by :func:`gltf_camera` (aspect ratio W / H)."""
+    from trimesh.exchange.gltf import export_glb
+
+    def fix_camera(tree: dict) -> None:
+        if tree.get("cameras"):
+            tree["cameras"][0] = gltf_camera(camera, tree["cameras"][0].get("name", "camera"))
+
+    return export_glb(scene, tree_postprocessor=fix_camera)
+
+
+def write_glb(path: str | Path, scene: Any, camera: Camera) -> Path:
+    """Write a scene as ``.glb`` atomically."""
+    path = Path(path)
+    data = glb_bytes(scene, camera)
+    with atomic_open(path, "wb") as handle:
+        handle.write(data)
+    return path
+
+
+def read_glb_json(path: str | Path) -> dict:
+    """The JSON chunk of a ``.glb`` file (header, then the first chunk, which must be JSON)."""
+    data = Path(path).read_bytes()
+    magic, version, _length = struct.unpack_from("<4sII", data, 0)
+    if magic != b"glTF" or version != 2:
+        raise ValueError(f"{path}: not a glTF 2.0 binary file")
+    chunk_len, chunk_type = struct.unpack_from("<I4s", data, 12)
+    if chunk_type != b"JSON":
+        raise ValueError(f"{path}: first chunk is {chunk_type!r}, not JSON")
+    return json.loads(data[20:20 + chunk_len].decode("utf-8"))
