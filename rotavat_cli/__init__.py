@@ -1,29 +1,70 @@
-"""rotavat: auto-calibrate a static camera from its people, re-seat HPS meshes on the ground, score them."""
+"""rotavat: auto-calibrate a static camera from its people, re-seat HPS meshes on the ground, score them.
+
+The command line (``rotavat``) is a thin layer over this API:
+
+>>> from rotavat_cli import Camera, rotavat_transforms
+>>> cam = Camera((640, 480), 500.0, None, 0.3, 0.0, 4.0)
+>>> round(cam.height_m, 1)
+4.0
+"""
 
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from .align import AlignSummary, align_frame, align_sequence, track_statures
 from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
-from .config import load_config
+from .config import default_config, load_config
 from .errors import DegenerateSceneError, GateError, InputError, RotavatError
-from .sequence import Frame, Intrinsics, Sequence, open_sequence, read_camera_yaml, write_camera_yaml, write_frame
+from .evaluate import EvalOptions, EvalResult, evaluate
+from .landmarks import foot_head_points
+from .metrics import mpjpe, procrustes_align, pve
+from .people import gather_pairs
+from .rotavat import AlignTransform, apply_transforms, rotavat_transforms
+from .sequence import (
+    Frame,
+    Intrinsics,
+    Sequence,
+    open_sequence,
+    read_camera_yaml,
+    write_camera_yaml,
+    write_frame,
+)
+from .synth import SynthOptions, write_synth_scene
 
 __all__ = [
     "__version__",
+    "AlignSummary",
+    "AlignTransform",
     "Camera",
+    "DegenerateSceneError",
+    "EvalOptions",
+    "EvalResult",
+    "Frame",
+    "GateError",
+    "InputError",
+    "Intrinsics",
+    "RotavatError",
+    "Sequence",
+    "SynthOptions",
+    "align_frame",
+    "align_sequence",
+    "apply_transforms",
     "camera_from_yaml_dict",
     "camera_to_yaml_dict",
+    "default_config",
+    "evaluate",
+    "foot_head_points",
+    "gather_pairs",
     "load_config",
-    "RotavatError",
-    "InputError",
-    "DegenerateSceneError",
-    "GateError",
-    "Frame",
-    "Intrinsics",
-    "Sequence",
+    "mpjpe",
     "open_sequence",
+    "procrustes_align",
+    "pve",
     "read_camera_yaml",
+    "rotavat_transforms",
+    "track_statures",
     "write_camera_yaml",
     "write_frame",
+    "write_synth_scene",
 ]

@@ -5,29 +5,44 @@ Two methods (conventions: CONVENTIONS.md; the model and the fast grid: :mod:`.ca
 - ``"grid"``: the seed paper exactly. Focal, pitch and camera height on a 50^3 grid, roll 0,
   principal point at the image centre, stature 1.70 m, least squares on the head pixels; the
   result is the grid's best cell.
-- ``"refine"`` (default): a robust grid on a subsample seeds a few starts along the focal/pitch
-  valley; each is refined continuously (``scipy.optimize.least_squares``, Cauchy then soft-L1
-  loss) over log-focal, pitch, roll and log-height, with rounds of outlier rejection (a chi-square
-  test on each pair's whitened residual). Residuals are whitened per pair: along the person's
-  image axis by ``sqrt(noise^2 + (L * sd_S / S)^2)`` (``L`` its pixel length: the stature prior's
-  spread), across it by the point noise. Optional: known principal point, fixed focal, no roll,
-  head-row-only residuals (box-derived points), and a weak prior on the vertical field of view.
+- ``"refine"`` (default): a robust (truncated) grid on an order-independent subsample seeds a few
+  starts along the focal/pitch valley; each is refined continuously (``scipy.optimize.least_squares``,
+  Cauchy then soft-L1 loss) over log-focal, pitch, roll and log-height, with rounds of outlier
+  rejection (chi-square test on each pair's whitened residual, robust scale from the median);
+  the best start is refined on all pairs. Residuals are split along and across the person's
+  image axis. The stature prior ``N(S, sd_S)`` enters in two ways: a tracked person (track id
+  >= 0) has its own stature, profiled out with that prior, so a person walking through the scene
+  constrains the perspective whatever their height; an untracked pair carries the spread in its
+  along-the-person weight ``sqrt(noise^2 + (L sd_S / S)^2)`` (``L`` its pixel length). Optional:
+  known principal point, fixed focal, no roll, head-row-only residuals (box-derived points), and
+  a weak prior on the vertical field of view.
 
 From upright people on a plane the horizon (~ f tan(pitch)) and the camera height are well
-determined, but focal and pitch slide along a valley; :class:`CalibrationResult` reports
-standard deviations (Gauss-Newton at the optimum, or a cluster-robust sandwich over tracks or
-frames when that is larger), the focal/pitch correlation, and warnings in plain words.
+determined, but focal and pitch slide along a valley. :class:`CalibrationResult` reports standard
+deviations: the fit's own (Gauss-Newton at the optimum, or per parameter the larger of it and a
+cluster-robust sandwich over tracks, else frames) plus, linearised, what the model assumes
+without knowing it (principal point, mild radial distortion, the people's mean stature); the
+focal/pitch correlation; and warnings in plain words.
+
+Examples
+--------
+>>> cam = Camera((640, 480), 500.0, None, np.deg2rad(30.0), 0.0, 5.0)
+>>> feet_px = np.array([[100.0, 300.0], [320.0, 400.0], [500.0, 350.0], [250.0, 460.0], [600.0, 420.0]])
+>>> heads_px = cam.project(cam.backproject_px_to_ground(feet_px) + 1.7 * cam.up_cam)
+>>> res = fit_camera(feet_px, heads_px, (640, 480), focal_px=500.0)
+>>> round(float(np.rad2deg(res.camera.pitch_rad)), 4), round(res.camera.height_m, 4), res.inliers
+(30.0, 5.0, 5)
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from .calibrate_grid import GridSpec, paper_grid_search, robust_grid_costs
+from .calibrate_grid import GridSpec, order_invariant_subset, paper_grid_search, robust_grid_costs, seed_cells
 from .camera import Camera, horizon_v_px, up_vector_cam
 from .errors import DegenerateSceneError
 
@@ -151,23 +166,27 @@ def _check_index(values, n: int, name: str) -> np.ndarray | None:
 
 
 # ---- the model (closed form, broadcast over Q parameter sets) ----------------------------------------
-def _head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray,
-                 person_height_m: float) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
-    """Head errors predicted minus observed, (u, v) each (Q, N) px, and validity (Q, N) for params (Q, 4).
+def _head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, stature_m: float | np.ndarray
+                 ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Head errors (u, v), their derivatives by the stature (u, v), each (Q, N), and validity (Q, N).
 
-    params rows: (focal_px, pitch_rad, roll_rad, height_m); rel_feet = feet - pp, diff = feet - heads.
-    Same model as :func:`.calibrate_grid.predict_heads_px`: the head is ``F + k M / z``.
+    params (Q, 4) rows: (focal_px, pitch_rad, roll_rad, height_m); rel_feet = feet - pp and
+    diff = feet - heads, (N, 2) px; stature_m: scalar, (N,) or (Q, N). Errors are predicted minus
+    observed heads, px; derivatives px/m. The model of :func:`.calibrate_grid.predict_heads_px`:
+    the head is ``F + k M / z`` with ``k = S / h`` (module docstring of calibrate_grid).
     """
     f, pitch, roll, h = (params[:, i : i + 1] for i in range(4))
     n = up_vector_cam(pitch[:, 0], roll[:, 0])
     nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
     u, v = rel_feet[:, 0], rel_feet[:, 1]
-    k = person_height_m / h
+    k = stature_m / h
     d = -(nx * u + ny * v) / f - nz
     z = 1.0 + k * nz * d
     valid = (d > _RAY_EPS) & (z > _Z_MIN)
-    coef = k * d / np.maximum(z, _Z_MIN)
-    return (diff[:, 0] + coef * (f * nx - nz * u), diff[:, 1] + coef * (f * ny - nz * v)), valid
+    z = np.maximum(z, _Z_MIN)
+    m_u, m_v = d * (f * nx - nz * u), d * (f * ny - nz * v)
+    coef, dcoef = k / z, 1.0 / (h * z * z)
+    return (diff[:, 0] + coef * m_u, diff[:, 1] + coef * m_v), (dcoef * m_u, dcoef * m_v), valid
 
 
 @dataclass(frozen=True)
@@ -177,17 +196,23 @@ class _Problem:
     rel_feet: np.ndarray  # (N, 2) feet minus principal point
     diff: np.ndarray  # (N, 2) feet minus heads
     axis: np.ndarray  # (N, 2) unit vector foot -> head (observed)
-    sd_along: np.ndarray  # (N,) px, noise plus stature spread along the person
+    sd_along: np.ndarray  # (N,) px: noise, plus the stature spread for untracked pairs
     sd_across: float  # px
     person_height_m: float
+    stature_sd_m: float
+    track: np.ndarray  # (N,) int in [0, n_tracks), -1 = untracked
+    n_tracks: int
     vertical: bool
     image_height_px: float
     fov_prior: tuple[float, float] | None  # (mean, sd) of the vertical field of view, degrees
 
     def subset(self, idx: np.ndarray) -> "_Problem":
-        """The same problem on pairs ``idx``."""
-        return _Problem(self.rel_feet[idx], self.diff[idx], self.axis[idx], self.sd_along[idx], self.sd_across,
-                        self.person_height_m, self.vertical, self.image_height_px, self.fov_prior)
+        """The same problem on pairs ``idx`` (tracks renumbered)."""
+        track = np.full(len(idx), -1)
+        tracked = self.track[idx] >= 0
+        labels, track[tracked] = np.unique(self.track[idx][tracked], return_inverse=True)
+        return replace(self, rel_feet=self.rel_feet[idx], diff=self.diff[idx], axis=self.axis[idx],
+                       sd_along=self.sd_along[idx], track=track, n_tracks=len(labels))
 
     @property
     def dof(self) -> int:
@@ -197,27 +222,69 @@ class _Problem:
 
 def _make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_height_m: float,
                   person_height_sd_m: float, noise_px: float, vertical: bool, image_height_px: float,
-                  fov_prior: tuple[float, float] | None) -> _Problem:
-    """Whitening weights from the observed pixel lengths (so they do not depend on the camera)."""
+                  fov_prior: tuple[float, float] | None, track_id: np.ndarray | None) -> _Problem:
+    """Weights from the observed pixel lengths (they never depend on the camera); tracks of id >= 0."""
     diff = feet - heads
     length = np.linalg.norm(diff, axis=1)
     axis = -diff / np.maximum(length, 1e-9)[:, None]
     axis[length < 1e-9] = (0.0, -1.0)
-    sd_along = np.sqrt(noise_px**2 + (length * person_height_sd_m / person_height_m) ** 2)
-    return _Problem(feet - pp, diff, axis, sd_along, float(noise_px), person_height_m, vertical, image_height_px,
-                    fov_prior)
+    track = np.full(len(feet), -1)
+    n_tracks = 0
+    if track_id is not None and person_height_sd_m > 0:
+        tracked = track_id >= 0
+        labels, track[tracked] = np.unique(track_id[tracked], return_inverse=True)
+        n_tracks = len(labels)
+    spread = np.where(track >= 0, 0.0, length * person_height_sd_m / person_height_m)
+    sd_along = np.sqrt(noise_px**2 + spread**2)
+    return _Problem(feet - pp, diff, axis, sd_along, float(noise_px), person_height_m, person_height_sd_m, track,
+                    n_tracks, vertical, image_height_px, fov_prior)
 
 
-def _whitened(prob: _Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Whitened residuals (Q, N, dof) and validity (Q, N) for params (Q, 4)."""
-    e, valid = _head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m)
-    eu, ev = e
+def _along(prob: _Problem, e: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Component (Q, N) of a pixel vector field along the person (the head row if vertical), unwhitened."""
+    return e[1] if prob.vertical else e[0] * prob.axis[:, 0] + e[1] * prob.axis[:, 1]
+
+
+def _profiled(prob: _Problem, params: np.ndarray, scale: float = 1.0
+              ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray, np.ndarray]:
+    """Head errors (u, v) (Q, N) px with each track's stature profiled out, validity (Q, N), deltas (Q, T) m.
+
+    A tracked person's stature is ``S + delta_t`` with ``delta_t ~ N(0, sd_S)``, solved by two robust
+    Gauss-Newton steps (Cauchy weights inside the track) against the whitened residuals / scale.
+    """
+    Q, T = len(params), prob.n_tracks
+    e, de, valid = _head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m)
+    delta = np.zeros((Q, T))
+    if T:
+        tracked = prob.track >= 0
+        flat = (np.arange(Q)[:, None] * T + np.maximum(prob.track, 0)[None, :]).ravel()
+        prec = 1.0 / prob.stature_sd_m**2
+        for _ in range(2):
+            r = _along(prob, e) / (prob.sd_along * scale)
+            j = _along(prob, de) / (prob.sd_along * scale)
+            w = (valid & tracked) / (1.0 + (r / 3.0) ** 2)
+            num = np.bincount(flat, (w * j * r).ravel(), Q * T).reshape(Q, T) + delta * prec
+            den = np.bincount(flat, (w * j * j).ravel(), Q * T).reshape(Q, T) + prec
+            delta = delta - num / den
+            stature = prob.person_height_m + np.where(tracked, delta[:, np.maximum(prob.track, 0)], 0.0)
+            e, de, valid = _head_errors(prob.rel_feet, prob.diff, params, stature)
+    return e, valid, delta
+
+
+def _whitened(prob: _Problem, params: np.ndarray, scale: float = 1.0
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Whitened residuals (Q, N, dof) / scale, track-stature prior rows (Q, T), validity (Q, N).
+
+    Untracked pairs carry the stature spread in their along-the-person weight instead.
+    """
+    e, valid, delta = _profiled(prob, params, scale)
+    along = _along(prob, e) / prob.sd_along
     if prob.vertical:
-        return (ev / prob.sd_along)[..., None], valid
-    au, av = prob.axis[:, 0], prob.axis[:, 1]
-    along = (eu * au + ev * av) / prob.sd_along
-    across = (ev * au - eu * av) / prob.sd_across
-    return np.stack([along, across], axis=-1), valid
+        r = along[..., None]
+    else:
+        across = (e[1] * prob.axis[:, 0] - e[0] * prob.axis[:, 1]) / prob.sd_across
+        r = np.stack([along, across], axis=-1)
+    return r / scale, delta / prob.stature_sd_m if prob.n_tracks else delta, valid
 
 
 def _prior_rows(prob: _Problem, params: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -242,13 +309,17 @@ def _to_internal(params: np.ndarray) -> np.ndarray:
     return np.array([math.log(params[0]), params[1], params[2], math.log(params[3])])
 
 
+def _residual(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float) -> np.ndarray:
+    """Residual vectors (Q, M) for params (Q, 4): pairs (whitened / scale), track statures, fov prior."""
+    r, rows, _ = _whitened(prob, params, scale)
+    return np.concatenate([r.reshape(len(params), -1), rows, _prior_rows(prob, params, free)], axis=1)
+
+
 def _residual_and_jacobian(prob: _Problem, x: np.ndarray, full0: np.ndarray, free: np.ndarray,
                            scale: float) -> tuple[np.ndarray, np.ndarray]:
     """Residual vector (M,) and its Jacobian (M, n_free) by one vectorised forward difference."""
     xs = np.vstack([x, x + _FD_STEP * np.eye(len(x))])
-    params = _to_params(xs, full0, free)
-    r, _ = _whitened(prob, params)
-    r = np.concatenate([r.reshape(len(xs), -1) / scale, _prior_rows(prob, params, free)], axis=1)
+    r = _residual(prob, _to_params(xs, full0, free), free, scale)
     return r[0], ((r[1:] - r[0]) / _FD_STEP).T
 
 
@@ -279,10 +350,10 @@ def _bounds(image_height_px: float) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _pair_chi2(prob: _Problem, params: np.ndarray) -> np.ndarray:
-    """(N,) squared whitened residual norm per pair at params (4,); inf where the model is invalid."""
-    r, valid = _whitened(prob, params[None])
-    chi2 = r[0, :, 0] ** 2 if prob.vertical else r[0, :, 0] ** 2 + r[0, :, 1] ** 2
+def _pair_chi2(prob: _Problem, params: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """(N,) squared whitened residual norm per pair at params (4,) (not divided by scale); inf if invalid."""
+    r, _, valid = _whitened(prob, params[None], scale)
+    chi2 = np.sum((r[0] * scale) ** 2, axis=-1)
     return np.where(valid[0], chi2, np.inf)
 
 
@@ -301,12 +372,13 @@ def _fit_with_rejection(prob: _Problem, params0: np.ndarray, free: np.ndarray, m
     need = max(3, math.ceil(n_free / prob.dof))
     params, mask = params0, mask0.copy()
     scale = _robust_scale(_pair_chi2(prob, params)[mask], prob.dof)
+    scale = _robust_scale(_pair_chi2(prob, params, scale)[mask], prob.dof)
     thr = _CHI2_99[prob.dof]
     for round_ in range(max_rounds):
         sub = prob.subset(np.flatnonzero(mask))
         loss, f_scale = ("cauchy", 2.0) if round_ == 0 else ("soft_l1", 3.0)
         params = _least_squares(sub, params, free, scale, loss, f_scale)
-        chi2 = _pair_chi2(prob, params)
+        chi2 = _pair_chi2(prob, params, scale)
         scale = _robust_scale(chi2[mask], prob.dof)
         new_mask = chi2 <= thr * scale**2
         if new_mask.sum() < need:
@@ -314,45 +386,8 @@ def _fit_with_rejection(prob: _Problem, params0: np.ndarray, free: np.ndarray, m
         if np.array_equal(new_mask, mask) and round_ > 0:
             break
         mask = new_mask
-    scale = _robust_scale(_pair_chi2(prob, params)[mask], prob.dof)
+    scale = _robust_scale(_pair_chi2(prob, params, scale)[mask], prob.dof)
     return params, mask, scale
-
-
-def _order_invariant_subset(feet: np.ndarray, heads: np.ndarray, m: int) -> np.ndarray:
-    """Indices of at most ``m`` pairs, chosen from the sorted pairs (independent of their order)."""
-    order = np.lexsort((heads[:, 1], heads[:, 0], feet[:, 1], feet[:, 0]))
-    if len(order) <= m:
-        return np.sort(order)
-    return np.sort(order[np.linspace(0, len(order) - 1, m).round().astype(int)])
-
-
-def _seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list[tuple[int, int, int]]:
-    """Start cells (F, P, C indices) of a robust grid: the best, other minima along the valley, f x 0.5 and x 2.
-
-    The profile runs over the focal axis, or over the pitch axis when the focal is fixed.
-    """
-    ax = 0 if costs.shape[0] > 1 else 1
-    moved = np.moveaxis(costs, ax, 0)
-    flat = moved.reshape(moved.shape[0], -1)
-    prof, best_at = flat.min(axis=1), flat.argmin(axis=1)
-    n = len(prof)
-    i0 = int(np.argmin(prof))
-    picks = [i0]
-    local = sorted((i for i in range(n) if i != i0 and prof[i] <= prof[max(i - 1, 0)]
-                    and prof[i] <= prof[min(i + 1, n - 1)] and prof[i] <= 1.5 * prof[i0]), key=lambda i: prof[i])
-    picks += local[:2]
-    if ax == 0:
-        for factor in (0.5, 2.0):  # along the focal/pitch valley
-            i = int(np.argmin(np.abs(focal - focal[i0] * factor)))
-            if i not in picks:
-                picks.append(i)
-    cells = []
-    for i in picks[:max_seeds]:
-        rest = np.unravel_index(best_at[i], moved.shape[1:])
-        cell = [int(v) for v in rest]
-        cell.insert(ax, int(i))
-        cells.append(tuple(cell))
-    return cells
 
 
 def _refine(prob: _Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_size: tuple[int, int],
@@ -360,13 +395,13 @@ def _refine(prob: _Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray,
             ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """Grid seeds, multi-start on a subsample, then the full fit; returns (params, mask, scale, free)."""
     free = np.array([focal_px is None, True, estimate_roll, True])
-    sub_idx = _order_invariant_subset(feet, heads, _INIT_PAIRS)
+    sub_idx = order_invariant_subset(feet, heads, _INIT_PAIRS)
     lo, hi = (v * image_size[1] for v in grid.focal_range_h)
     focal = np.geomspace(lo, hi, _INIT_STEPS[0]) if focal_px is None else np.array([float(focal_px)])
     pitch, height = grid.pitch_values_rad(), np.geomspace(*grid.height_range_m, _INIT_STEPS[1])
     costs = robust_grid_costs(feet[sub_idx], heads[sub_idx], pp, focal, pitch, height, prob.person_height_m,
                               "vertical" if prob.vertical else "full", _INIT_TRUNCATE)
-    seeds = [np.array([focal[i], pitch[j], 0.0, height[c]]) for i, j, c in _seed_cells(costs, focal)]
+    seeds = [np.array([focal[i], pitch[j], 0.0, height[c]]) for i, j, c in seed_cells(costs, focal)]
     sub = prob.subset(sub_idx)
     best = None
     for seed in seeds:
@@ -382,7 +417,7 @@ def _refine(prob: _Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray,
         raise DegenerateSceneError("no camera explains the pairs: every start put the feet above the horizon "
                                    "or the heads behind the camera (are these pixels of this image?)")
     start = best[0]
-    chi2 = _pair_chi2(prob, start)
+    chi2 = _pair_chi2(prob, start, best[2])
     mask0 = chi2 <= _CHI2_99[prob.dof] * best[2] ** 2 * 4.0
     if mask0.sum() < 3:
         mask0 = np.isfinite(chi2)
@@ -396,7 +431,7 @@ def _better(prob: _Problem, a, b):
         return b
     ref = min(a[2], b[2])
     thr = _CHI2_99[prob.dof]
-    cost = [np.minimum(_pair_chi2(prob, fit[0]) / ref**2, thr).sum() for fit in (a, b)]
+    cost = [np.minimum(_pair_chi2(prob, fit[0], ref) / ref**2, thr).sum() for fit in (a, b)]
     return b if cost[1] < cost[0] else a
 
 
@@ -424,10 +459,17 @@ def _statistical_cov(prob: _Problem, params: np.ndarray, free: np.ndarray, scale
         return A_inv, r, J
     n_data = len(prob.rel_feet) * prob.dof
     groups, inv = np.unique(clusters, return_inverse=True)
-    per_pair = (J[:n_data] * r[:n_data, None]).reshape(len(prob.rel_feet), prob.dof, -1).sum(axis=1)
+    row_cluster = np.full(len(r), -1)
+    row_cluster[:n_data] = np.repeat(inv, prob.dof)
+    if prob.n_tracks:  # a track's stature-prior row belongs to the cluster of its pairs
+        tracked = np.flatnonzero(prob.track >= 0)
+        member = np.zeros(prob.n_tracks, int)
+        member[prob.track[tracked]] = tracked  # any pair of the track (tracks sit inside one cluster)
+        row_cluster[n_data : n_data + prob.n_tracks] = inv[member]
+    scored = row_cluster >= 0
     scores = np.zeros((len(groups), J.shape[1]))
-    np.add.at(scores, inv, per_pair)
-    Jp = J[n_data:]
+    np.add.at(scores, row_cluster[scored], J[scored] * r[scored, None])
+    Jp = J[~scored]
     sandwich = A_inv @ (scores.T @ scores * len(groups) / (len(groups) - 1) + Jp.T @ Jp) @ A_inv
     ratio = np.diag(sandwich) / np.maximum(np.diag(A_inv), 1e-300)
     base = sandwich if np.mean(ratio) > 1.0 else A_inv  # correlations from the larger of the two
@@ -451,34 +493,31 @@ def _perturbed(prob: _Problem, which: str, amount: float, half_diagonal_px: floa
         diff = rel_feet - undistort(rel_heads)
     else:
         height = height + amount
-    return _Problem(rel_feet, diff, prob.axis, prob.sd_along, prob.sd_across, height, prob.vertical,
-                    prob.image_height_px, prob.fov_prior)
+    return replace(prob, rel_feet=rel_feet, diff=diff, person_height_m=height)
 
 
 def _systematic_cov(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float, r: np.ndarray,
-                    J: np.ndarray, sys: _Systematics) -> np.ndarray:
+                    J: np.ndarray, assumed: _Systematics) -> np.ndarray:
     """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
-    sds = {"cx": sys.principal_point_px, "cy": sys.principal_point_px, "distortion": sys.distortion,
-           "stature": sys.stature_mean_m}
-    x = _to_internal(params)[free]
+    sds = {"cx": assumed.principal_point_px, "cy": assumed.principal_point_px, "distortion": assumed.distortion,
+           "stature": assumed.stature_mean_m}
     gain = -np.linalg.pinv(J.T @ J) @ J.T
-    cov = np.zeros((len(x), len(x)))
+    cov = np.zeros((J.shape[1], J.shape[1]))
     for name, sd in sds.items():
         if sd <= 0:
             continue
         step = 0.1 * sd
-        r_moved, _ = _residual_and_jacobian(_perturbed(prob, name, step, sys.half_diagonal_px), x, params, free,
-                                            scale)
+        r_moved = _residual(_perturbed(prob, name, step, assumed.half_diagonal_px), params[None], free, scale)[0]
         shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
         cov += np.outer(shift, shift)
     return cov
 
 
 def _covariances(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
-                 sys: _Systematics) -> tuple[np.ndarray, np.ndarray]:
+                 assumed: _Systematics) -> tuple[np.ndarray, np.ndarray]:
     """(total, statistical) covariances (4, 4) of (log f, pitch, roll, log h); zero for fixed ones."""
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
-    total = stat + _systematic_cov(prob, params, free, scale, r, J, sys)
+    total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
     out = []
     for cov in (total, stat):
         full = np.zeros((4, 4))
@@ -545,6 +584,52 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     Raises ValueError for malformed input and DegenerateSceneError when the pairs cannot
     determine a camera (fewer than 3 usable pairs, or no candidate camera is valid).
     """
+    size, feet, heads, usable, frames, tracks, pp, fov = _check_inputs(
+        feet_px, heads_px, image_size, method, residual, frame_index, track_id, focal_px, estimate_roll,
+        principal_point, person_height_m, person_height_sd_m, noise_px, fov_prior_deg, fov_prior_sd_deg)
+    n_usable = int(usable.sum())
+    n_frames = 1 if frames is None else len(np.unique(frames[usable]))
+    idx = np.flatnonzero(usable)
+    prob = _make_problem(feet[idx], heads[idx], pp, float(person_height_m), float(person_height_sd_m),
+                         float(noise_px), residual == "vertical", float(size[1]), fov,
+                         None if tracks is None or method == "grid" else tracks[idx])
+    extra: list[str] = []
+    if method == "grid":
+        params, mask_u, free, scale, extra, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
+                                                             person_height_m, residual, grid, workers, prob)
+    else:
+        params, mask_u, scale, free = _refine(prob, feet[idx], heads[idx], pp, size, focal_px, estimate_roll, grid,
+                                              max_rounds)
+        extra = _bound_warnings(params, free, size[1])
+    if focal_px is not None:
+        params[0] = float(focal_px)  # exactly as given (no log/exp round trip)
+    camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])
+    inlier_mask = np.zeros(len(feet), bool)
+    inlier_mask[idx[mask_u]] = True
+    clusters = tracks if tracks is not None else frames
+    inl = prob.subset(np.flatnonzero(mask_u))
+    pp_sd = (0.02 * max(size) if principal_point is None else 0.0) if principal_point_sd_px is None \
+        else float(principal_point_sd_px)
+    assumed = _Systematics(pp_sd, float(distortion_sd), float(person_height_mean_sd_m), 0.5 * math.hypot(*size))
+    cov, cov_stat = _covariances(inl, params, free, scale, None if clusters is None else clusters[idx[mask_u]],
+                                 assumed)
+    std, corr = _std_and_corr(params, cov, free)
+    std_stat, _ = _std_and_corr(params, cov_stat, free)
+    (eu, ev), _, _ = _profiled(inl, params[None], scale)
+    sq = ev[0] ** 2 if residual == "vertical" else eu[0] ** 2 + ev[0] ** 2
+    rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
+    warns = extra + _warnings(camera, std, corr, int(mask_u.sum()), n_usable, len(feet))
+    if method == "refine" and tracks is None and n_frames > 1:
+        warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
+                     "is too small when people persist (give the person ids)")
+    return CalibrationResult(camera, method, float(person_height_m), len(feet), int(mask_u.sum()), n_frames, rmse,
+                             std, corr, inlier_mask, tuple(warns), residual, std_stat)
+
+
+def _check_inputs(feet_px, heads_px, image_size, method: str, residual: str, frame_index, track_id,
+                  focal_px: float | None, estimate_roll: bool, principal_point, person_height_m: float,
+                  person_height_sd_m: float, noise_px: float, fov_prior_deg: float | None, fov_prior_sd_deg: float):
+    """Validated (size, feet, heads, usable, frames, tracks, pp, fov prior) or ValueError/DegenerateSceneError."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if residual not in RESIDUALS:
@@ -563,48 +648,19 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     pp = np.array([size[0] / 2.0, size[1] / 2.0]) if principal_point is None else np.asarray(principal_point, float)
     if pp.shape != (2,) or not np.all(np.isfinite(pp)):
         raise ValueError(f"principal_point must be (cx, cy) in pixels, got {principal_point!r}")
-    n_usable = int(usable.sum())
-    n_free = (focal_px is None) + 2 + (estimate_roll and method == "refine")
-    dof = 1 if residual == "vertical" else 2
-    if n_usable < 3:
-        raise DegenerateSceneError(f"only {n_usable} usable foot-head pairs (need >= 3)")
-    if n_usable * dof < n_free:
-        raise DegenerateSceneError(f"{n_usable} usable pairs with {residual} residuals cannot determine "
-                                   f"{n_free} parameters; fix the focal length or add pairs")
-    n_frames = 1 if frames is None else len(np.unique(frames[usable]))
-    idx = np.flatnonzero(usable)
     fov = None
     if fov_prior_deg is not None:
         if not (0 < fov_prior_deg < 180 and fov_prior_sd_deg > 0):
             raise ValueError(f"fov_prior_deg must be in (0, 180) with a positive sd, got {fov_prior_deg}")
         fov = (float(fov_prior_deg), float(fov_prior_sd_deg))
-    prob = _make_problem(feet[idx], heads[idx], pp, float(person_height_m), float(person_height_sd_m),
-                         float(noise_px), residual == "vertical", float(size[1]), fov)
-    extra: list[str] = []
-    if method == "grid":
-        params, mask_u, free, scale, extra, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
-                                                             person_height_m, residual, grid, workers, prob)
-    else:
-        params, mask_u, scale, free = _refine(prob, feet[idx], heads[idx], pp, size, focal_px, estimate_roll, grid,
-                                              max_rounds)
-        extra = _bound_warnings(params, free, size[1])
-    camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])
-    inlier_mask = np.zeros(len(feet), bool)
-    inlier_mask[idx[mask_u]] = True
-    clusters = tracks if tracks is not None else frames
-    inl = prob.subset(np.flatnonzero(mask_u))
-    pp_sd = (0.02 * max(size) if principal_point is None else 0.0) if principal_point_sd_px is None \
-        else float(principal_point_sd_px)
-    sys = _Systematics(pp_sd, float(distortion_sd), float(person_height_mean_sd_m), 0.5 * math.hypot(*size))
-    cov, cov_stat = _covariances(inl, params, free, scale, None if clusters is None else clusters[idx[mask_u]], sys)
-    std, corr = _std_and_corr(params, cov, free)
-    std_stat, _ = _std_and_corr(params, cov_stat, free)
-    (eu, ev), _ = _head_errors(inl.rel_feet, inl.diff, params[None], inl.person_height_m)
-    sq = ev[0] ** 2 if residual == "vertical" else eu[0] ** 2 + ev[0] ** 2
-    rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
-    warns = extra + _warnings(camera, std, corr, int(mask_u.sum()), n_usable, len(feet))
-    return CalibrationResult(camera, method, float(person_height_m), len(feet), int(mask_u.sum()), n_frames, rmse,
-                             std, corr, inlier_mask, tuple(warns), residual, std_stat)
+    n_usable = int(usable.sum())
+    n_free = (focal_px is None) + 2 + (estimate_roll and method == "refine")
+    if n_usable < 3:
+        raise DegenerateSceneError(f"only {n_usable} usable foot-head pairs (need >= 3)")
+    if n_usable * (1 if residual == "vertical" else 2) < n_free:
+        raise DegenerateSceneError(f"{n_usable} usable pairs with {residual} residuals cannot determine "
+                                   f"{n_free} parameters; fix the focal length or add pairs")
+    return size, feet, heads, usable, frames, tracks, pp, fov
 
 
 def _bound_warnings(params: np.ndarray, free: np.ndarray, image_height_px: float) -> list[str]:
@@ -633,8 +689,8 @@ def _grid_fit(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, size: tuple[i
         if n > 1 and i in (0, n - 1):
             extra.append(f"the best {names[axis]} is on the edge of the search grid; the camera may lie outside it")
     # Unweighted residuals for the paper's uncertainty: equal weights, scale from the residual sum.
-    flat = _Problem(prob.rel_feet, prob.diff, prob.axis, np.ones(len(feet)), 1.0, prob.person_height_m,
-                    prob.vertical, prob.image_height_px, None)
+    flat = replace(prob, sd_along=np.ones(len(feet)), sd_across=1.0, track=np.full(len(feet), -1), n_tracks=0,
+                   fov_prior=None)
     dof_total = max(1, len(feet) * flat.dof - int(free.sum()))
     scale = max(math.sqrt(fit.cost / dof_total), _MIN_SCALE)
     return params, np.ones(len(feet), bool), free, scale, extra, flat

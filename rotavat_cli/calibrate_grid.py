@@ -42,11 +42,14 @@ __all__ = [
     "grid_costs",
     "robust_grid_costs",
     "paper_grid_search",
+    "order_invariant_subset",
+    "seed_cells",
 ]
 
 _RAY_EPS = 1e-12  # same "ray parallel to the ground" threshold as camera.backproject_px_to_plane
 _BLOCK_ELEMS = 200_000  # float32 cells x pairs per block: ~0.8 MB, stays in L2
-_RECHECK_REL = 2e-3  # float32 costs are trusted to this relative error; closer cells are re-checked
+_RECHECK_REL = 2e-3  # float32 costs are trusted to this relative error; closer cells are re-checked ...
+_RECHECK_ABS = 1e-5  # ... plus this fraction of sum|foot - head|^2 (float32 cancellation; measured ~1e-7)
 _RECHECK_MAX = 4096  # at most this many cells are re-evaluated in float64
 # Row-wise dot product without BLAS gemv (OpenBLAS worker threads spin and starve the grid's threads).
 _DOT = getattr(np, "vecdot", lambda a, b: np.einsum("ij,j->i", a, b))
@@ -240,7 +243,9 @@ def paper_grid_search(feet_px: np.ndarray, heads_px: np.ndarray, principal_point
     if not finite.any():
         return None
     best = float(costs[finite].min())
-    near = np.flatnonzero(costs.ravel() <= best * (1.0 + _RECHECK_REL) + 1e-6)
+    diff = np.asarray(feet_px, np.float64) - np.asarray(heads_px, np.float64)
+    scale = float(np.sum(diff[:, 1] ** 2 if residual == "vertical" else diff**2))  # size of the cancelling terms
+    near = np.flatnonzero(costs.ravel() <= best * (1.0 + _RECHECK_REL) + _RECHECK_ABS * scale + 1e-9)
     near = near[np.argsort(costs.ravel()[near])][:_RECHECK_MAX]
     i, j, k = np.unravel_index(near, costs.shape)
     exact = np.concatenate([
@@ -305,3 +310,40 @@ def robust_grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point
                 np.minimum(ev, t2, out=ev)
                 out[fb, j] = ev.sum(axis=-1, dtype=np.float64)
     return out
+
+
+def order_invariant_subset(feet: np.ndarray, heads: np.ndarray, m: int) -> np.ndarray:
+    """Indices of at most ``m`` pairs, chosen from the sorted pairs (independent of their order)."""
+    order = np.lexsort((heads[:, 1], heads[:, 0], feet[:, 1], feet[:, 0]))
+    if len(order) <= m:
+        return np.sort(order)
+    return np.sort(order[np.linspace(0, len(order) - 1, m).round().astype(int)])
+
+
+def seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list[tuple[int, int, int]]:
+    """Start cells (F, P, C indices) of a robust grid: the best, other minima along the valley, f x 0.5 and x 2.
+
+    The profile runs over the focal axis, or over the pitch axis when the focal is fixed.
+    """
+    ax = 0 if costs.shape[0] > 1 else 1
+    moved = np.moveaxis(costs, ax, 0)
+    flat = moved.reshape(moved.shape[0], -1)
+    prof, best_at = flat.min(axis=1), flat.argmin(axis=1)
+    n = len(prof)
+    i0 = int(np.argmin(prof))
+    picks = [i0]
+    local = sorted((i for i in range(n) if i != i0 and prof[i] <= prof[max(i - 1, 0)]
+                    and prof[i] <= prof[min(i + 1, n - 1)] and prof[i] <= 1.5 * prof[i0]), key=lambda i: prof[i])
+    picks += local[:2]
+    if ax == 0:
+        for factor in (0.5, 2.0):  # along the focal/pitch valley
+            i = int(np.argmin(np.abs(focal - focal[i0] * factor)))
+            if i not in picks:
+                picks.append(i)
+    cells = []
+    for i in picks[:max_seeds]:
+        rest = np.unravel_index(best_at[i], moved.shape[1:])
+        cell = [int(v) for v in rest]
+        cell.insert(ax, int(i))
+        cells.append(tuple(cell))
+    return cells

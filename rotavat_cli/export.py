@@ -11,8 +11,8 @@ rewrites the camera with ``aspectRatio = W / H`` and ``yfov`` = the vertical fie
 
 Examples
 --------
->>> R_CV_FROM_GL @ np.array([0.0, 0.0, -1.0])  # glTF forward is OpenCV forward
-array([0., 0., 1.])
+>>> (R_CV_FROM_GL @ np.array([0.0, 0.0, -1.0])).tolist()  # glTF forward is OpenCV forward
+[0.0, 0.0, 1.0]
 """
 
 from __future__ import annotations

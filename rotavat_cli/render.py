@@ -59,21 +59,30 @@ _AMBIENT = 0.35  # shading: light that reaches every surface
 _LIGHT_RAISE = 0.4  # the light sits this much above the eye (fraction of the viewing direction)
 _NEAR_M, _MIN_FAR_M = 0.05, 10.0  # front view clip planes (far grows with the scene)
 _MIN_EXTENT_M = 2.0  # an orthographic panel shows at least this many metres each way
-_FAR_GROUND_M = 1000.0  # where rays above the horizon are cut in the top view's field of view
+_PALETTE_HEX = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22",
+                "#393b79", "#637939", "#ad494a")
 _SIDE_FLOOR_ROOM = 0.18  # side view: room under the lowest point (fraction of the panel), for the scale bar
 _LABEL_PX = 26  # header row / label column thickness in grids
+
+
+def parse_color(text: str) -> tuple[float, float, float]:
+    """'#rrggbb' -> (r, g, b) in [0, 1]; raises ValueError otherwise."""
+    s = str(text).strip().lstrip("#")
+    if len(s) != 6 or any(ch not in "0123456789abcdefABCDEF" for ch in s):
+        raise ValueError(f"colour {text!r} must be '#rrggbb'")
+    return tuple(int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
 class RenderStyle:
     """Colours (RGB in [0, 1]) and the margin around people in orthographic views."""
 
-    background: tuple[float, float, float] = (0.95, 0.95, 0.94)
-    ground: tuple[float, float, float] = (0.55, 0.51, 0.45)
-    grid: tuple[float, float, float] = (0.85, 0.84, 0.81)
-    camera: tuple[float, float, float] = (0.75, 0.22, 0.17)
-    text: tuple[float, float, float] = (0.13, 0.13, 0.13)
-    palette: tuple[tuple[float, float, float], ...] = ((0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17))
+    background: tuple[float, float, float] = parse_color("#f2f2f0")  # defaults as configs/default.yaml render:
+    ground: tuple[float, float, float] = parse_color("#8c8273")
+    grid: tuple[float, float, float] = parse_color("#d9d6cf")
+    camera: tuple[float, float, float] = parse_color("#bf382b")
+    text: tuple[float, float, float] = parse_color("#222222")
+    palette: tuple[tuple[float, float, float], ...] = tuple(parse_color(c) for c in _PALETTE_HEX)
     margin: float = 0.08  # fraction of the people's extent added on each side (side/top views)
 
     @classmethod
@@ -82,6 +91,8 @@ class RenderStyle:
         palette = tuple(parse_color(c) for c in str(opts["palette"]).split(",") if c.strip())
         if not palette:
             raise ValueError("palette must list at least one colour")
+        if not 0.0 <= float(opts["margin"]) <= 10.0:
+            raise ValueError(f"render.margin must be in [0, 10], got {opts['margin']}")
         return cls(parse_color(opts["background"]), parse_color(opts["ground"]), parse_color(opts["grid"]),
                    parse_color(opts["camera_color"]), parse_color(opts["text"]), palette, float(opts["margin"]))
 
@@ -124,14 +135,6 @@ class PanelView:
 
 
 # ---- colours and shading ---------------------------------------------------------------------------
-def parse_color(text: str) -> tuple[float, float, float]:
-    """'#rrggbb' -> (r, g, b) in [0, 1]; raises ValueError otherwise."""
-    s = str(text).strip().lstrip("#")
-    if len(s) != 6 or any(ch not in "0123456789abcdefABCDEF" for ch in s):
-        raise ValueError(f"colour {text!r} must be '#rrggbb'")
-    return tuple(int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
-
-
 def person_colors(person_ids: np.ndarray, palette: tuple[tuple[float, float, float], ...]) -> np.ndarray:
     """(P,) ids -> (P, 3) colours: ``palette[id mod len(palette)]``, stable across frames and rows."""
     pal = np.asarray(palette, dtype=np.float64).reshape(-1, 3)
@@ -226,18 +229,19 @@ def clip_from_world_ortho(basis_world: np.ndarray, extent: OrthoExtent, size: tu
 
 
 def ortho_bounds(kind: str, camera: Camera, verts_cam: np.ndarray) -> np.ndarray:
-    """(2, 3) min/max of (right, up, depth) view-plane coordinates of people (and ground / camera), metres."""
+    """(2, 3) min/max (right, up, depth) view-plane coordinates of people, metres; the side view includes
+    the ground's height, the top view the camera."""
     basis = ortho_basis_world(kind, camera)
-    pts = [camera.world_from_cam(np.asarray(verts_cam, dtype=np.float64).reshape(-1, 3))]
+    pts_view = camera.world_from_cam(np.asarray(verts_cam, dtype=np.float64).reshape(-1, 3)) @ basis.T
+    pts_view = pts_view[np.isfinite(pts_view).all(axis=1)]
     if kind == "top":
-        pts.append(camera.center_world[None])  # the map always shows the camera
-    pts = np.concatenate(pts) @ basis.T
-    pts = pts[np.isfinite(pts).all(axis=1)]
-    if kind == "side":
-        pts = np.concatenate([pts, np.zeros((1, 3)) + [pts[:, 0].mean() if len(pts) else 5.0, 0.0, 0.0]])  # ground
-    if not len(pts):
+        pts_view = np.concatenate([pts_view, (basis @ camera.center_world)[None]])  # the map always shows the camera
+    if not len(pts_view):
         return np.array([[-1.0, 0.0, -1.0], [1.0, 2.0, 1.0]])
-    return np.stack([pts.min(axis=0), pts.max(axis=0)])
+    lo, hi = pts_view.min(axis=0), pts_view.max(axis=0)
+    if kind == "side":  # the ground line (height 0) is always in view
+        lo[1], hi[1] = min(lo[1], 0.0), max(hi[1], 0.0)
+    return np.stack([lo, hi])
 
 
 def fit_ortho_extent(bounds: np.ndarray, size: tuple[int, int], margin: float, floor_room: float | None = None) -> OrthoExtent:
@@ -343,19 +347,21 @@ def _font(size_px: int) -> Any:
 
 
 def _scale_bar(draw: Any, view: PanelView, style: RenderStyle) -> None:
-    """Metric scale bar at the panel's bottom-left corner."""
+    """Metric scale bar, one line ("|----| 5 m"), at the panel's bottom-left corner (below the side view's ground)."""
     W, H = view.size
     length_m = nice_length_m(0.2 * W / view.px_per_m)
     L = length_m * view.px_per_m
-    x0, y0 = 12, H - 14
     label = f"{length_m:g} m" if length_m >= 1 else f"{length_m * 100:g} cm"
-    font = _font(max(10, H // 30))
-    draw.rectangle([x0 - 6, y0 - 22 - H // 60, x0 + L + 6, y0 + 6], fill=(255, 255, 255, 190))
+    font_px = max(10, H // 30)
+    font = _font(font_px)
+    x0, y0 = 10, H - 6 - font_px // 2
+    text_w = draw.textlength(label, font=font)
+    draw.rectangle([x0 - 5, y0 - font_px // 2 - 3, x0 + L + 10 + text_w, y0 + font_px // 2 + 3], fill=(255, 255, 255, 170))
     ink = _rgb8(style.text)
-    draw.line([(x0, y0), (x0 + L, y0)], fill=ink, width=3)
+    draw.line([(x0, y0), (x0 + L, y0)], fill=ink, width=2)
     for x in (x0, x0 + L):
-        draw.line([(x, y0 - 6), (x, y0 + 4)], fill=ink, width=2)
-    draw.text((x0 + L / 2, y0 - 8), label, fill=ink, font=font, anchor="mb")
+        draw.line([(x, y0 - font_px // 3), (x, y0 + font_px // 3)], fill=ink, width=2)
+    draw.text((x0 + L + 6, y0), label, fill=ink, font=font, anchor="lm")
 
 
 def _side_under(draw: Any, view: PanelView, style: RenderStyle) -> None:
@@ -372,44 +378,36 @@ def _side_over(draw: Any, view: PanelView, style: RenderStyle) -> None:
     draw.text((8, 6), "<- camera", fill=_rgb8(style.text), font=_font(max(10, view.size[1] // 30)))
 
 
-def _ground_fov_world(camera: Camera, n_per_edge: int = 24) -> np.ndarray:
-    """(M, 3) world points: the image border cast on the ground (cut at _FAR_GROUND_M above the horizon)."""
+def _ground_fov_world(camera: Camera, far_m: float, n_per_edge: int = 24) -> np.ndarray:
+    """(M, 3) world points: the image border cast on the ground, cut ``far_m`` from the camera (and above the horizon)."""
     W, H = camera.image_size
     t = np.linspace(0.0, 1.0, n_per_edge, endpoint=False)
-    border = np.concatenate([np.stack([t * W, 0 * t], 1), np.stack([W + 0 * t, t * H], 1),
-                             np.stack([W - t * W, H + 0 * t], 1), np.stack([0 * t, H - t * H], 1)])
-    hit_cam = camera.backproject_px_to_ground(border)
-    ray_world = (np.concatenate([(border - camera.principal_point) / camera.focal_px, np.ones((len(border), 1))], 1)
-                 @ camera.R_cam_from_world)
-    flat = ray_world * [1.0, 0.0, 1.0]
-    far = camera.center_world * [1, 0, 1] + _FAR_GROUND_M * _unit(flat + 1e-12)
-    hit_world = camera.world_from_cam(hit_cam)
-    dist = np.linalg.norm(hit_world * [1, 0, 1], axis=1)
-    ok = np.isfinite(hit_world).all(axis=1) & (dist < _FAR_GROUND_M)
-    return np.where(ok[:, None], hit_world, far)
+    border_px = np.concatenate([np.stack([t * W, 0 * t], 1), np.stack([W + 0 * t, t * H], 1),
+                                np.stack([W - t * W, H + 0 * t], 1), np.stack([0 * t, H - t * H], 1)])
+    hit_world = camera.world_from_cam(camera.backproject_px_to_ground(border_px))
+    rays_world = np.concatenate([(border_px - camera.principal_point) / camera.focal_px, np.ones((len(border_px), 1))],
+                                axis=1) @ camera.R_cam_from_world  # row-wise R_world_from_cam @ ray
+    foot_world = camera.center_world * [1.0, 0.0, 1.0]
+    cut_world = foot_world + far_m * _unit(rays_world * [1.0, 0.0, 1.0] + [1e-12, 0.0, 0.0])
+    near_enough = np.isfinite(hit_world).all(axis=1) & (np.linalg.norm(hit_world - foot_world, axis=1) < far_m)
+    return np.where(near_enough[:, None], hit_world, cut_world)
 
 
 def _top_under(draw: Any, view: PanelView, camera: Camera, style: RenderStyle) -> None:
-    """Top view background: the camera's ground field of view (tinted) and a metric grid."""
+    """Top view background: the camera's ground field of view (tinted, outlined) and a metric grid."""
     W, H = view.size
-    fov_px = project_view_px(view.clip_from_world, _ground_fov_world(camera), view.size)
-    fov_px = np.clip(fov_px, -10 * max(W, H), 11 * max(W, H))  # Pillow wants finite, modest coordinates
+    origin = project_view_px(view.clip_from_world, camera.center_world * [1.0, 0.0, 1.0], view.size)
+    far_m = (np.hypot(*(origin - [W / 2, H / 2])) + np.hypot(W, H)) / view.px_per_m  # well past the panel
+    fov_px = project_view_px(view.clip_from_world, _ground_fov_world(camera, far_m), view.size)
     draw.polygon([tuple(p) for p in fov_px], fill=_rgb8(_mix(style.background, style.camera, 0.08)))
-    step = nice_length_m(0.2 * W / view.px_per_m)
-    basis = ortho_basis_world("top", camera)
-    origin = project_view_px(view.clip_from_world, camera.center_world * [1, 0, 1], view.size)
-    s = view.px_per_m * step
+    step_px = view.px_per_m * nice_length_m(0.2 * W / view.px_per_m)  # grid step = the scale bar's length
     ink = _rgb8(style.grid)
-    for k in range(-int(W / s) - int(abs(origin[0]) / s) - 2, int(W / s) + int(abs(origin[0]) / s) + 3):
-        x = origin[0] + k * s
-        if 0 <= x <= W:
-            draw.line([(x, 0), (x, H)], fill=ink, width=1)
-    for k in range(-int(H / s) - int(abs(origin[1]) / s) - 2, int(H / s) + int(abs(origin[1]) / s) + 3):
-        y = origin[1] - k * s
-        if 0 <= y <= H:
-            draw.line([(0, y), (W, y)], fill=ink, width=1)
-    del basis
-    draw.line([tuple(p) for p in np.append(fov_px, fov_px[:1], axis=0)], fill=_rgb8(_mix(style.background, style.camera, 0.5)), width=1)
+    for k in range(math.ceil(-origin[0] / step_px), math.floor((W - origin[0]) / step_px) + 1):
+        draw.line([(origin[0] + k * step_px, 0), (origin[0] + k * step_px, H)], fill=ink, width=1)
+    for k in range(math.ceil(-origin[1] / step_px), math.floor((H - origin[1]) / step_px) + 1):
+        draw.line([(0, origin[1] + k * step_px), (W, origin[1] + k * step_px)], fill=ink, width=1)
+    outline = np.append(fov_px, fov_px[:1], axis=0)
+    draw.line([tuple(p) for p in outline], fill=_rgb8(_mix(style.background, style.camera, 0.5)), width=1)
 
 
 def _top_over(draw: Any, view: PanelView, camera: Camera, style: RenderStyle) -> None:

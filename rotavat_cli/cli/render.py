@@ -56,6 +56,6 @@ def render(
         return
     fallback = f" (fallback: {summary.renderer_note})" if summary.renderer == "fallback" and summary.renderer_note else ""
     info(f"rendered {len(summary.frames)} frame(s) x {len(summary.rows)} row(s) x {len(summary.views)} view(s) with "
-         f"{summary.renderer} [{summary.renderer_detail}]{fallback} in {summary.seconds:.2f} s", quiet)
+         f"{summary.renderer} ({summary.renderer_detail}){fallback} in {summary.seconds:.2f} s", quiet)
     for path in summary.files:
         info(f"wrote {path}", quiet)

@@ -1,0 +1,166 @@
+"""AGORA ground truth / predictions in AGORA's per-person ``<image>_personId_<k>.pkl`` format.
+
+Source: pixelite1201/agora_evaluation ``docs/prediction_format.md`` (per-person dicts),
+``docs/gt_dataframe.md`` (``gt_joints_3d`` / ``gt_verts`` in camera coordinates, ``gt_joints_2d``
+at 3840x2160), ``agora_evaluation/projection.py`` (``project2d``: ``smpl2opencv``, ``unreal2cv2``,
+``focalLength_mm2px``, the focal length of each scene type).
+
+- Files: one pickle per person, named ``<image stem>_personId_<k>.pkl``; a dict with ``verts``
+  (V, 3; 6890 SMPL or 10475 SMPL-X) and ``allSmplJoints3d`` (24 or 127, 3) in the camera frame,
+  ``joints`` (24, 2) in pixels *of the 3840x2160 image*; or, instead of ``verts``, ``params``
+  (``transl``, ``global_orient``, ``body_pose``, ``betas`` [, SMPL-X hands/jaw/eyes/expression];
+  ``pose2rot`` says axis-angle (True) or rotation matrices) to pose with ``--smpl-model``.
+- Frame: camera coordinates after ``smpl2opencv`` and ``unreal2cv2``: OpenCV axes, metres.
+- Focal: a 36 x 20.25 mm sensor; f_px = focal_mm / 36 * W with focal_mm chosen from the image
+  name as ``project_2d`` does: ``hdri`` 50 mm, ``cam00``-``cam03`` 18 mm, ``ag2`` 28 mm, else
+  28 mm. Principal point = image centre. Default image size 3840x2160 (``--image-size 1280 720``
+  for the small release: 2D joints are rescaled by W / 3840).
+- No track ids: AGORA images are independent (person ids are per image).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .. import safe_pickle
+from ..sequence import Frame
+from ..smpl import joints_to_smpl24, lbs
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces, natural_key,
+               people_frame)
+
+SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width
+REFERENCE_SIZE = (3840, 2160)  # resolution of 'joints' / gt_joints_2d
+_PERSON = re.compile(r"^(?P<image>.+)_personId_(?P<k>\d+)\.pkl$")
+
+
+def focal_mm(image_name: str) -> float:
+    """Focal length (mm) of the AGORA scene an image comes from (projection.py ``project_2d``)."""
+    if "hdri" in image_name:
+        return 50.0
+    if any(f"cam0{i}" in image_name for i in range(4)):
+        return 18.0
+    return 28.0  # 'ag2' scenes and the rest
+
+
+def sniff(path: Path) -> str | None:
+    """'agora' for *_personId_*.pkl files (or a directory of them)."""
+    if path.is_file():
+        return "agora" if _PERSON.match(path.name) else None
+    if path.is_dir():
+        return "agora" if any(_PERSON.match(p.name) for p in path.glob("*_personId_*.pkl")) else None
+    return None
+
+
+def _groups(src: Path) -> list[tuple[str, list[Path]]]:
+    """(image stem, per-person files sorted by person id) in image order."""
+    files = [src] if src.is_file() else list(src.glob("*_personId_*.pkl"))
+    groups: dict[str, list[tuple[int, Path]]] = {}
+    for path in files:
+        match = _PERSON.match(path.name)
+        if match is None:
+            raise fail(path, "AGORA files must be named <image>_personId_<k>.pkl")
+        groups.setdefault(match["image"], []).append((int(match["k"]), path))
+    if not groups:
+        raise fail(src, "no <image>_personId_<k>.pkl files found")
+    return [(image, [p for _, p in sorted(items)]) for image, items in sorted(groups.items(), key=lambda kv: natural_key(kv[0]))]
+
+
+def _pose_params(params: Mapping, model_joints: int, pose2rot: bool, source: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """(pose (J, 3[, 3]), betas, transl, expression) from AGORA's 'params' dict."""
+    names = ["global_orient", "body_pose"]
+    if model_joints == 55:
+        names += ["jaw_pose", "leye_pose", "reye_pose", "left_hand_pose", "right_hand_pose"]
+    parts = []
+    for name in names:
+        value = as_array(get(params, name, source), name, source)
+        parts.append(value.reshape(-1, 3) if pose2rot else value.reshape(-1, 3, 3))
+    pose = np.concatenate(parts)
+    if len(pose) != model_joints:
+        raise fail(source, f"'params' pose has {len(pose)} joints, the model {model_joints}")
+    betas = as_array(get(params, "betas", source), "betas", source).reshape(-1)
+    transl = as_array(get(params, "transl", source), "transl", source).reshape(3)
+    expression = params.get("expression")
+    expression = None if expression is None else as_array(expression, "expression", source).reshape(-1)
+    return pose, betas, transl, expression
+
+
+def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """AGORA per-person pickles -> contract frames (one frame per image)."""
+    groups = _groups(src)
+    image_size = opts.image_size or REFERENCE_SIZE
+    scale_2d = image_size[0] / REFERENCE_SIZE[0]
+    warnings: list[str] = []
+    if abs(image_size[1] / image_size[0] - REFERENCE_SIZE[1] / REFERENCE_SIZE[0]) > 1e-3:
+        warnings.append(f"--image-size {image_size[0]}x{image_size[1]} is not AGORA's 16:9")
+    principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
+    focals = {image: focal_mm(image) / SENSOR_WIDTH_MM * image_size[0] for image, _ in groups}
+    constant_focal = len(set(focals.values())) == 1
+    model = opts.body_model
+    layout = {"value": None}
+
+    def person(path: Path) -> dict[str, np.ndarray | None]:
+        data = safe_pickle.load_file(path)
+        if not isinstance(data, Mapping):
+            raise fail(path, f"expected a dict, got {type(data).__name__}")
+        out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None}
+        if data.get("joints") is not None:
+            out["keypoints_2d"] = as_array(data["joints"], "joints", path).reshape(-1, 2) * scale_2d
+        if data.get("verts") is not None:
+            out["vertices"] = as_array(data["verts"], "verts", path, ndim=2, last=(3,))
+            if data.get("allSmplJoints3d") is not None:
+                out["joints"] = as_array(data["allSmplJoints3d"], "allSmplJoints3d", path, ndim=2, last=(3,))
+        elif data.get("params") is not None:
+            if model is None:
+                raise fail(path, "holds SMPL/SMPL-X parameters only: pass --smpl-model (the model AGORA used)")
+            pose2rot = bool(data.get("pose2rot", True))
+            pose, betas, transl, expression = _pose_params(data["params"], model.n_joints, pose2rot, path)
+            v, j = lbs(model, betas[None], pose[None], transl[None],
+                       None if expression is None else expression[None])
+            out["vertices"], out["joints"] = v[0], j[0]
+        else:
+            raise fail(path, "neither 'verts' nor 'params'")
+        return out
+
+    def frames() -> Iterator[Frame]:
+        for index, (image, paths) in enumerate(groups):
+            people = [person(p) for p in paths]
+            stacked: dict[str, np.ndarray | None] = {}
+            for key in ("vertices", "joints", "keypoints_2d"):
+                values = [p[key] for p in people]
+                if any(v is None for v in values) or len({v.shape for v in values}) > 1:
+                    stacked[key] = None
+                    continue
+                stacked[key] = np.stack(values)
+            if stacked["joints"] is not None:
+                try:
+                    stacked["joints"], note = joints_to_smpl24(stacked["joints"])
+                    layout["value"] = layout["value"] or note
+                except ValueError:
+                    layout["value"] = layout["value"] or f"agora{stacked['joints'].shape[1]}"
+            if stacked["vertices"] is None:
+                raise fail(paths[0], "people of one image must all have vertices of the same size")
+            n_verts = stacked["vertices"].shape[1]
+            extra = {} if constant_focal else {"focal_length": np.float64(focals[image])}
+            yield people_frame(frame_name(index), f"{src} [{image}]", warnings, vertices=stacked["vertices"],
+                               joints=stacked["joints"], keypoints_2d=stacked["keypoints_2d"],
+                               faces=model_faces(model, n_verts), n_verts=n_verts, extra=extra)
+        meta["import"]["joints_layout"] = layout["value"]
+
+    meta = base_meta("agora", src, opts, image_size, next(iter(focals.values())) if constant_focal else None,
+                     principal_point)
+    meta["import"].update({
+        "source_frames": [image for image, _ in groups],
+        "image_size_from": "--image-size" if opts.image_size else "AGORA default 3840x2160",
+        "root_joint": 0,
+        "keypoints_2d_layout": "smpl24 ('joints', rescaled from 3840x2160)",
+        "conventions": "camera frame = OpenCV, metres; focal = focal_mm / 36 mm * W (hdri 50, cam00-03 18, "
+                       "else 28 mm); principal point = image centre",
+    })
+    return ImportedSequence(frames(), len(groups), meta, warnings)
+
+
+READERS = {"agora": read_agora}

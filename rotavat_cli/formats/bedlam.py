@@ -1,0 +1,133 @@
+"""BEDLAM ground truth: the per-scene ``.npz`` made by BEDLAM's ``data_processing`` scripts.
+
+Source: pixelite1201/BEDLAM ``data_processing/df_full_body.py`` (``get_params``, ``project``,
+``get_cam_int``, ``focalLength_mm2px``, the ``np.savez`` call), ``data_processing/ReadMe.md``
+(field list; BEDLAM2 variant), ``df_full_body_smpl.py`` (SMPL variant).
+
+- Keys, one row per (image, person): ``imgname`` ('<seq>/<seq>_<frame>.png'), ``pose_cam``
+  (N, 165) SMPL-X axis-angle (global, 21 body, jaw, leye, reye, 15 + 15 hand joints; flat hand
+  mean) or (N, 72) for the SMPL variant, ``shape`` (N, 10 / 11 / 16) betas, ``trans_cam`` (N, 3),
+  ``cam_ext`` (N, 4, 4), ``cam_int`` (N, 3, 3), ``gtkps`` (N, K, 2 or 3) projected joints,
+  ``sub`` (N,) subject names, ``gender``, ``center``, ``scale``.
+- Frame: ``smplx(pose_cam, shape, transl=trans_cam) + cam_ext[:3, 3]`` is the camera frame
+  (``project``: ``points + cam_trans`` then ``K``): OpenCV axes, metres.
+- Focal: ``cam_int`` (fx = focal_mm / 36 * W on the 1280x720 renders, or sensor 20.25 x 36 for the
+  rotated 720x1280 close-ups); image size = 2 x its principal point.
+- Meshes need ``--smpl-model`` (SMPLX_NEUTRAL.npz; BEDLAM uses the neutral model with 11 betas,
+  BEDLAM2 16). Without it only the 2D keypoints are imported.
+- ``person_ids``: the subject names (``sub``) mapped to integers in sorted order.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from .. import safe_pickle
+from ..sequence import Frame
+from ..smpl import joints_to_smpl24, lbs
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, model_faces, natural_key,
+               people_frame)
+
+_KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
+
+
+def sniff(path: Path) -> str | None:
+    """'bedlam' for a per-scene .npz with BEDLAM's keys."""
+    if path.is_file() and path.suffix == ".npz":
+        with zipfile.ZipFile(path) as archive:
+            return "bedlam" if _KEYS <= {n[:-4] for n in archive.namelist()} else None
+    return None
+
+
+def _find_file(src: Path) -> Path:
+    if src.is_file():
+        return src
+    candidates = [p for p in sorted(src.glob("*.npz")) if sniff(p)]
+    if len(candidates) != 1:
+        raise fail(src, f"expected one BEDLAM scene .npz in the directory, found {len(candidates)} "
+                        "(import one scene at a time: a sequence is one camera)")
+    return candidates[0]
+
+
+def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """BEDLAM per-scene .npz -> contract frames (one frame per image)."""
+    path = _find_file(src)
+    data = safe_pickle.load_npz(path)
+    missing = sorted(_KEYS - set(data))
+    if missing:
+        raise fail(path, f"not a BEDLAM scene file (missing {', '.join(missing)})")
+    imgname = np.asarray(data["imgname"]).reshape(-1).astype(str)
+    n_rows = len(imgname)
+    pose = as_array(data["pose_cam"], "pose_cam", path, ndim=2)
+    betas = as_array(data["shape"], "shape", path, ndim=2)
+    trans = as_array(data["trans_cam"], "trans_cam", path, ndim=2, last=(3,))
+    cam_ext = as_array(data["cam_ext"], "cam_ext", path, ndim=3)
+    cam_int = as_array(data["cam_int"], "cam_int", path, ndim=3, last=(3, 3))
+    if cam_ext.shape[1:] not in ((4, 4), (3, 4)):
+        raise fail(path, f"'cam_ext' must be (N, 4, 4), got {list(cam_ext.shape)}")
+    for key, arr in (("pose_cam", pose), ("shape", betas), ("trans_cam", trans), ("cam_ext", cam_ext), ("cam_int", cam_int)):
+        if len(arr) != n_rows:
+            raise fail(path, f"'{key}' has {len(arr)} rows, 'imgname' {n_rows}")
+    gtkps = as_array(data["gtkps"], "gtkps", path, ndim=3) if "gtkps" in data else None
+    warnings: list[str] = []
+
+    stored = (int(round(2 * np.median(cam_int[:, 0, 2]))), int(round(2 * np.median(cam_int[:, 1, 2])))) if n_rows else None
+    image_size = opts.image_size or stored
+    if image_size is None:
+        raise fail(path, "empty scene and no --image-size W H")
+    if opts.image_size is not None and stored is not None and stored != opts.image_size:
+        warnings.append(f"{path}: --image-size differs from the {stored[0]}x{stored[1]} implied by cam_int; using --image-size")
+    fx = cam_int[:, 0, 0]
+    if n_rows and np.max(np.abs(cam_int[:, 1, 1] - fx)) > 1e-3 * np.max(fx):
+        warnings.append(f"{path}: fx and fy differ; using fx")
+    constant_focal = n_rows == 0 or np.ptp(fx) < 1e-6 * np.max(fx)
+    principal_point = (float(np.median(cam_int[:, 0, 2])), float(np.median(cam_int[:, 1, 2]))) if n_rows else None
+
+    model = opts.body_model
+    vertices = joints = None
+    layout = None
+    if model is not None:
+        n_pose = model.n_joints * 3
+        if pose.shape[1] != n_pose:
+            raise fail(path, f"'pose_cam' has {pose.shape[1]} values per person but --smpl-model {model.name} "
+                             f"needs {n_pose} (SMPL-X: 165, SMPL: 72)")
+        vertices, joints55 = lbs(model, betas, pose, trans + cam_ext[:, :3, 3])
+        joints, layout = joints_to_smpl24(joints55)
+    else:
+        warnings.append("BEDLAM stores SMPL-X parameters, not meshes, and no --smpl-model was given: imported 2D "
+                        "keypoints only (no vertices or joints)")
+
+    names = sorted(set(np.asarray(data["sub"]).reshape(-1).astype(str))) if "sub" in data else []
+    sub_ids = ({n: i for i, n in enumerate(names)}, np.asarray(data["sub"]).reshape(-1).astype(str)) if names else None
+    images = sorted(set(imgname), key=natural_key)
+
+    def frames() -> Iterator[Frame]:
+        for index, image in enumerate(images):
+            rows = np.flatnonzero(imgname == image)
+            ids = np.array([sub_ids[0][sub_ids[1][r]] for r in rows], dtype=np.int64) if sub_ids else None
+            extra = {} if constant_focal else {"focal_length": np.float64(fx[rows[0]])}
+            kp = gtkps[rows][..., :2] if gtkps is not None else None
+            yield people_frame(frame_name(index), f"{path} [{image}]", warnings,
+                               vertices=None if vertices is None else vertices[rows],
+                               joints=None if joints is None else joints[rows], keypoints_2d=kp, person_ids=ids,
+                               faces=model_faces(model, None if vertices is None else vertices.shape[1]), extra=extra)
+
+    meta = base_meta("bedlam", path, opts, image_size, float(fx[0]) if n_rows and constant_focal else None, principal_point)
+    meta["import"].update({
+        "source_frames": images,
+        "image_size_from": "--image-size" if opts.image_size else "cam_int principal point",
+        "joints_layout": layout,
+        "root_joint": 0,
+        "keypoints_2d_layout": f"bedlam gtkps ({gtkps.shape[1]} joints)" if gtkps is not None else None,
+        "person_ids": "subject names in sorted order: " + ", ".join(names) if names else None,
+        "conventions": "camera frame = OpenCV, metres: vertices = SMPL-X(pose_cam, shape, trans_cam) + cam_ext[:3, 3]; "
+                       "intrinsics = cam_int",
+    })
+    return ImportedSequence(frames(), len(images), meta, warnings)
+
+
+READERS = {"bedlam": read_bedlam}

@@ -1,0 +1,235 @@
+"""BEV and ROMP (``simple_romp``: the ``bev`` / ``romp`` commands): one ``.npz`` per image.
+
+Source: Arthur151/ROMP ``simple_romp/bev/main.py``, ``simple_romp/bev/post_parser.py``
+(``denormalize_cam_params_to_trans``, ``body_mesh_projection2image``, ``SMPLA_parser``),
+``simple_romp/romp/main.py``, ``simple_romp/romp/post_parser.py``, ``simple_romp/romp/utils.py``
+(``padding_image``, ``ResultSaver``, ``save_video_results``), ``simple_romp/romp/smpl.py``,
+``simple_romp/vis_human/pyrenderer.py``.
+
+- File: ``np.savez(path, results=outputs)``: a 0-d *object* array holding a dict (read here with
+  the restricted unpickler). Video mode also writes ``video_results.npz`` (``results`` = dict
+  image name -> that dict). Keys: ``verts`` (P, 6890, 3), ``joints`` (P, 71 or 54, 3; SMPL-24
+  first), ``cam`` (P, 3), ``cam_trans`` (P, 3), ``pj2d_org`` (P, J, 2), ``smpl_thetas`` (P, 72),
+  ``smpl_betas`` (P, 11 for BEV's SMPL+A, 10 for ROMP), ``center_confs``, ``track_ids`` (with
+  ``--temporal_optimize``).
+- Frame: ``verts`` and ``joints`` do *not* include the translation: camera frame = ``verts +
+  cam_trans``, OpenCV axes (x right, y down, z forward), metres. BEV root-aligns them first (minus
+  the mean of joints 45 and 46), ROMP does not; either way ``+ cam_trans`` is the camera frame.
+- Focal: the network sees the image zero-padded to a centred square of side S = max(W, H)
+  (``padding_image``) resized to 512, with a fixed 60 degree field of view: BEV projects with
+  f = 443.4 px on 512 (``perspective_projection(..., focal_length=443.4)``), i.e.
+  f = 443.4 / 512 * S ~= S / (2 tan 30 deg) on the original image; principal point = centre of the
+  padded square, ``(S/2 - left, S/2 - top)``. ROMP's renderer uses the same 60 degree camera.
+- ROMP is weak-perspective: its ``cam_trans = 2 (tx/s, ty/s, 1/s)`` is a rough conversion, so its
+  meshes only approximately reproject onto the image in that camera.
+- 2D: ``pj2d_org`` are in original-image pixels (``convert_proejection_from_input_to_orgimg``).
+- Image size: not stored; ``--image-size``, else inferred from ``pj2d_org`` against the 3D joints
+  (exact for BEV up to one pixel of padding parity).
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from .. import safe_pickle
+from ..sequence import Frame
+from ..smpl import lbs
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces,
+               natural_key, people_frame)
+
+_BEV_FOCAL_ON_512 = 443.4  # post_parser.py perspective_projection(focal_length=443.4), input 512 px
+_NET_INPUT = 512
+_ROMP_FOV_DEG = 60.0  # vis_human/pyrenderer.py Py3DR(FOV=60)
+
+
+def _is_results_npz(path: Path) -> bool:
+    with zipfile.ZipFile(path) as archive:
+        return "results.npy" in archive.namelist()
+
+
+def sniff(path: Path) -> str | None:
+    """'bev' or 'romp' for a results .npz (or a directory of them): SMPL+A betas (11) mean BEV."""
+    files = [path] if path.is_file() else sorted(path.glob("*.npz"))[:3] if path.is_dir() else []
+    for file in files:
+        if file.suffix == ".npz" and _is_results_npz(file):
+            results = safe_pickle.load_npz(file)["results"].item()
+            if isinstance(results, dict) and results and all(isinstance(v, dict) for v in results.values()):
+                results = next(iter(results.values()))  # video_results.npz
+            betas = results.get("smpl_betas") if isinstance(results, dict) else None
+            return "bev" if betas is not None and np.shape(betas)[-1] == 11 else "romp"
+    return None
+
+
+def _sources(src: Path) -> list[tuple[str, Callable[[], dict]]]:
+    """(image name, loader of its results dict) in image order."""
+    if src.is_dir():
+        files = [p for p in src.glob("*.npz") if p.name != "video_results.npz"]
+        if not files and (src / "video_results.npz").exists():
+            files = [src / "video_results.npz"]
+        files.sort(key=lambda p: natural_key(p.name))
+    else:
+        files = [src]
+    if not files:
+        raise fail(src, "no .npz result files found")
+    if len(files) == 1 and files[0].name == "video_results.npz":
+        results = _load_results(files[0])
+        if not all(isinstance(v, dict) for v in results.values()):
+            raise fail(files[0], "'results' must map image names to result dicts")
+        return [(name, (lambda v=value: v)) for name, value in sorted(results.items(), key=lambda kv: natural_key(str(kv[0])))]
+    return [(p.stem, (lambda p=p: _load_results(p))) for p in files]
+
+
+def _load_results(path: Path) -> dict:
+    """The dict stored in an .npz's 'results' object array."""
+    data = safe_pickle.load_npz(path)
+    if "results" not in data:
+        raise fail(path, "not a ROMP/BEV result file (no 'results' array)")
+    results = data["results"]
+    if results.shape != () or not isinstance(results.item(), dict):
+        raise fail(path, "'results' must hold a dict")
+    return results.item()
+
+
+def _people(results: dict, source: str, fmt: str, opts: ImportOptions) -> dict[str, np.ndarray | None]:
+    """Camera-frame vertices/joints, 2D keypoints, ids and the projection inputs of one result dict."""
+    cam_trans = as_array(get(results, "cam_trans", source), "cam_trans", source, ndim=2, last=(3,))
+    n_people = len(cam_trans)
+    verts = results.get("verts")
+    joints = results.get("joints")
+    out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None, "person_ids": None}
+    if verts is not None:
+        out["vertices"] = as_array(verts, "verts", source, ndim=3, last=(3,)) + cam_trans[:, None]
+    if joints is not None:
+        joints = as_array(joints, "joints", source, ndim=3, last=(3,))
+        if joints.shape[1] < 24:
+            raise fail(source, f"'joints' must hold at least the 24 SMPL joints, got {joints.shape[1]}")
+        out["joints"] = joints[:, :24] + cam_trans[:, None]
+        out["_joints_all_cam"] = joints + cam_trans[:, None]
+        out["_joints_rel"] = joints
+    model = opts.body_model
+    if model is not None and (out["vertices"] is None or out["joints"] is None) and fmt == "romp":
+        thetas = as_array(get(results, "smpl_thetas", source), "smpl_thetas", source, ndim=2)
+        betas = as_array(get(results, "smpl_betas", source), "smpl_betas", source, ndim=2)
+        v, j = lbs(model, betas[:, :10], thetas, cam_trans)  # ROMP's meshes are not root-aligned
+        out["vertices"] = v if out["vertices"] is None else out["vertices"]
+        out["joints"] = j[:, :24] if out["joints"] is None else out["joints"]
+    if out["vertices"] is None and out["joints"] is None:
+        raise fail(source, "holds neither 'verts' nor 'joints' (was it run with --calc_smpl?)")
+    if results.get("pj2d_org") is not None:
+        out["keypoints_2d"] = as_array(results["pj2d_org"], "pj2d_org", source, ndim=3, last=(2,))
+    if results.get("track_ids") is not None:
+        out["person_ids"] = as_array(results["track_ids"], "track_ids", source, kinds="iu").reshape(-1)
+    if results.get("cam") is not None:
+        out["_cam"] = as_array(results["cam"], "cam", source, ndim=2, last=(3,))
+    for key, value in out.items():
+        if value is not None and len(value) != n_people:
+            raise fail(source, f"'{key}' has {len(value)} people but 'cam_trans' has {n_people}")
+    return out
+
+
+def _normalized_xy(people: dict, fmt: str) -> np.ndarray | None:
+    """Joint positions in the network's normalized [-1, 1] square, as the tool computed pj2d."""
+    if fmt == "bev" and people.get("_joints_all_cam") is not None:
+        joints = people["_joints_all_cam"]
+        return _BEV_FOCAL_ON_512 / (_NET_INPUT / 2) * joints[..., :2] / joints[..., 2:3]
+    if fmt == "romp" and people.get("_joints_rel") is not None and people.get("_cam") is not None:
+        cam = people["_cam"]
+        return people["_joints_rel"][..., :2] * cam[:, None, :1] + cam[:, None, 1:]
+    return None
+
+
+def _infer_image_size(norm: np.ndarray, pix: np.ndarray, source: str) -> tuple[tuple[int, int], int, int] | None:
+    """Fit u = (n_x + 1) S/2 - left, v = (n_y + 1) S/2 - top: -> ((W, H), left, top) or None."""
+    n = norm.reshape(-1, 2)
+    p = pix[..., :2].reshape(-1, 2)
+    ok = np.isfinite(n).all(axis=1) & np.isfinite(p).all(axis=1)
+    n, p = n[ok], p[ok]
+    if len(n) < 2 or np.ptp(n) < 1e-6:
+        return None
+    A = np.zeros((2 * len(n), 3))
+    A[0::2, 0], A[0::2, 1] = n[:, 0], 1.0
+    A[1::2, 0], A[1::2, 2] = n[:, 1], 1.0
+    coef, *_ = np.linalg.lstsq(A, p.reshape(-1), rcond=None)
+    if np.max(np.abs(A @ coef - p.reshape(-1))) > 1.0 or coef[0] <= 0:
+        return None
+    side = int(round(2 * coef[0]))
+    left, top = int(round(side / 2 - coef[1])), int(round(side / 2 - coef[2]))
+    if min(left, top) != 0 or max(left, top) < 0 or max(left, top) > side // 2:
+        return None
+    return (side - 2 * left, side - 2 * top), left, top
+
+
+def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
+    sources = _sources(src)
+    warnings: list[str] = []
+    if opts.fov_deg is not None:
+        warnings.append(f"--fov is ignored for {fmt}: its field of view is fixed at 60 degrees")
+    if opts.image_size is not None:
+        image_size = opts.image_size
+        side, left, top = max(image_size), (max(image_size) - image_size[0]) // 2, (max(image_size) - image_size[1]) // 2
+        size_origin = "--image-size"
+    else:
+        found = None
+        for name, load in sources[:50]:
+            people = _people(load(), f"{src} [{name}]", fmt, opts)
+            norm = _normalized_xy(people, fmt)
+            if norm is not None and people["keypoints_2d"] is not None and len(norm):
+                found = _infer_image_size(norm, people["keypoints_2d"], f"{src} [{name}]")
+                if found:
+                    break
+        if found is None:
+            raise fail(src, f"the image size is not stored in {fmt} results and could not be inferred from "
+                            "'pj2d_org'; pass --image-size W H")
+        image_size, left, top = found
+        side = max(image_size)
+        size_origin = "inferred from pj2d_org"
+        warnings.append(f"{src}: image size {image_size[0]}x{image_size[1]} inferred from the 2D keypoints "
+                        "(+-1 px when the padding is odd); pass --image-size W H to be exact")
+    if fmt == "bev":
+        focal = _BEV_FOCAL_ON_512 / _NET_INPUT * side
+    else:
+        focal = side / (2.0 * np.tan(np.radians(_ROMP_FOV_DEG) / 2.0))
+        warnings.append("romp is weak-perspective: cam_trans is its rough depth (2/s), meshes reproject only "
+                        "approximately in the 60-degree camera")
+    principal_point = (side / 2.0 - left, side / 2.0 - top)
+    model = opts.body_model
+    has_ids = []
+
+    def frames() -> Iterator[Frame]:
+        for index, (name, load) in enumerate(sources):
+            source = f"{src} [{name}]"
+            people = _people(load(), source, fmt, opts)
+            verts = people["vertices"]
+            has_ids.append(people["person_ids"] is not None)
+            yield people_frame(frame_name(index), source, warnings, vertices=verts, joints=people["joints"],
+                               keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
+                               faces=model_faces(model, None if verts is None else verts.shape[1]))
+
+    meta = base_meta(fmt, src, opts, image_size, focal, principal_point)
+    meta["import"].update({
+        "source_frames": [name for name, _ in sources],
+        "image_size_from": size_origin,
+        "joints_layout": "smpl24",
+        "root_joint": 0,
+        "keypoints_2d_layout": "romp71 (SMPL-24, 21 vertex joints, 9 extra, 17 H36M)" if fmt == "bev" else "romp54/71",
+        "conventions": f"camera frame = OpenCV, metres; vertices = verts + cam_trans; 60-degree FOV on the "
+                       f"centred padded square (S = {side})",
+    })
+    return ImportedSequence(frames(), len(sources), meta, warnings)
+
+
+def read_bev(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """BEV per-image .npz results -> contract frames."""
+    return _read(src, opts, "bev")
+
+
+def read_romp(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """ROMP (simple_romp) per-image .npz results -> contract frames."""
+    return _read(src, opts, "romp")
+
+
+READERS = {"bev": read_bev, "romp": read_romp}

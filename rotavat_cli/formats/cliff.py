@@ -1,0 +1,156 @@
+"""CLIFF demo results (``demo.py --save_results``): one ``.npz`` for all images.
+
+Source: huawei-noah/noah-research ``CLIFF/demo.py`` (and the multi-person fork haofanwang/CLIFF
+``demo.py``), ``CLIFF/common/utils.py`` (``cam_crop2full``, ``estimate_focal_length``).
+
+- Keys: ``imgname`` (N_img,) image paths; ``detection_all`` (N, 8) rows ``[image index, x1, y1,
+  x2, y2, det score, nms score, class id]`` (the fork stores the *track id* in the last column);
+  per detection row: ``pose`` (N, 72) axis-angle or (N, 24, 3, 3) rotation matrices (``--pose_format``),
+  ``shape`` (N, 10) betas, ``global_t`` (N, 3) = ``pred_cam_full``, ``pred_joints`` (N, J, 3),
+  ``focal_l`` (N,).
+- Frame: ``smpl(pose, shape, transl=global_t)`` is already in the full-image camera frame:
+  OpenCV axes (x right, y down, z forward), metres. ``pred_joints`` include the translation
+  (J = 45 with ``smplx.create``: SMPL-24 first; J = 49 in the fork: SPIN order).
+- Focal: ``sqrt(W^2 + H^2)`` pixels (the image diagonal), principal point at the image centre.
+- Image size: not stored; read from the image files' headers when ``imgname`` paths exist,
+  else ``--image-size`` is required.
+- Meshes: CLIFF stores parameters only; vertices need ``--smpl-model`` (an SMPL model).
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from .. import safe_pickle
+from ..sequence import Frame
+from ..smpl import joints_to_smpl24, lbs
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, image_size_from_header,
+               model_faces, no_model_warning, people_frame)
+
+_KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
+
+
+def sniff(path: Path) -> str | None:
+    """'cliff' for an .npz holding CLIFF's keys."""
+    if path.is_file() and path.suffix == ".npz":
+        with zipfile.ZipFile(path) as archive:
+            names = {n[:-4] for n in archive.namelist()}
+        return "cliff" if _KEYS <= names else None
+    return None
+
+
+def _find_file(src: Path) -> Path:
+    """The results file (a directory must hold exactly one CLIFF npz)."""
+    if src.is_file():
+        return src
+    candidates = [p for p in sorted(src.glob("*.npz")) if sniff(p)]
+    if len(candidates) != 1:
+        raise fail(src, f"expected one CLIFF results .npz in the directory, found {len(candidates)}")
+    return candidates[0]
+
+
+def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[tuple[int, int], str]:
+    """--image-size, else the header of the first image file found."""
+    if opts.image_size is not None:
+        return opts.image_size, "--image-size"
+    for name in imgnames[:1]:
+        for candidate in (Path(str(name)), src.parent / str(name), src.parent / Path(str(name)).name):
+            size = image_size_from_header(candidate)
+            if size is not None:
+                return size, f"header of {candidate}"
+    raise fail(src, "the image size is not stored in CLIFF results and the images were not found; "
+                    "pass --image-size W H")
+
+
+def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """CLIFF demo .npz -> contract frames (see the module docstring for the conventions)."""
+    path = _find_file(src)
+    data = safe_pickle.load_npz(path)
+    missing = sorted(k for k in ("imgname", "detection_all", "global_t", "focal_l", "pred_joints") if k not in data)
+    if missing:
+        raise fail(path, f"not a CLIFF results file (missing {', '.join(missing)})")
+    imgnames = np.asarray(data["imgname"]).reshape(-1)
+    det = as_array(data["detection_all"], "detection_all", path)
+    n_det = det.shape[0] if det.size else 0
+    det = det.reshape(n_det, -1) if n_det else np.zeros((0, 8))
+    if det.shape[1] < 8:
+        raise fail(path, f"'detection_all' must have 8 columns, got {det.shape[1]}")
+    pred_joints = as_array(data["pred_joints"], "pred_joints", path, ndim=3, last=(3,)) if n_det else np.zeros((0, 24, 3))
+    global_t = as_array(data["global_t"], "global_t", path).reshape(-1, 3) if n_det else np.zeros((0, 3))
+    focal_l = as_array(data["focal_l"], "focal_l", path).reshape(-1) if n_det else np.zeros(0)
+    if len(pred_joints) != n_det:
+        raise fail(path, f"'pred_joints' has {len(pred_joints)} rows but 'detection_all' has {n_det}")
+    frame_index = det[:, 0].astype(np.int64)
+    if n_det and (frame_index.min() < 0 or frame_index.max() >= len(imgnames)):
+        raise fail(path, "'detection_all' refers to images outside 'imgname'")
+
+    image_size, size_origin = _image_size(path, imgnames, opts)
+    diagonal = float(np.hypot(*image_size))
+    warnings: list[str] = []
+    focal = float(np.median(focal_l)) if len(focal_l) else diagonal
+    if len(focal_l) and abs(focal - diagonal) > 1e-3 * diagonal:
+        warnings.append(f"{path}: focal_l = {focal:.1f} px but the diagonal of {image_size[0]}x{image_size[1]} "
+                        f"({size_origin}) is {diagonal:.1f} px; using focal_l (what CLIFF used)")
+    principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
+
+    model = opts.body_model
+    vertices = joints = None
+    layout = "smpl24"
+    n_params = 0
+    if model is not None:
+        if model.kind != "smpl":
+            raise fail(path, f"CLIFF uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+        pose = np.asarray(data.get("pose"))
+        betas = as_array(data.get("shape"), "shape", path)
+        n_params = min(len(pose), len(betas), len(global_t))
+        try:
+            vertices, joints = lbs(model, betas[:n_params], pose[:n_params], global_t[:n_params])
+        except ValueError as exc:
+            raise fail(path, str(exc)) from None
+        if n_params < n_det:
+            warnings.append(f"{path}: {n_det - n_params} detections without SMPL parameters (--infill rows) "
+                            "were skipped")
+        if pred_joints.shape[1] in (24, 45) and n_params:
+            gap = float(np.max(np.linalg.norm(joints - pred_joints[:n_params, :24], axis=-1)))
+            if gap > 0.02:
+                warnings.append(f"{path}: joints posed with {model.name} differ from CLIFF's pred_joints by up to "
+                                f"{gap * 100:.1f} cm: is it the SMPL model CLIFF used?")
+    else:
+        warnings.append(no_model_warning("CLIFF"))
+        try:
+            joints, layout = joints_to_smpl24(pred_joints)
+        except ValueError:
+            joints = pred_joints
+            layout = "spin49" if pred_joints.shape[1] == 49 else f"cliff{pred_joints.shape[1]}"
+    track_col = det[:, 7].astype(np.int64)
+    use_ids = all(len(np.unique(track_col[frame_index == i])) == int((frame_index == i).sum())
+                  for i in np.unique(frame_index))
+    n_rows = n_params if model is not None else n_det
+    faces = model_faces(model, None if vertices is None else vertices.shape[1])
+
+    def frames() -> Iterator[Frame]:
+        for i in range(len(imgnames)):
+            rows = np.flatnonzero(frame_index[:n_rows] == i)
+            yield people_frame(
+                frame_name(i), f"{path} [image {i}]", warnings,
+                vertices=None if vertices is None else vertices[rows],
+                joints=joints[rows],
+                person_ids=track_col[rows] if use_ids else None,
+                faces=faces, n_verts=None if vertices is None else vertices.shape[1])
+
+    meta = base_meta("cliff", path, opts, image_size, focal, principal_point)
+    meta["import"].update({
+        "source_frames": [Path(str(n)).name for n in imgnames],
+        "image_size_from": size_origin,
+        "joints_layout": layout,
+        "root_joint": 8 if layout == "spin49" else 0,
+        "conventions": "camera frame = OpenCV, metres; focal = image diagonal; vertices = SMPL(pose, shape) + global_t",
+    })
+    return ImportedSequence(frames(), len(imgnames), meta, warnings)
+
+
+READERS = {"cliff": read_cliff}

@@ -1,0 +1,146 @@
+"""4D-Humans tracking results: the PHALP ``.pkl`` (``joblib.dump`` of ``final_visuals_dic``).
+
+Source: brjathu/PHALP ``phalp/trackers/PHALP.py`` (``track``: ``final_visuals_dic``,
+``get_human_features``), ``phalp/models/hmar/hmar.py`` (``get_3d_parameters``),
+``phalp/configs/base.py`` (``EXTRA.FOCAL_LENGTH = 5000``, ``render.res = 256``),
+``phalp/utils/smpl_utils.py`` (joint order); shubham-goel/4D-Humans ``track.py`` (HMR 2.0 inside
+PHALP: ``HMR2_4dhuman``).
+
+- File: a dict ``{frame path: {...}}``; per frame ``time`` (index), and per-track lists
+  ``tid``, ``tracked_time`` (0 = detected in this frame; other entries repeat a track's last
+  detection and are skipped here), ``smpl`` (dicts ``global_orient`` (1, 3, 3), ``body_pose``
+  (23, 3, 3) rotation matrices, ``betas`` (10,)), ``camera`` (3,) translation, ``3d_joints``
+  (45, 3) (25 OpenPose + 19 extra + 1 zero row, *without* the translation), ``2d_joints`` (90,)
+  normalized by the padded square, ``size`` [H, W], ``bbox``, ``conf``.
+- Frame: ``smpl(...) + camera`` is the camera frame: OpenCV axes, metres.
+- Focal: PHALP places the image in a centred zero-padded square of side S = max(W, H), seen at
+  ``render.res`` = 256 px with f = 5000 px: f = 5000 * S / 256 on the original image (the method's
+  own large focal length, ~ a 3 degree field of view); principal point = padded-square centre,
+  ``(S/2 - left, S/2 - top)``.
+- 2D: ``2d_joints * S - (left, top)`` are original-image pixels.
+- Meshes: parameters only; vertices need ``--smpl-model`` (SMPL). Without it, joints are the
+  file's 44 joints (OpenPose-25 + 19 extra, pelvis = index 8).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .. import safe_pickle
+from ..sequence import Frame
+from ..smpl import lbs
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces,
+               no_model_warning, padded_square, people_frame)
+
+FOCAL_LENGTH = 5000.0  # phalp/configs/base.py ExtraConfig.FOCAL_LENGTH
+RENDER_RES = 256  # phalp/configs/base.py RenderConfig.res (the padded square is resized to this)
+
+
+def sniff(path: Path) -> str | None:
+    """'4dhumans' for a pickle whose values are PHALP frame dicts."""
+    if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > 512 << 20:
+        return None
+    data = safe_pickle.load_file(path)
+    if isinstance(data, Mapping) and data:
+        first = next(iter(data.values()))
+        if isinstance(first, Mapping) and "tid" in first and ("camera" in first or "smpl" in first):
+            return "4dhumans"
+    return None
+
+
+def _frame_order(data: Mapping, source: Path) -> list[str]:
+    """Frame keys sorted by PHALP's ``time`` (then key)."""
+    for key, value in data.items():
+        if not isinstance(value, Mapping):
+            raise fail(source, f"frame {key!r} is not a dict")
+    return sorted(data, key=lambda k: (data[k].get("time", 0) if isinstance(data[k].get("time", 0), (int, np.integer)) else 0, str(k)))
+
+
+def _image_size(data: Mapping, order: list[str], opts: ImportOptions, source: Path, warnings: list[str]) -> tuple[int, int]:
+    """[H, W] from the first track's 'size', or --image-size."""
+    stored = None
+    for key in order:
+        sizes = data[key].get("size") or []
+        if len(sizes):
+            h, w = (int(v) for v in np.asarray(sizes[0]).reshape(-1)[:2])
+            stored = (w, h)
+            break
+    if opts.image_size is not None:
+        if stored is not None and stored != opts.image_size:
+            warnings.append(f"{source}: --image-size {opts.image_size[0]}x{opts.image_size[1]} differs from the "
+                            f"stored {stored[0]}x{stored[1]}; using --image-size")
+        return opts.image_size
+    if stored is None:
+        raise fail(source, "no 'size' stored (no detections); pass --image-size W H")
+    return stored
+
+
+def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """PHALP / 4D-Humans tracking .pkl -> contract frames."""
+    data = safe_pickle.load_file(src)
+    if not isinstance(data, Mapping) or not data:
+        raise fail(src, "not a PHALP results file (expected a non-empty dict of frames)")
+    order = _frame_order(data, src)
+    warnings: list[str] = []
+    image_size = _image_size(data, order, opts, src, warnings)
+    side, left, top = padded_square(image_size)
+    focal = FOCAL_LENGTH * side / RENDER_RES
+    principal_point = (side / 2.0 - left, side / 2.0 - top)
+    model = opts.body_model
+    if model is None:
+        warnings.append(no_model_warning("4D-Humans/PHALP"))
+    elif model.kind != "smpl":
+        raise fail(src, f"4D-Humans uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+
+    def people(frame: Mapping, source: str) -> dict[str, np.ndarray | None]:
+        tids = list(get(frame, "tid", source))
+        tracked = frame.get("tracked_time")
+        tracked = [0] * len(tids) if tracked is None else list(tracked)
+        if len(tracked) != len(tids):
+            raise fail(source, "'tracked_time' and 'tid' differ in length")
+        keep = [i for i, t in enumerate(tracked) if t == 0]
+        n = len(keep)
+        cams = np.stack([as_array(frame["camera"][i], "camera", source).reshape(3) for i in keep]) if n else np.zeros((0, 3))
+        out: dict[str, np.ndarray | None] = {"person_ids": np.asarray([tids[i] for i in keep], dtype=np.int64)}
+        kp = [as_array(frame["2d_joints"][i], "2d_joints", source).reshape(-1, 2) for i in keep] if "2d_joints" in frame else []
+        out["keypoints_2d"] = (np.stack(kp)[:, :44] * side - np.array([left, top])) if n and kp else None
+        if model is not None:
+            smpl = [get(frame, "smpl", source)[i] for i in keep]
+            rot = np.stack([np.concatenate([as_array(get(s, "global_orient", source), "global_orient", source).reshape(1, 3, 3),
+                                            as_array(get(s, "body_pose", source), "body_pose", source).reshape(23, 3, 3)])
+                            for s in smpl]) if n else np.zeros((0, 24, 3, 3))
+            betas = np.stack([as_array(get(s, "betas", source), "betas", source).reshape(-1) for s in smpl]) if n else np.zeros((0, 10))
+            out["vertices"], out["joints"] = lbs(model, betas, rot, cams)
+        else:
+            j3d = [as_array(frame["3d_joints"][i], "3d_joints", source, ndim=2, last=(3,)) for i in keep]
+            out["vertices"] = None
+            out["joints"] = np.stack(j3d)[:, :44] + cams[:, None] if n else np.zeros((0, 44, 3))
+        return out
+
+    def frames() -> Iterator[Frame]:
+        for index, key in enumerate(order):
+            source = f"{src} [{key}]"
+            p = people(data[key], source)
+            verts = p["vertices"]
+            yield people_frame(frame_name(index), source, warnings, vertices=verts, joints=p["joints"],
+                               keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
+                               faces=model_faces(model, None if verts is None else verts.shape[1]),
+                               n_verts=None if model is None else model.n_verts)
+
+    meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point)
+    meta["import"].update({
+        "source_frames": [Path(str(k)).name for k in order],
+        "image_size_from": "--image-size" if opts.image_size else "PHALP 'size'",
+        "joints_layout": "smpl24" if model is not None else "phalp44 (OpenPose-25 + 19 extra)",
+        "root_joint": 0 if model is not None else 8,
+        "keypoints_2d_layout": "phalp44 (OpenPose-25 + 19 extra)",
+        "conventions": f"camera frame = OpenCV, metres; vertices = SMPL(smpl) + camera; focal = 5000 * S / 256 "
+                       f"(S = {side}); only detections with tracked_time == 0",
+    })
+    return ImportedSequence(frames(), len(order), meta, warnings)
+
+
+READERS = {"4dhumans": read_fourdhumans}

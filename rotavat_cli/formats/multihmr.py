@@ -1,0 +1,155 @@
+"""Multi-HMR: per-image arrays of its ``humans`` outputs (SMPL-X meshes in the camera frame).
+
+Source: naver/multi-hmr ``demo.py`` (``open_image``: ``ImageOps.contain`` + ``ImageOps.pad`` to an
+``img_size`` square; ``get_camera_parameters``; ``--save_mesh`` writes ``<image>.npy`` =
+``[h['verts_smplx'] for h in humans]``), ``utils/camera.py`` (``get_focalLength_from_fieldOfView``,
+``perspective_projection``), ``model.py`` (per-person keys ``scores``, ``loc``, ``transl``,
+``transl_pelvis``, ``rotvec`` (55, 3), ``shape``, ``expression``, ``verts_smplx`` (10475, 3),
+``j3d_smplx`` (127, 3), ``j2d_smplx`` (127, 2)).
+
+- Files read: ``<image>.npy`` (P, V, 3) vertex arrays (the demo's ``--save_mesh``), or
+  ``<image>.npz`` / ``<image>.pkl`` holding those per-person keys (stacked arrays, or a list of
+  per-person dicts).
+- Frame: ``verts_smplx`` and ``j3d_smplx`` are in the camera frame: OpenCV axes
+  (``perspective_projection`` divides by +z and applies K; rendering flips to OpenGL with
+  ``OPENCV_TO_OPENGL_CAMERA_CONVENTION``), metres.
+- Focal: K is built for the square network input (``img_size`` 896 or 672) from ``--fov``
+  (default 60 deg): f_in = img_size / (2 tan(fov/2)). The image was scaled by img_size / max(W, H)
+  and padded symmetrically, so on the original image f = max(W, H) / (2 tan(fov/2)) and the
+  principal point is the image centre (to within half an input pixel).
+- 2D: ``j2d_smplx`` live in the *padded network input*, not the image: they are not used;
+  ``keypoints_2d`` are ``j3d_smplx`` reprojected with the original-image intrinsics above.
+- Image size: never stored: ``--image-size`` is required. ``--fov`` if the demo ran with one.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .. import safe_pickle
+from ..sequence import Frame
+from ..smpl import joints_to_smpl24
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, model_faces, natural_key,
+               need_image_size, people_frame, project_px)
+
+DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
+_SUFFIXES = (".npy", ".npz", ".pkl")
+
+
+def sniff(path: Path) -> str | None:
+    """'multihmr' for a directory of per-image .npy meshes or files with a 'verts_smplx' key."""
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix in _SUFFIXES)
+        if not files:
+            return None
+        path = files[0]
+    if path.suffix == ".npy":
+        arr = safe_pickle.load_npy(path)
+        return "multihmr" if arr.ndim == 3 and arr.shape[-1] == 3 and arr.shape[1] in (10475, 6890) else None
+    if path.suffix == ".npz":
+        with zipfile.ZipFile(path) as archive:
+            return "multihmr" if "verts_smplx.npy" in archive.namelist() else None
+    return None
+
+
+def _files(src: Path) -> list[Path]:
+    files = [src] if src.is_file() else [p for p in src.iterdir() if p.suffix in _SUFFIXES and not p.name.startswith(".")]
+    if not files:
+        raise fail(src, "no Multi-HMR result files (.npy, .npz or .pkl) found")
+    return sorted(files, key=lambda p: natural_key(p.name))
+
+
+def _humans(path: Path) -> dict[str, np.ndarray | None]:
+    """verts (P, V, 3) and j3d (P, J, 3) or None from one per-image file."""
+    if path.suffix == ".npy":
+        content: object = safe_pickle.load_npy(path)
+    elif path.suffix == ".npz":
+        content = safe_pickle.load_npz(path)
+    else:
+        content = safe_pickle.load_file(path)
+    if isinstance(content, Mapping) and "humans" in content:
+        content = content["humans"]
+    if isinstance(content, np.ndarray) and content.dtype.kind == "O":
+        content = list(content.reshape(-1))
+    if isinstance(content, np.ndarray):  # the demo's --save_mesh: vertices only
+        if content.size == 0:
+            return {"verts": np.zeros((0, 0, 3)), "j3d": None}
+        return {"verts": as_array(content, "vertices", path, ndim=3, last=(3,)), "j3d": None}
+    if isinstance(content, list):  # per-person dicts
+        if not content:
+            return {"verts": np.zeros((0, 0, 3)), "j3d": None}
+        if not all(isinstance(h, Mapping) for h in content):
+            raise fail(path, "expected a list of per-person dicts")
+        verts = np.stack([as_array(h.get("verts_smplx"), "verts_smplx", path, ndim=2, last=(3,)) for h in content])
+        has_j3d = all(h.get("j3d_smplx") is not None for h in content)
+        j3d = np.stack([as_array(h["j3d_smplx"], "j3d_smplx", path, ndim=2, last=(3,)) for h in content]) if has_j3d else None
+        return {"verts": verts, "j3d": j3d}
+    if isinstance(content, Mapping):
+        if "verts_smplx" not in content:
+            raise fail(path, "no 'verts_smplx' key")
+        verts = as_array(content["verts_smplx"], "verts_smplx", path)
+        if verts.size == 0:
+            return {"verts": np.zeros((0, 0, 3)), "j3d": None}
+        verts = as_array(verts, "verts_smplx", path, ndim=3, last=(3,))
+        j3d = content.get("j3d_smplx")
+        j3d = as_array(j3d, "j3d_smplx", path, ndim=3, last=(3,)) if j3d is not None and np.size(j3d) else None
+        return {"verts": verts, "j3d": j3d}
+    raise fail(path, f"unexpected content ({type(content).__name__})")
+
+
+def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """Multi-HMR per-image outputs -> contract frames."""
+    files = _files(src)
+    image_size = need_image_size(opts, src, "Multi-HMR saves meshes in the camera frame of its padded square input")
+    fov = opts.fov_deg if opts.fov_deg is not None else DEFAULT_FOV_DEG
+    focal = max(image_size) / (2.0 * np.tan(np.radians(fov) / 2.0))
+    principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
+    model = opts.body_model
+    warnings: list[str] = []
+    layout = {"value": None}
+
+    def frames() -> Iterator[Frame]:
+        for index, path in enumerate(files):
+            humans = _humans(path)
+            verts, j3d = humans["verts"], humans["j3d"]
+            n = len(verts)
+            joints = kp = None
+            if j3d is not None and len(j3d) != n:
+                raise fail(path, "'j3d_smplx' and 'verts_smplx' differ in their number of people")
+            if j3d is None and model is not None and n and model.n_verts == verts.shape[1]:
+                j3d = np.einsum("jv,pvc->pjc", model.J_regressor, verts)  # joints regressed from the posed mesh
+                layout["value"] = layout["value"] or "smpl24 (regressed from the meshes with --smpl-model)"
+            if j3d is not None:
+                try:
+                    joints, note = joints_to_smpl24(j3d)
+                    layout["value"] = layout["value"] or note
+                except ValueError:
+                    joints = j3d
+                    layout["value"] = layout["value"] or f"multihmr{j3d.shape[1]}"
+                kp = project_px(j3d, focal, principal_point)
+            yield people_frame(frame_name(index), path, warnings, vertices=verts if verts.shape[1] else None,
+                               joints=joints, keypoints_2d=kp,
+                               faces=model_faces(model, verts.shape[1] if verts.shape[1] else None),
+                               n_verts=verts.shape[1] if verts.shape[1] else None)
+        if layout["value"] is None:
+            warnings.append(f"{src}: no 'j3d_smplx' in the files (and no matching --smpl-model): vertices only, "
+                            "no joints (MPJPE unavailable)")
+        meta["import"]["joints_layout"] = layout["value"]
+
+    meta = base_meta("multihmr", src, opts, image_size, focal, principal_point)
+    meta["import"].update({
+        "source_frames": [p.name for p in files],
+        "fov_deg": float(fov),
+        "root_joint": 0,
+        "keypoints_2d_layout": "smplx127 (j3d_smplx reprojected; the file's j2d_smplx are in the padded input)",
+        "conventions": f"camera frame = OpenCV, metres; focal = max(W, H) / (2 tan({fov:g} deg / 2)); "
+                       "principal point = image centre",
+    })
+    return ImportedSequence(frames(), len(files), meta, warnings)
+
+
+READERS = {"multihmr": read_multihmr}

@@ -1,0 +1,253 @@
+"""SMPL-family body models in numpy: load a user-supplied ``.npz`` model and pose it (linear blend skinning).
+
+The licensed SMPL / SMPL-X model files are never shipped or downloaded: the user passes the file
+they downloaded themselves (``--smpl-model SMPL_NEUTRAL.npz`` or ``SMPLX_NEUTRAL.npz``). The file
+is read with ``allow_pickle=False``; only these keys are used (the layout of the official npz
+releases, as read by ``vchoutas/smplx`` ``body_models.py``):
+
+==================  ====================  =====================================================
+key                 shape                 meaning
+==================  ====================  =====================================================
+``v_template``      (V, 3)                rest-pose template, metres, SMPL canonical frame
+``shapedirs``       (V, 3, S)             shape (and, for SMPL-X, expression from column 300) blend shapes
+``posedirs``        (V, 3, 9 (J-1))       pose-corrective blend shapes
+``J_regressor``     (J, V)                joints from the shaped rest mesh (dense)
+``weights``         (V, J)                skinning weights
+``kintree_table``   (2, J)                row 0: parent of each joint (root's entry ignored)
+``f``               (F, 3)                triangles (optional)
+==================  ====================  =====================================================
+
+Posing follows SMPL's linear blend skinning (Loper et al. 2015; ``smplx/lbs.py`` is the reference
+the numbers were checked against): shape the template, regress the joints, add pose correctives
+from ``R_j - I`` of every non-root joint, chain the joint transforms down the kinematic tree and
+skin. ``global_orient`` rotates about the root *joint*, not the origin; ``transl`` is added last.
+
+Examples
+--------
+>>> model = toy_chain_model()
+>>> verts, joints = lbs(model, np.zeros((1, 0)), np.zeros((1, 3, 3)))
+>>> np.allclose(verts[0], model.v_template)
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .rotations import axis_angle_to_matrix
+
+__all__ = [
+    "BodyModel",
+    "load_body_model",
+    "pose_to_matrices",
+    "lbs",
+    "SMPLX_TO_SMPL24",
+    "joints_to_smpl24",
+    "SMPL_PARENTS",
+    "toy_chain_model",
+]
+
+# SMPL-X kinematic joints 0..21 are SMPL's 0..21 (same names); SMPL's 'left_hand'/'right_hand'
+# (22, 23) have no SMPL-X twin: the middle finger's first joint (SMPL-X 28 'left_middle1',
+# 43 'right_middle1', vchoutas/smplx joint_names.py) is the nearest stand-in (an approximation).
+SMPLX_TO_SMPL24 = tuple(range(22)) + (28, 43)
+
+_REQUIRED = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table")
+
+
+@dataclass(frozen=True, eq=False)
+class BodyModel:
+    """A posable SMPL-family model: arrays in float64, parents as int64 (root's parent is -1)."""
+
+    name: str
+    v_template: np.ndarray  # (V, 3)
+    shapedirs: np.ndarray  # (V, 3, S)
+    posedirs: np.ndarray  # (9 (J-1), 3 V): pose feature -> flattened vertex offsets
+    J_regressor: np.ndarray  # (J, V)
+    weights: np.ndarray  # (V, J)
+    parents: np.ndarray  # (J,)
+    faces: np.ndarray | None  # (F, 3) int64
+
+    @property
+    def n_verts(self) -> int:
+        return int(self.v_template.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.J_regressor.shape[0])
+
+    @property
+    def kind(self) -> str:
+        """'smpl' (24 joints), 'smplx' (55), 'smplh' (52) or 'custom'."""
+        return {24: "smpl", 55: "smplx", 52: "smplh"}.get(self.n_joints, "custom")
+
+
+def _model_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Required (and optional 'f') arrays of an npz model file, without pickle."""
+    if path.suffix.lower() == ".pkl":
+        raise InputError(f"{path}: pickled SMPL models are not read (they hold chumpy/scipy objects); "
+                         "pass the .npz release of the model (e.g. SMPL_NEUTRAL.npz, SMPLX_NEUTRAL.npz)")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            missing = [k for k in _REQUIRED if k not in npz.files]
+            if missing:
+                raise InputError(f"{path}: not an SMPL-family .npz model (missing {', '.join(missing)})")
+            arrays = {}
+            for key in _REQUIRED + (("f",) if "f" in npz.files else ()):
+                try:
+                    arrays[key] = npz[key]
+                except ValueError:
+                    raise InputError(f"{path}: key '{key}' is a pickled object (e.g. a scipy sparse matrix); "
+                                     "re-save the model with dense numpy arrays") from None
+            return arrays
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except (OSError, ValueError, EOFError) as exc:
+        raise InputError(f"{path}: not a readable .npz model ({str(exc).splitlines()[0]})") from None
+
+
+def load_body_model(path: str | Path) -> BodyModel:
+    """Load and validate an SMPL / SMPL-H / SMPL-X ``.npz`` model file (no pickle)."""
+    path = Path(path)
+    arrays = _model_arrays(path)
+
+    def bad(message: str) -> InputError:
+        return InputError(f"{path}: {message}")
+
+    v_template = np.asarray(arrays["v_template"], dtype=np.float64)
+    if v_template.ndim != 2 or v_template.shape[1] != 3 or v_template.shape[0] == 0:
+        raise bad(f"'v_template' must be (V, 3), got {list(v_template.shape)}")
+    n_verts = v_template.shape[0]
+    shapedirs = np.asarray(arrays["shapedirs"], dtype=np.float64)
+    if shapedirs.ndim != 3 or shapedirs.shape[:2] != (n_verts, 3):
+        raise bad(f"'shapedirs' must be (V, 3, S) with V = {n_verts}, got {list(shapedirs.shape)}")
+    J_regressor = np.asarray(arrays["J_regressor"], dtype=np.float64)
+    if J_regressor.ndim != 2 or J_regressor.shape[1] != n_verts:
+        raise bad(f"'J_regressor' must be dense (J, V) with V = {n_verts}, got {list(J_regressor.shape)}")
+    n_joints = J_regressor.shape[0]
+    weights = np.asarray(arrays["weights"], dtype=np.float64)
+    if weights.shape != (n_verts, n_joints):
+        raise bad(f"'weights' must be (V, J) = ({n_verts}, {n_joints}), got {list(weights.shape)}")
+    posedirs = np.asarray(arrays["posedirs"], dtype=np.float64)
+    n_pose = 9 * (n_joints - 1)
+    if posedirs.shape == (n_verts, 3, n_pose):
+        posedirs = posedirs.reshape(n_verts * 3, n_pose).T  # smplx: reshape(-1, P).T
+    elif posedirs.shape != (n_pose, n_verts * 3):
+        raise bad(f"'posedirs' must be (V, 3, {n_pose}), got {list(posedirs.shape)}")
+    kintree = np.asarray(arrays["kintree_table"])
+    if kintree.ndim != 2 or kintree.shape != (2, n_joints) or kintree.dtype.kind not in "iuf":
+        raise bad(f"'kintree_table' must be (2, J) = (2, {n_joints}), got {list(kintree.shape)}")
+    parents = kintree[0].astype(np.int64)
+    parents[0] = -1
+    if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, n_joints)):
+        raise bad("'kintree_table' must list each joint after its parent")
+    faces = None
+    if "f" in arrays:
+        faces = np.asarray(arrays["f"])
+        if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu" or (faces.size and faces.max() >= n_verts):
+            raise bad("'f' must be (F, 3) vertex indices")
+        faces = faces.astype(np.int64)
+    for key, arr in (("v_template", v_template), ("shapedirs", shapedirs), ("posedirs", posedirs),
+                     ("J_regressor", J_regressor), ("weights", weights)):
+        if not np.all(np.isfinite(arr)):
+            raise bad(f"'{key}' has non-finite values")
+    return BodyModel(path.name, v_template, shapedirs, posedirs, J_regressor, weights, parents, faces)
+
+
+def pose_to_matrices(pose: np.ndarray, n_joints: int) -> np.ndarray:
+    """Pose as axis-angle (P, J*3) / (P, J, 3) or rotation matrices (P, J, 3, 3) / (P, J*9) -> (P, J, 3, 3).
+
+    Raises ValueError if the shape fits neither form for ``n_joints`` joints.
+    """
+    pose = np.asarray(pose, dtype=np.float64)
+    n_people = pose.shape[0] if pose.ndim else 0
+    if pose.shape[1:] == (n_joints, 3, 3):
+        return pose
+    if pose.shape[1:] in ((n_joints * 3,), (n_joints, 3)):
+        rotvec = pose.reshape(n_people, n_joints, 3)
+        return axis_angle_to_matrix(rotvec, np.linalg.norm(rotvec, axis=-1))
+    if pose.shape[1:] == (n_joints * 9,):
+        return pose.reshape(n_people, n_joints, 3, 3)
+    raise ValueError(f"pose of shape {list(pose.shape)} is neither axis-angle nor rotation matrices for {n_joints} joints")
+
+
+def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarray | None = None,
+        expression: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Pose the model: -> vertices (P, V, 3), joints (P, J, 3), float64, the model's frame (+ transl).
+
+    betas: (P, B) shape coefficients (B may be smaller or larger than the model's components:
+        extra coefficients are ignored, missing ones are zero).
+    pose: (P, J, 3) axis-angle or (P, J, 3, 3) rotation matrices, joint 0 = global orientation.
+    transl: (P, 3) added to vertices and joints (metres), or None.
+    expression: (P, E) SMPL-X expression coefficients (shapedirs columns 300...), or None.
+    """
+    rot = pose_to_matrices(pose, model.n_joints)  # (P, J, 3, 3)
+    n_people = rot.shape[0]
+    betas = np.asarray(betas, dtype=np.float64).reshape(n_people, -1)
+    n_components = min(300, model.shapedirs.shape[2]) if model.kind == "smplx" else model.shapedirs.shape[2]
+    n_shape = min(betas.shape[1], n_components)
+    v_shaped = model.v_template[None] + np.einsum("vcs,ps->pvc", model.shapedirs[:, :, :n_shape], betas[:, :n_shape])
+    if expression is not None and model.shapedirs.shape[2] > 300:
+        expression = np.asarray(expression, dtype=np.float64).reshape(n_people, -1)
+        n_expr = min(expression.shape[1], model.shapedirs.shape[2] - 300)
+        v_shaped = v_shaped + np.einsum("vcs,ps->pvc", model.shapedirs[:, :, 300:300 + n_expr], expression[:, :n_expr])
+    rest_joints = np.einsum("jv,pvc->pjc", model.J_regressor, v_shaped)  # (P, J, 3)
+    pose_feature = (rot[:, 1:] - np.eye(3)).reshape(n_people, -1)  # (P, 9 (J-1))
+    v_posed = v_shaped + (pose_feature @ model.posedirs).reshape(n_people, -1, 3)
+    posed_joints, rel_transforms = _rigid_transforms(rot, rest_joints, model.parents)
+    T = np.einsum("vj,pjab->pvab", model.weights, rel_transforms)  # (P, V, 4, 4)
+    verts = np.einsum("pvab,pvb->pva", T[..., :3, :3], v_posed) + T[..., :3, 3]
+    if transl is not None:
+        transl = np.asarray(transl, dtype=np.float64).reshape(n_people, 1, 3)
+        verts = verts + transl
+        posed_joints = posed_joints + transl
+    return verts, posed_joints
+
+
+def _rigid_transforms(rot: np.ndarray, joints: np.ndarray, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Chain joint rotations down the tree: -> posed joints (P, J, 3), skinning transforms (P, J, 4, 4)."""
+    n_people, n_joints = joints.shape[:2]
+    rel = joints.copy()
+    rel[:, 1:] -= joints[:, parents[1:]]
+    local = np.zeros((n_people, n_joints, 4, 4))
+    local[..., :3, :3] = rot
+    local[..., :3, 3] = rel
+    local[..., 3, 3] = 1.0
+    world = np.empty_like(local)
+    world[:, 0] = local[:, 0]
+    for j in range(1, n_joints):  # the kinematic chain is sequential; people stay vectorised
+        world[:, j] = world[:, parents[j]] @ local[:, j]
+    posed = world[..., :3, 3].copy()
+    skin = world.copy()
+    skin[..., :3, 3] -= np.einsum("pjab,pjb->pja", world[..., :3, :3], joints)
+    return posed, skin
+
+
+def joints_to_smpl24(joints: np.ndarray) -> tuple[np.ndarray, str]:
+    """SMPL-24 joints from SMPL (24 or 45 = 24 + vertex joints) or SMPL-X (55 / 127) joint sets.
+
+    Returns (joints (P, 24, 3), note); raises ValueError for other joint counts.
+    """
+    n = joints.shape[1]
+    if n in (24, 45):  # SMPL kinematic joints first (smplx.SMPL appends 21 vertex joints)
+        return joints[:, :24], "smpl24"
+    if n in (55, 127, 144):  # SMPL-X kinematic joints first (55), then vertex/face joints
+        return joints[:, list(SMPLX_TO_SMPL24)], "smpl24 (from SMPL-X: hands = middle1 joints)"
+    raise ValueError(f"cannot map {n} joints to SMPL-24")
+
+
+# Parents of SMPL's 24 joints (``SMPL_JOINT_NAMES`` order; kinematic tree of the official model files).
+SMPL_PARENTS = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21)
+
+
+def toy_chain_model() -> BodyModel:
+    """A 3-joint, 4-vertex chain (doctests and quick checks): joints at y = 0, 1, 2, one vertex each + tip."""
+    v_template = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 2.0, 0.0], [0.0, 3.0, 0.0]])
+    J_regressor = np.eye(3, 4)
+    weights = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [0, 0, 1.0]])
+    return BodyModel("toy", v_template, np.zeros((4, 3, 0)), np.zeros((18, 12)), J_regressor, weights,
+                     np.array([-1, 0, 1]), np.array([[0, 1, 2], [1, 2, 3]]))

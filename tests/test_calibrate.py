@@ -1,0 +1,253 @@
+"""Calibration from foot/head pixels: the paper's grid, the robust refinement, errors and diagnostics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from rotavat_cli.calibrate import CalibrationResult, calibrate, fit_camera, fit_per_frame
+from rotavat_cli.calibrate_grid import (GridSpec, grid_costs, paper_grid_search, predict_heads_px,
+                                        reference_cell_costs)
+from rotavat_cli.camera import Camera
+from rotavat_cli.errors import DegenerateSceneError
+
+from _synthetic_pairs import synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
+
+# Tolerances (why): 100 frames x 20 walking people, 2 px noise, stature sd 0.07 m -> the camera is
+# limited by the 20 statures' sampling; the benchmark's medians are ~5x below these.
+TOL_FOCAL_REL = 0.03
+TOL_PITCH_DEG = 0.5
+TOL_ROLL_DEG = 0.5
+TOL_HEIGHT_REL = 0.04
+
+
+def assert_close_camera(est: Camera, true: Camera, focal=TOL_FOCAL_REL, pitch=TOL_PITCH_DEG, roll=TOL_ROLL_DEG,
+                        height=TOL_HEIGHT_REL) -> None:
+    """Estimated camera within the given relative / degree tolerances of the truth."""
+    assert abs(est.focal_px / true.focal_px - 1) < focal, (est, true)
+    assert abs(math.degrees(est.pitch_rad - true.pitch_rad)) < pitch, (est, true)
+    assert abs(math.degrees(est.roll_rad - true.roll_rad)) < roll, (est, true)
+    assert abs(est.height_m / true.height_m - 1) < height, (est, true)
+
+
+# ---- the model and the paper's grid --------------------------------------------------------------------
+def test_predict_heads_matches_camera_methods():
+    cam = Camera((1280, 720), 900.0, (630.0, 370.0), math.radians(25), math.radians(3), 6.0)
+    feet_px = np.array([[100.0, 600.0], [640.0, 500.0], [1200.0, 700.0]])
+    ground_cam = cam.backproject_px_to_ground(feet_px)
+    expected = cam.project(ground_cam + 1.7 * cam.up_cam)
+    got = predict_heads_px(feet_px, cam.focal_px, cam.pitch_rad, cam.roll_rad, cam.height_m, cam.principal_point, 1.7)
+    np.testing.assert_allclose(got, expected, atol=1e-9)
+
+
+def test_grid_spec_defaults_are_the_papers():
+    spec = GridSpec()
+    np.testing.assert_allclose(spec.focal_values_px(1000)[[0, -1]], [100.0, 6000.0])
+    np.testing.assert_allclose(np.rad2deg(spec.pitch_values_rad()[[0, -1]]), [-45.0, 90.0])
+    np.testing.assert_allclose(spec.height_values_m()[[0, -1]], [0.5, 40.0])
+    assert spec.steps == (50, 50, 50)
+    assert GridSpec(steps=[4, 5, 6]).steps == (4, 5, 6)  # lists from YAML
+    with pytest.raises(ValueError, match="steps"):
+        GridSpec(steps=(3, 0, 3))
+
+
+@pytest.mark.parametrize("residual", ["full", "vertical"])
+def test_grid_result_is_the_brute_force_best_cell(residual):
+    rng = np.random.default_rng(3)
+    data = synthetic_pairs(rng, frames=3, people=12, outlier_fraction=0.1, roll_deg=2.0)
+    W, H = data.camera.image_size
+    spec = GridSpec(steps=(9, 11, 10))
+    focal, pitch, height = spec.focal_values_px(H), spec.pitch_values_rad(), spec.height_values_m()
+    pp = (W / 2, H / 2)
+    best, best_cell = math.inf, None
+    for i, f in enumerate(focal):  # brute force: camera.py functions, one cell at a time
+        for j, p in enumerate(pitch):
+            for k, c in enumerate(height):
+                e = predict_heads_px(data.feet_px, f, p, 0.0, c, pp, 1.7) - data.heads_px
+                cost = float(np.sum(e[:, 1] ** 2 if residual == "vertical" else e**2))
+                if math.isfinite(cost) and cost < best:
+                    best, best_cell = cost, (i, j, k)
+    fit = paper_grid_search(data.feet_px, data.heads_px, pp, focal, pitch, height, 1.7, residual)
+    assert fit.index == best_cell
+    assert fit.cost == pytest.approx(best, rel=1e-12)
+    res = fit_camera(data.feet_px, data.heads_px, (W, H), method="grid", grid=spec, residual=residual)
+    assert (res.camera.focal_px, res.camera.pitch_rad, res.camera.height_m) == (fit.focal_px, fit.pitch_rad,
+                                                                                fit.height_m)
+
+
+def test_grid_costs_match_reference_and_skip_invalid_cells():
+    rng = np.random.default_rng(5)
+    data = synthetic_pairs(rng, frames=2, people=15)
+    W, H = data.camera.image_size
+    spec = GridSpec(steps=(7, 12, 6))
+    focal, pitch, height = spec.focal_values_px(H), spec.pitch_values_rad(), spec.height_values_m()
+    fast = grid_costs(data.feet_px, data.heads_px, (W / 2, H / 2), focal, pitch, height, 1.7, workers=2)
+    ff, pp_, cc = (a.ravel() for a in np.meshgrid(focal, pitch, height, indexing="ij"))
+    ref = reference_cell_costs(data.feet_px, data.heads_px, ff, pp_, cc, (W / 2, H / 2), 1.7).reshape(fast.shape)
+    assert np.array_equal(np.isinf(fast), np.isinf(ref))
+    assert np.isinf(ref).any() and np.isfinite(ref).any()  # pitch -45 deg: feet above the horizon
+    finite = np.isfinite(ref)
+    np.testing.assert_allclose(fast[finite], ref[finite], rtol=1e-4)
+
+
+def test_grid_recovers_camera_on_the_papers_model():
+    rng = np.random.default_rng(11)
+    cam = Camera((1920, 1080), 1512.0, None, math.radians(24.0), 0.0, 6.5)
+    data = synthetic_pairs(rng, camera=cam, frames=5, people=20, noise_px=0.5, stature_sd_m=0.0)
+    res = fit_camera(data.feet_px, data.heads_px, cam.image_size, method="grid")
+    spec = GridSpec()
+    # the best cell is next to the truth (steps: 0.12 H, 2.76 deg, 0.81 m; off-grid values trade off)
+    assert abs(res.camera.focal_px - cam.focal_px) <= np.diff(spec.focal_values_px(1080))[0] + 1e-6
+    assert abs(math.degrees(res.camera.pitch_rad - cam.pitch_rad)) <= 135 / 49 + 1e-6
+    assert abs(res.camera.height_m - cam.height_m) <= 39.5 / 49 + 1e-6
+    assert res.method == "grid" and res.camera.roll_rad == 0.0 and res.inliers == res.pairs
+
+
+# ---- refinement ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed,outliers,roll", [(1, 0.1, None), (2, 0.3, None), (4, 0.0, 0.0)])
+def test_refine_recovers_known_camera(seed, outliers, roll):
+    data = synthetic_pairs(np.random.default_rng(seed), frames=100, people=20, outlier_fraction=outliers,
+                           roll_deg=roll)
+    res = fit_camera(data.feet_px, data.heads_px, data.camera.image_size, frame_index=data.frame_index,
+                     track_id=data.track_id)
+    assert_close_camera(res.camera, data.camera)
+    assert res.frames == 100 and res.pairs == len(data.feet_px)
+    flagged = ~res.inlier_mask
+    assert not data.is_outlier.any() or flagged[data.is_outlier].mean() > 0.6  # most gross outliers rejected
+    assert flagged[~data.is_outlier].mean() < 0.05  # few good pairs lost
+
+
+def test_refine_without_tracks_and_with_focal_fixed():
+    data = synthetic_pairs(np.random.default_rng(6), frames=50, people=20, outlier_fraction=0.1, roll_deg=None)
+    cam = data.camera
+    res = fit_camera(data.feet_px, data.heads_px, cam.image_size, focal_px=cam.focal_px)
+    assert res.camera.focal_px == cam.focal_px and math.isnan(res.std["focal_px"])
+    assert math.isnan(res.corr_focal_pitch)
+    assert_close_camera(res.camera, cam, pitch=0.7, height=0.05)
+
+
+def test_refine_no_roll_and_vertical_residual():
+    data = synthetic_pairs(np.random.default_rng(7), frames=60, people=20, outlier_fraction=0.1, roll_deg=0.0)
+    res = fit_camera(data.feet_px, data.heads_px, data.camera.image_size, estimate_roll=False,
+                     residual="vertical", track_id=data.track_id)
+    assert res.camera.roll_rad == 0.0 and math.isnan(res.std["roll_deg"])
+    # head rows only: a steep camera (55 deg) loses the sideways lean of people; the std says so
+    assert_close_camera(res.camera, data.camera, focal=0.06, pitch=0.7, height=0.06)
+    assert abs(res.camera.focal_px - data.camera.focal_px) < 3 * res.std["focal_px"]
+    assert abs(res.camera.height_m - data.camera.height_m) < 3 * res.std["height_m"]
+    assert res.residual == "vertical"
+
+
+def test_refine_is_exact_on_noise_free_data_with_outliers():
+    data = synthetic_pairs(np.random.default_rng(8), frames=30, people=15, noise_px=0.0, stature_sd_m=0.0,
+                           outlier_fraction=0.2, roll_deg=None)
+    res = fit_camera(data.feet_px, data.heads_px, data.camera.image_size)
+    assert_close_camera(res.camera, data.camera, focal=1e-4, pitch=1e-3, roll=1e-3, height=1e-4)
+    assert res.rmse_px < 1e-3
+
+
+def test_result_does_not_depend_on_the_order_of_people():
+    data = synthetic_pairs(np.random.default_rng(9), frames=40, people=15, outlier_fraction=0.1, roll_deg=None)
+    perm = np.random.default_rng(0).permutation(len(data.feet_px))
+    kw = dict(image_size=data.camera.image_size)
+    a = fit_camera(data.feet_px, data.heads_px, frame_index=data.frame_index, track_id=data.track_id, **kw)
+    b = fit_camera(data.feet_px[perm], data.heads_px[perm], frame_index=data.frame_index[perm],
+                   track_id=data.track_id[perm], **kw)
+    for name in ("focal_px", "pitch_rad", "roll_rad", "height_m"):
+        assert getattr(b.camera, name) == pytest.approx(getattr(a.camera, name), rel=1e-7, abs=1e-9)
+    assert np.array_equal(a.inlier_mask[perm], b.inlier_mask)
+
+
+def test_ambiguous_focal_is_reported_not_hidden():
+    # one frame of ten people: focal and pitch slide along a valley
+    data = synthetic_pairs(np.random.default_rng(21), frames=1, people=10, roll_deg=0.0)
+    res = fit_camera(data.feet_px, data.heads_px, data.camera.image_size)
+    assert all(math.isfinite(v) and v > 0 for v in res.std.values())
+    rel_sd = res.std["focal_px"] / res.camera.focal_px
+    assert abs(res.camera.focal_px - data.camera.focal_px) < 3 * res.std["focal_px"]
+    if rel_sd > 0.1:
+        assert any("focal length poorly determined" in w for w in res.warnings)
+    assert -1.0 <= res.corr_focal_pitch <= 1.0
+
+
+def test_fov_prior_pulls_an_undetermined_focal():
+    data = synthetic_pairs(np.random.default_rng(22), frames=1, people=6, roll_deg=0.0)
+    size = data.camera.image_size
+    true_fov = math.degrees(data.camera.vertical_fov_rad)
+    loose = fit_camera(data.feet_px, data.heads_px, size)
+    tight = fit_camera(data.feet_px, data.heads_px, size, fov_prior_deg=true_fov, fov_prior_sd_deg=0.5)
+    assert abs(math.degrees(tight.camera.vertical_fov_rad) - true_fov) < 1.5
+    assert tight.std["focal_px"] <= loose.std["focal_px"]
+
+
+# ---- diagnostics and wrappers ---------------------------------------------------------------------------
+def test_fit_dict_is_plain_yaml():
+    data = synthetic_pairs(np.random.default_rng(10), frames=5, people=10)
+    res = fit_camera(data.feet_px, data.heads_px, data.camera.image_size, focal_px=data.camera.focal_px,
+                     frame_index=data.frame_index)
+    d = res.fit_dict()
+    assert yaml.safe_load(yaml.safe_dump(d)) == d
+    assert d["std"]["focal_px"] is None and d["corr_focal_pitch"] is None
+    assert set(d) >= {"method", "person_height_m", "pairs", "inliers", "frames", "rmse_px", "std", "warnings"}
+    assert d["frames"] == 5 and d["pairs"] == 50 and isinstance(d["warnings"], list)
+    assert isinstance(res, CalibrationResult) and res.inlier_mask.shape == (50,)
+
+
+def test_calibrate_returns_the_camera():
+    data = synthetic_pairs(np.random.default_rng(12), frames=3, people=10)
+    cam = calibrate(data.feet_px, data.heads_px, data.camera.image_size, focal_px=data.camera.focal_px)
+    assert isinstance(cam, Camera) and cam.focal_px == data.camera.focal_px
+
+
+def test_fit_per_frame_reports_the_spread():
+    data = synthetic_pairs(np.random.default_rng(13), frames=6, people=8, roll_deg=0.0)
+    frame = data.frame_index.copy()
+    keep = ~((frame == 5) & (np.arange(len(frame)) % 8 > 1))  # frame 5 keeps 2 pairs only
+    summary = fit_per_frame(data.feet_px[keep], data.heads_px[keep], data.camera.image_size, frame[keep],
+                            focal_px=data.camera.focal_px, estimate_roll=False)
+    assert summary.frame_ids == (0, 1, 2, 3, 4)
+    assert "only 2 usable" in summary.skipped[5]
+    assert summary.iqr["pitch_deg"] >= 0 and abs(summary.median["pitch_deg"]
+                                                  - math.degrees(data.camera.pitch_rad)) < 3
+
+
+# ---- errors ------------------------------------------------------------------------------------------
+def test_too_few_pairs():
+    feet = np.array([[100.0, 400.0], [300.0, 420.0], [500.0, 440.0]])
+    heads = feet - (0.0, 80.0)
+    heads[2, 1] = 460.0  # head below the foot: not usable
+    with pytest.raises(DegenerateSceneError, match=r"only 2 usable foot-head pairs \(need >= 3\)"):
+        fit_camera(feet, heads, (640, 480))
+    with pytest.raises(DegenerateSceneError, match="only 0 usable"):
+        fit_camera(np.zeros((0, 2)), np.zeros((0, 2)), (640, 480))
+
+
+def test_nan_and_swapped_inputs():
+    feet = np.array([[100.0, 400.0], [300.0, 420.0], [500.0, 440.0], [200.0, 380.0]])
+    heads = feet - (0.0, 80.0)
+    bad = feet.copy()
+    bad[2, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        fit_camera(bad, heads, (640, 480))
+    with pytest.raises(ValueError, match="head is not above the foot.*swapped"):
+        fit_camera(heads, feet, (640, 480))
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(image_size=(0, 480)), "image_size"),
+    (dict(image_size=(640,)), "image_size"),
+    (dict(method="magic"), "method"),
+    (dict(residual="sideways"), "residual"),
+    (dict(focal_px=-5.0), "focal_px"),
+    (dict(person_height_m=0.0), "person_height_m"),
+    (dict(frame_index=np.zeros(3, int)), "frame_index"),
+])
+def test_bad_arguments(kwargs, match):
+    feet = np.array([[100.0, 400.0], [300.0, 420.0], [500.0, 440.0], [200.0, 380.0]])
+    args = dict(image_size=(640, 480))
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        fit_camera(feet, feet - (0.0, 80.0), **args)
