@@ -9,6 +9,7 @@ SAMPLE := sample_data
 .PHONY: install run test bench sample clean
 
 $(STAMP): pyproject.toml
+	@bash tools/system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'

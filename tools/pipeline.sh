@@ -24,7 +24,8 @@ fi
 
 if "$rotavat" --help | grep -q " render "; then
   echo "== 5. render the before/after figure"
-  "$rotavat" render "$scene/pred" "$out/pred_aligned" --camera "$out/camera.yaml" --frames 0 --out "$out/figure"
+  "$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --frames 0 \
+    --size 480 270 --out "$out/figure"
 fi
 
 echo
@@ -32,5 +33,5 @@ echo "outputs in $out/:"
 echo "  camera.yaml          the estimated camera"
 echo "  pred_aligned/        aligned meshes (npz), camera.yaml, people.csv"
 [ -d "$out/eval" ] && echo "  eval/metrics.md      before/after metrics (also metrics.json)"
-[ -d "$out/figure" ] && echo "  figure/              front/side/top views, before and after"
+[ -d "$out/figure" ] && echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth"
 exit 0

@@ -1,0 +1,50 @@
+"""``rotavat import --from FORMAT SRC OUT``: convert an HPS method's own output into a contract sequence."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import InputError
+from ..formats import available_formats, detect_format, import_sequence
+from . import app
+from ._common import JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled
+
+_FORMATS = ", ".join(available_formats())
+
+
+@app.command("import")
+def import_(
+    src: Annotated[Path, typer.Argument(help="The method's output: a file or a folder (see docs/formats.md).")],
+    out: Annotated[Path, typer.Argument(help="New sequence directory (npz frames + meta.yaml [+ camera.yaml]).", file_okay=False)],
+    from_: Annotated[str | None, typer.Option("--from", help=f"Source format: {_FORMATS}. Default: detected from SRC.")] = None,
+    image_size: Annotated[tuple[int, int] | None, typer.Option(help="Original image width and height (px), for formats that do not store it.")] = None,
+    smpl_model: Annotated[Path | None, typer.Option(help="SMPL/SMPL-X .npz model you downloaded, to pose parameter-only formats (CLIFF, 4D-Humans, BEDLAM).", dir_okay=False)] = None,
+    fov: Annotated[float | None, typer.Option("--fov", help="Field of view (deg) the method ran with (multihmr: its --fov, default 60).")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace the frames, meta.yaml and camera.yaml of a non-empty OUT.")] = False,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Convert HPS results (CLIFF, BEV/ROMP, 4D-Humans, Multi-HMR, SPEC, AGORA, BEDLAM) into the contract (OpenCV camera frame, metres)."""
+    fmt = from_ or detect_format(src)
+    if fmt is None:
+        raise InputError(f"{src}: cannot tell its format; pass --from ({_FORMATS})")
+    if fmt not in available_formats():
+        raise InputError(f"unknown format '{fmt}' (known: {_FORMATS})")
+    with progress_bar(f"importing {fmt}", None, progress_enabled(quiet, as_json)) as advance:
+        summary = import_sequence(src, out, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov,
+                                  progress=advance, overwrite=force)
+    if as_json:
+        print_json(summary)
+        return
+    for warning in summary["warnings"]:
+        info(f"[yellow]warning:[/] {warning}", quiet)
+    size = summary["image_size"]
+    focal = summary["focal_px"]
+    info(f"imported {summary['frames']} frames ({summary['people']} people, {summary['empty_frames']} empty) "
+         f"from {fmt} into {out}: {'meshes' if summary['has_vertices'] else 'no meshes'}, "
+         f"joints {summary['joints_layout'] or 'none'}, image {f'{size[0]}x{size[1]}' if size else 'size unknown'}, "
+         f"focal {f'{focal:.1f} px' if focal else 'per frame'}"
+         + ("; camera.yaml written" if summary["camera_yaml"] else ""), quiet)
