@@ -33,7 +33,9 @@ from typing import Callable
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from _reference_metrics import reference_pa_errors_mm  # noqa: E402
 from rotavat_cli.metrics import mpjpe, pve, w_spec_mpjpe, w_spec_pve  # noqa: E402
 
 N_JOINTS = 24
@@ -126,15 +128,7 @@ def time_batched(pool: tuple[np.ndarray, ...], n_pairs: int, chunk: int, verts: 
 
 def loop_pa_error_mm(pred: np.ndarray, gt: np.ndarray) -> float:
     """One person's PA error, textbook per-person Umeyama (as SPIN/mmhuman3d loop it)."""
-    x = pred.T - pred.mean(axis=0)[:, None]
-    y = gt.T - gt.mean(axis=0)[:, None]
-    u, _, vt = np.linalg.svd(x @ y.T)
-    z = np.eye(3)
-    z[-1, -1] = np.sign(np.linalg.det(u @ vt))
-    rot = vt.T @ z @ u.T
-    scale = np.trace(rot @ x @ y.T) / np.sum(x**2)
-    aligned = scale * rot @ x + gt.mean(axis=0)[:, None]
-    return float(np.linalg.norm(aligned.T - gt, axis=1).mean() * 1000.0)
+    return float(reference_pa_errors_mm(pred, gt).mean())
 
 
 def loop_metric(name: str, pj, gj, pv, gv) -> float:

@@ -207,17 +207,15 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
                  pred_cam: Camera | None, gt_cam: Camera | None, opts: EvalOptions,
                  result: EvalResult, columns: dict[str, list]) -> None:
     """Match and score one frame into ``result`` counts and ``columns``."""
-    if name not in gt_names:
-        n = pred_seq.read_frame(name).n_people
-        result.frames_pred_only += 1
-        result.people_pred += n
-        result.false_positives += n
-        return
-    if name not in pred_names:
-        n = gt_seq.read_frame(name).n_people
-        result.frames_gt_only += 1
-        result.people_gt += n
-        result.missed += n
+    if name not in gt_names or name not in pred_names:  # unpaired: all false positives or all missed
+        side = "pred" if name in pred_names else "gt"
+        n = (pred_seq if side == "pred" else gt_seq).read_frame(name).n_people
+        setattr(result, f"frames_{side}_only", getattr(result, f"frames_{side}_only") + 1)
+        setattr(result, f"people_{side}", getattr(result, f"people_{side}") + n)
+        if side == "pred":
+            result.false_positives += n
+        else:
+            result.missed += n
         return
     pred, gt = pred_seq.read_frame(name), gt_seq.read_frame(name)
     result.frames += 1

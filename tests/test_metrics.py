@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from _reference_metrics import reference_pa_errors_mm
 from rotavat_cli.metrics import (
     camera_errors,
     detection_scores,
@@ -57,19 +58,6 @@ def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     q = q * np.sign(np.diagonal(r, axis1=1, axis2=2))[:, None, :]
     q[np.linalg.det(q) < 0, :, 0] *= -1.0
     return q
-
-
-def _reference_pa_errors_mm(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
-    """Per-person textbook Umeyama (SPIN's compute_similarity_transform), (N, 3) -> (N,)."""
-    x = pred.T - pred.mean(axis=0)[:, None]
-    y = gt.T - gt.mean(axis=0)[:, None]
-    u, s, vt = np.linalg.svd(x @ y.T)
-    z = np.eye(3)
-    z[-1, -1] = np.sign(np.linalg.det(u @ vt))
-    rot = vt.T @ z @ u.T
-    scale = np.trace(rot @ x @ y.T) / np.sum(x**2)
-    aligned = scale * rot @ x + gt.mean(axis=0)[:, None]
-    return np.linalg.norm(aligned.T - gt, axis=1) * 1000.0
 
 
 # --------------------------------------------------------------------------- hand-computed
@@ -171,7 +159,7 @@ def test_procrustes_matches_per_person_reference(n_people, n_points):
     gt = rng.normal(size=(n_people, n_points, 3))
     pred = gt + 0.3 * rng.normal(size=gt.shape)
     pred[0] = pred[0] @ np.diag([1.0, -1.0, 1.0])  # one reflected person in every batch
-    expected = np.stack([_reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
+    expected = np.stack([reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
     np.testing.assert_allclose(point_errors_mm(pred, gt, "procrustes"), expected, atol=1e-9)
 
 
@@ -182,7 +170,7 @@ def test_procrustes_far_from_the_origin(distance_m):
     rng = np.random.default_rng(0)
     gt = rng.normal(0.0, 0.3, size=(2, 24, 3)) + [0.0, 0.0, distance_m]
     pred = gt + 0.02 * rng.normal(size=gt.shape)
-    expected = np.stack([_reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
+    expected = np.stack([reference_pa_errors_mm(p, g) for p, g in zip(pred, gt)])
     np.testing.assert_allclose(point_errors_mm(pred, gt, "procrustes"), expected, atol=1e-6)
     exact = 1.2 * (gt - gt.mean(axis=1, keepdims=True)) @ _rot_z(30.0).T + [1.0, 2.0, 3.0]
     assert mpjpe(exact, gt, "procrustes") == pytest.approx([0.0, 0.0], abs=1e-6)
