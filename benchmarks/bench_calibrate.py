@@ -52,7 +52,9 @@ def z_score(res: CalibrationResult, true: Camera, key: str) -> float:
     """|error| / reported std for focal_px or height_m (NaN if fixed)."""
     sd = res.std[key]
     value, truth = (res.camera.focal_px, true.focal_px) if key == "focal_px" else (res.camera.height_m, true.height_m)
-    return abs(value - truth) / sd if sd and math.isfinite(sd) else math.nan
+    if math.isnan(sd):
+        return math.nan  # fixed
+    return 0.0 if sd == math.inf else abs(value - truth) / sd  # inf: reported as undetermined
 
 
 # ---- synthetic ---------------------------------------------------------------------------------------
@@ -84,7 +86,8 @@ def synthetic_table(seeds: int) -> None:
                 for method, items in runs.items():
                     ok = [r for r in items if r is not None]
                     errs = {m: np.array([errors(r.camera, cam)[m] for r, cam, _ in ok]) for m in METRICS}
-                    cells = [f"{np.median(v):.2f} / {np.percentile(v, 90):.2f}" if len(v) else "-" for v in errs.values()]
+                    cells = [f"{np.median(v):.2f} / {np.percentile(v, 90):.2f}" if len(v) else "-"
+                             for v in errs.values()]
                     zf = np.array([z_score(r, cam, "focal_px") for r, cam, _ in ok])
                     zh = np.array([z_score(r, cam, "height_m") for r, cam, _ in ok])
                     cover = f"{np.mean(zf < 2):.0%}/{np.mean(zh < 2):.0%}" if len(ok) else "-"
@@ -151,7 +154,8 @@ def real_table(quick: bool) -> None:
         print(f"| {seq.name} | truth | {true.focal_px:.0f} | {math.degrees(true.pitch_rad):.2f} | "
               f"{math.degrees(true.roll_rad):.2f} | {true.height_m:.2f} | | | | | | |")
     print("\nPer-frame mode (refine, true f, vertical; each frame alone) against pooling all frames:\n")
-    head = "| sequence | frames fitted (skipped) | focal | pitch ° median (IQR) | roll ° median (IQR) | height m median (IQR) | pooled pitch / roll / height |"
+    head = ("| sequence | frames fitted (skipped) | focal | pitch ° median (IQR) | roll ° median (IQR) | "
+            "height m median (IQR) | pooled pitch / roll / height |")
     print(head)
     print("|" + "---|" * (head.count("|") - 1))
     for seq in seqs:

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from .calibrate import CalibrationResult, GridSpec, fit_camera, fit_per_frame
 from .errors import DegenerateSceneError, InputError
 from .people import FootHeadPairs, gather_pairs
@@ -40,12 +38,7 @@ def declared_focal(seq: Sequence) -> float | None:
 
 def grid_from_config(grid: dict) -> GridSpec:
     """GridSpec from the ``calibrate.grid`` config section."""
-    return GridSpec(
-        focal_range_h=tuple(grid["focal_range_h"]),
-        pitch_range_deg=tuple(grid["pitch_range_deg"]),
-        height_range_m=tuple(grid["height_range_m"]),
-        steps=tuple(int(s) for s in grid["steps"]),
-    )
+    return GridSpec(**grid)
 
 
 def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:
@@ -62,19 +55,23 @@ def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:
     if pp is None and seq.intrinsics.principal_point is not None:
         pp = seq.intrinsics.principal_point
     kwargs = dict(
-        method=options["method"], frame_index=pairs.frame_index, focal_px=focal,
+        method=options["method"], frame_index=pairs.frame_index,
+        track_id=pairs.person_ids if pairs.tracked else None, focal_px=focal,
         estimate_roll=options["estimate_roll"], principal_point=tuple(pp) if pp is not None else None,
         person_height_m=options["person_height_m"], person_height_sd_m=options["person_height_sd_m"],
         residual=options["residual"], fov_prior_deg=options["fov_prior_deg"], grid=grid_from_config(options["grid"]),
     )
     try:
         result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, **kwargs)
-        per_frame = fit_per_frame(pairs.feet_px, pairs.heads_px, image_size, **kwargs) if options["per_frame"] else None
+        per_frame = None
+        if options["per_frame"]:
+            per_frame_kwargs = {k: v for k, v in kwargs.items() if k != "frame_index"}
+            spread = fit_per_frame(pairs.feet_px, pairs.heads_px, image_size, pairs.frame_index, **per_frame_kwargs)
+            per_frame = {"frames_fitted": len(spread.frame_ids), "frames_skipped": len(spread.skipped),
+                         "median": spread.median, "iqr": spread.iqr}
     except DegenerateSceneError as exc:
         raise DegenerateSceneError(f"{seq.path}: {exc}") from None
     except ValueError as exc:
         raise InputError(f"{seq.path}: {exc}") from None
     return SequenceCalibration(result, pairs, policy, per_frame)
 
-
-_ = np

@@ -60,7 +60,8 @@ _INIT_TRUNCATE = 0.25  # robust grid: head errors beyond 25% of the person's pix
 _CHI2_99 = {2: 9.2103, 1: 6.6349}  # chi-square 99% quantiles (pair residual: 2 or 1 components)
 _CHI2_MEDIAN = {2: 1.3863, 1: 0.4549}  # chi-square medians, for the robust residual scale
 _FD_STEP = 1e-6  # finite-difference step in the internal parameters (log f, rad, rad, log h)
-_MIN_SCALE = 1e-3  # floor of the robust residual scale (noise-free data)
+_MIN_NOISE_PX = 0.5  # floor of the residual scale in pixels: annotation is never better than this
+_NULL_EIG = 1e-9  # information eigenvalues below this fraction of the largest: direction undetermined
 
 # Warning thresholds: a parameter is "poorly determined" past these standard deviations.
 WARN_FOCAL_REL_SD = 0.10
@@ -106,12 +107,13 @@ class CalibrationResult:
             "rmse_px": _plain(self.rmse_px),
             "std": {k: _plain(self.std.get(k, math.nan)) for k in PARAM_NAMES},
             "corr_focal_pitch": _plain(self.corr_focal_pitch),
+            "horizon_v_px": _plain(self.horizon_v_px),
             "warnings": list(self.warnings),
         }
 
 
 def _plain(x: float) -> float | None:
-    """Float for YAML/JSON, None for NaN."""
+    """Float for YAML, None for NaN (a fixed parameter); an undetermined std stays inf (YAML .inf)."""
     x = float(x)
     return None if math.isnan(x) else x
 
@@ -357,12 +359,13 @@ def _pair_chi2(prob: _Problem, params: np.ndarray, scale: float = 1.0) -> np.nda
     return np.where(valid[0], chi2, np.inf)
 
 
-def _robust_scale(chi2: np.ndarray, dof: int) -> float:
-    """Residual scale from the median of chi2 values (1 for correctly whitened residuals)."""
+def _robust_scale(chi2: np.ndarray, prob: _Problem) -> float:
+    """Residual scale from the median of chi2 values (1 for correctly whitened residuals), floored."""
     finite = chi2[np.isfinite(chi2)]
+    floor = _MIN_NOISE_PX / prob.sd_across
     if finite.size == 0:
-        return 1.0
-    return max(math.sqrt(float(np.median(finite)) / _CHI2_MEDIAN[dof]), _MIN_SCALE)
+        return max(1.0, floor)
+    return max(math.sqrt(float(np.median(finite)) / _CHI2_MEDIAN[prob.dof]), floor)
 
 
 def _fit_with_rejection(prob: _Problem, params0: np.ndarray, free: np.ndarray, mask0: np.ndarray,
@@ -371,22 +374,22 @@ def _fit_with_rejection(prob: _Problem, params0: np.ndarray, free: np.ndarray, m
     n_free = int(free.sum())
     need = max(3, math.ceil(n_free / prob.dof))
     params, mask = params0, mask0.copy()
-    scale = _robust_scale(_pair_chi2(prob, params)[mask], prob.dof)
-    scale = _robust_scale(_pair_chi2(prob, params, scale)[mask], prob.dof)
+    scale = _robust_scale(_pair_chi2(prob, params)[mask], prob)
+    scale = _robust_scale(_pair_chi2(prob, params, scale)[mask], prob)
     thr = _CHI2_99[prob.dof]
     for round_ in range(max_rounds):
         sub = prob.subset(np.flatnonzero(mask))
         loss, f_scale = ("cauchy", 2.0) if round_ == 0 else ("soft_l1", 3.0)
         params = _least_squares(sub, params, free, scale, loss, f_scale)
         chi2 = _pair_chi2(prob, params, scale)
-        scale = _robust_scale(chi2[mask], prob.dof)
+        scale = _robust_scale(chi2[mask], prob)
         new_mask = chi2 <= thr * scale**2
         if new_mask.sum() < need:
             break
         if np.array_equal(new_mask, mask) and round_ > 0:
             break
         mask = new_mask
-    scale = _robust_scale(_pair_chi2(prob, params, scale)[mask], prob.dof)
+    scale = _robust_scale(_pair_chi2(prob, params, scale)[mask], prob)
     return params, mask, scale
 
 
@@ -454,7 +457,7 @@ def _statistical_cov(prob: _Problem, params: np.ndarray, free: np.ndarray, scale
     each variance is the larger of it and a cluster-robust sandwich's (correlated errors of a person).
     """
     r, J = _residual_and_jacobian(prob, _to_internal(params)[free], params, free, scale)
-    A_inv = np.linalg.pinv(J.T @ J)
+    A_inv = np.linalg.pinv(J.T @ J, rcond=_NULL_EIG)
     if clusters is None or len(np.unique(clusters)) < 10:
         return A_inv, r, J
     n_data = len(prob.rel_feet) * prob.dof
@@ -501,7 +504,7 @@ def _systematic_cov(prob: _Problem, params: np.ndarray, free: np.ndarray, scale:
     """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
     sds = {"cx": assumed.principal_point_px, "cy": assumed.principal_point_px, "distortion": assumed.distortion,
            "stature": assumed.stature_mean_m}
-    gain = -np.linalg.pinv(J.T @ J) @ J.T
+    gain = -np.linalg.pinv(J.T @ J, rcond=_NULL_EIG) @ J.T
     cov = np.zeros((J.shape[1], J.shape[1]))
     for name, sd in sds.items():
         if sd <= 0:
@@ -518,12 +521,23 @@ def _covariances(prob: _Problem, params: np.ndarray, free: np.ndarray, scale: fl
     """(total, statistical) covariances (4, 4) of (log f, pitch, roll, log h); zero for fixed ones."""
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
     total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
+    lost = _undetermined(J)
     out = []
     for cov in (total, stat):
+        cov = cov.copy()
+        cov[lost, :] = cov[:, lost] = np.nan
+        cov[lost, lost] = np.inf
         full = np.zeros((4, 4))
         full[np.ix_(free, free)] = cov
         out.append(full)
     return out[0], out[1]
+
+
+def _undetermined(J: np.ndarray) -> np.ndarray:
+    """(n_free,) bool: parameters with a component in the null space of the information J^T J."""
+    w, V = np.linalg.eigh(J.T @ J)
+    null = w <= _NULL_EIG * max(float(w.max()), 1e-300)
+    return (V[:, null] ** 2).sum(axis=1) > 1e-6
 
 
 def _std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple[dict[str, float], float]:
@@ -531,7 +545,8 @@ def _std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tupl
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     values = [params[0] * sd[0], math.degrees(sd[1]), math.degrees(sd[2]), params[3] * sd[3]]
     std = {k: (float(v) if free[i] else math.nan) for i, (k, v) in enumerate(zip(PARAM_NAMES, values))}
-    corr = float(cov[0, 1] / (sd[0] * sd[1])) if free[0] and free[1] and sd[0] > 0 and sd[1] > 0 else math.nan
+    ok = free[0] and free[1] and 0 < sd[0] < math.inf and 0 < sd[1] < math.inf
+    corr = float(np.clip(cov[0, 1] / (sd[0] * sd[1]), -1.0, 1.0)) if ok else math.nan
     return std, corr
 
 
@@ -539,6 +554,13 @@ def _warnings(camera: Camera, std: dict[str, float], corr: float, inliers: int, 
               pairs: int) -> list[str]:
     """Plain-words warnings about what the data could not determine."""
     out = []
+    lost = [k for k, v in std.items() if v == math.inf]
+    horizon = float(horizon_v_px(camera.image_size[0] / 2.0, camera.focal_px, camera.principal_point,
+                                 camera.up_cam))
+    if lost:
+        out.append(f"the pairs cannot determine {', '.join(lost)}: their values are arbitrary (the horizon, "
+                   f"row {horizon:.0f} at the centre, may still be right); give the focal length or a "
+                   "field-of-view prior")
     f_sd = std["focal_px"]
     if math.isfinite(f_sd) and f_sd > WARN_FOCAL_REL_SD * camera.focal_px:
         valley = (f"; focal and pitch trade off (correlation {corr:+.2f}): the horizon is better determined than "
@@ -657,6 +679,10 @@ def _check_inputs(feet_px, heads_px, image_size, method: str, residual: str, fra
     n_free = (focal_px is None) + 2 + (estimate_roll and method == "refine")
     if n_usable < 3:
         raise DegenerateSceneError(f"only {n_usable} usable foot-head pairs (need >= 3)")
+    n_places = len(np.unique(np.round(feet[usable] * 2.0), axis=0))
+    if n_places < 3:
+        raise DegenerateSceneError(f"the {n_usable} usable pairs stand at only {n_places} distinct foot positions "
+                                   "(need >= 3)")
     if n_usable * (1 if residual == "vertical" else 2) < n_free:
         raise DegenerateSceneError(f"{n_usable} usable pairs with {residual} residuals cannot determine "
                                    f"{n_free} parameters; fix the focal length or add pairs")
@@ -692,7 +718,7 @@ def _grid_fit(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, size: tuple[i
     flat = replace(prob, sd_along=np.ones(len(feet)), sd_across=1.0, track=np.full(len(feet), -1), n_tracks=0,
                    fov_prior=None)
     dof_total = max(1, len(feet) * flat.dof - int(free.sum()))
-    scale = max(math.sqrt(fit.cost / dof_total), _MIN_SCALE)
+    scale = max(math.sqrt(fit.cost / dof_total), _MIN_NOISE_PX)
     return params, np.ones(len(feet), bool), free, scale, extra, flat
 
 

@@ -26,7 +26,8 @@ class FootHeadPairs:
     feet_px: np.ndarray  # (N, 2)
     heads_px: np.ndarray  # (N, 2)
     frame_index: np.ndarray  # (N,) int
-    person_ids: np.ndarray  # (N,) int
+    person_ids: np.ndarray  # (N,) int track ids (frame-local indices when ``tracked`` is False)
+    tracked: bool  # every frame with people carries person_ids
     n_frames: int
     source: str  # "2d" (explicit points), "mesh" (projected landmarks) or "mixed"
 
@@ -52,7 +53,9 @@ def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray
 def gather_pairs(seq: Sequence) -> FootHeadPairs:
     """Pool every frame's foot/head pixel pairs (non-finite pairs dropped), one frame at a time."""
     feet, heads, index, ids, sources = [], [], [], [], set()
+    tracked = True
     for i, frame in enumerate(seq.frames()):
+        tracked &= frame.n_people == 0 or frame.get("person_ids") is not None
         f, h, src = frame_foot_head_px(frame, seq.frame_intrinsics(frame))
         if len(f):
             sources.add(src)
@@ -65,4 +68,4 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     keep = np.all(np.isfinite(feet_px), axis=1) & np.all(np.isfinite(heads_px), axis=1)
     source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
     return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
-                         np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), len(seq), source)
+                         np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source)

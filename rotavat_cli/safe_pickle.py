@@ -38,7 +38,6 @@ import _compat_pickle
 import ast
 import builtins
 import bz2
-import gzip
 import io
 import lzma
 import pickle
@@ -237,7 +236,9 @@ def _load_stream(file: io.BytesIO, source: str) -> Any:
         raise InputError(f"{source}: pickle nests too deeply") from None
     except MemoryError:
         raise InputError(f"{source}: pickle needs more memory than available") from None
-    except (pickle.UnpicklingError, ValueError, TypeError, KeyError, IndexError, AttributeError,
+    except KeyError:  # the dispatch table has no entry for the byte read
+        raise InputError(f"{source}: not a readable pickle (invalid opcode)") from None
+    except (pickle.UnpicklingError, ValueError, TypeError, IndexError, AttributeError,
             struct.error, UnicodeDecodeError, OverflowError) as exc:
         detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"{source}: not a readable pickle ({detail})") from None

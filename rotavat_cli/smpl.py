@@ -187,6 +187,8 @@ def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarra
     """
     rot = pose_to_matrices(pose, model.n_joints)  # (P, J, 3, 3)
     n_people = rot.shape[0]
+    if n_people == 0:
+        return np.zeros((0, model.n_verts, 3)), np.zeros((0, model.n_joints, 3))
     betas = np.asarray(betas, dtype=np.float64).reshape(n_people, -1)
     n_components = min(300, model.shapedirs.shape[2]) if model.kind == "smplx" else model.shapedirs.shape[2]
     n_shape = min(betas.shape[1], n_components)

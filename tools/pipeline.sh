@@ -17,21 +17,17 @@ echo "== 2. calibrate the camera from the people (2D feet/heads only)"
 echo "== 3. RotAvat: re-seat every mesh on the ground"
 "$rotavat" align --in "$scene/pred" --camera "$out/camera.yaml" --out "$out/pred_aligned"
 
-if "$rotavat" --help | grep -q " eval "; then
-  echo "== 4. evaluate before and after against the ground truth"
-  "$rotavat" eval "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --out "$out/eval"
-fi
+echo "== 4. evaluate before and after against the ground truth"
+"$rotavat" eval "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --out "$out/eval"
 
-if "$rotavat" --help | grep -q " render "; then
-  echo "== 5. render the before/after figure"
-  "$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --frames 0 \
-    --size 480 270 --out "$out/figure"
-fi
+echo "== 5. render the before/after figure (rows: prediction, aligned, ground truth)"
+"$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --frames 0 \
+  --size 480 270 --out "$out/figure"
 
 echo
 echo "outputs in $out/:"
 echo "  camera.yaml          the estimated camera"
 echo "  pred_aligned/        aligned meshes (npz), camera.yaml, people.csv"
-[ -d "$out/eval" ] && echo "  eval/metrics.md      before/after metrics (also metrics.json)"
-[ -d "$out/figure" ] && echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth"
+echo "  eval/metrics.md      before/after metrics (also metrics.json)"
+echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth"
 exit 0

@@ -9,15 +9,14 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from ..autocalib import SequenceCalibration, calibrate_sequence
 from ..sequence import Sequence, open_sequence, write_camera_yaml
 from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, console, info, print_json
 
 
-def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> "SequenceCalibration":
+def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
     """Calibrate with defaults < config file < flags, printing warnings unless quiet."""
-    from ..autocalib import calibrate_sequence  # TEMP: lazy until calibrate.py lands
-
     calib = calibrate_sequence(seq, config_for(config, "calibrate", **flags))
     for warning in calib.result.warnings:
         info(f"[yellow]warning:[/] {warning}", quiet)

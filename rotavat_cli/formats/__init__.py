@@ -275,7 +275,15 @@ def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None
     return READERS[fmt](src, ImportOptions(image_size, model, fov_deg))
 
 
-_READ_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError)
+_READ_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError, MemoryError)
+
+
+def _invalid(src: Path, fmt: str, exc: BaseException) -> InputError:
+    """A one-line InputError for content that does not fit the format (wrong types, shapes, keys)."""
+    detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    if isinstance(exc, KeyError):
+        detail = f"missing key {detail}"
+    return InputError(f"{src}: not a valid {fmt} output ({detail})")
 
 
 def _contract_files(folder: Path) -> list[Path]:
@@ -303,7 +311,10 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         raise InputError(f"{out}: directory is not empty (choose a new output directory, or pass --force)")
     if out.resolve() == src.resolve() or (src.is_dir() and src.resolve() in out.resolve().parents):
         raise InputError(f"{out}: the output must not be the input or inside it")
-    imported = read_format(src, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov_deg)
+    try:
+        imported = read_format(src, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov_deg)
+    except _READ_ERRORS as exc:
+        raise _invalid(src, fmt, exc) from None
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.import-", dir=out.parent))
     try:
@@ -319,12 +330,11 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
                 if progress is not None:
                     progress(1)
         except _READ_ERRORS as exc:
-            detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise InputError(f"{src}: not a valid {fmt} output ({detail})") from None
+            raise _invalid(src, fmt, exc) from None
         if frames == 0:
             raise InputError(f"{src}: no frames found for format '{fmt}'")
-        meta = dict(imported.meta)
-        meta.setdefault("import", {})["warnings"] = list(imported.warnings)
+        meta = _plain(dict(imported.meta))
+        meta.setdefault("import", {})["warnings"] = [str(w) for w in imported.warnings]
         write_meta(staging, meta)
         if imported.camera is not None:
             write_camera_yaml(staging / "camera.yaml", imported.camera, imported.camera_fit)
@@ -345,6 +355,19 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         "camera_yaml": imported.camera is not None,
         "warnings": list(imported.warnings),
     }
+
+
+def _plain(value: Any) -> Any:
+    """YAML-safe plain types (numpy scalars and strings become Python ones)."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def _publish(staging: Path, out: Path) -> None:

@@ -197,14 +197,12 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
                         "approximately in the 60-degree camera")
     principal_point = (side / 2.0 - left, side / 2.0 - top)
     model = opts.body_model
-    has_ids = []
 
     def frames() -> Iterator[Frame]:
         for index, (name, load) in enumerate(sources):
             source = f"{src} [{name}]"
             people = _people(load(), source, fmt, opts)
             verts = people["vertices"]
-            has_ids.append(people["person_ids"] is not None)
             yield people_frame(frame_name(index), source, warnings, vertices=verts, joints=people["joints"],
                                keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
                                faces=model_faces(model, None if verts is None else verts.shape[1]))

@@ -22,7 +22,7 @@ in radians), ``camcalib/vis_utils.py`` (horizon: positive pitch = looking down),
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np

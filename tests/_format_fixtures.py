@@ -1,0 +1,434 @@
+"""Writers of small files in each HPS tool's own format, made from the structure its code documents.
+
+Nothing here is copied from those repositories: each writer lays out the keys, shapes, frames and
+camera conventions listed in ``docs/formats.md`` (with the source file of each tool), so the tests
+can check that ``rotavat import`` undoes them. A scene is a list of frames; a frame is a list of
+:class:`Person` (camera-frame ground truth computed independently of the readers).
+
+The body model is synthetic: SMPL's file layout and kinematic tree on the packaged body mesh
+(``rotavat_cli/data/bodies.npz``), so no licensed model is needed.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import pickle
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rotavat_cli.bodies import BODIES_PATH
+from rotavat_cli.camera import Camera
+from rotavat_cli.rotations import axis_angle_to_matrix
+from rotavat_cli.smpl import SMPL_PARENTS, BodyModel, load_body_model
+
+# ---- synthetic SMPL-format model --------------------------------------------------------------
+def write_synthetic_smpl(path: Path, n_betas: int = 10, seed: int = 0, dtype=np.float32) -> Path:
+    """An SMPL-layout .npz (24 joints, SMPL kinematic tree) built on the packaged body mesh 0.
+
+    J_regressor: mean of the 6 vertices nearest each body joint; weights: nearest joint, one-hot;
+    shapedirs: smooth random fields; posedirs: random in the first 9 columns only (small file).
+    """
+    rng = np.random.default_rng(seed)
+    with np.load(BODIES_PATH) as bodies:
+        verts = bodies["vertices"][0].astype(np.float64)
+        joints = bodies["joints"][0].astype(np.float64)
+        faces = bodies["faces"].astype(np.int64)
+    n_verts = len(verts)
+    dist = np.linalg.norm(verts[:, None] - joints[None], axis=-1)  # (V, 24)
+    regressor = np.zeros((24, n_verts))
+    for j in range(24):
+        regressor[j, np.argsort(dist[:, j])[:6]] = 1.0 / 6.0
+    weights = np.zeros((n_verts, 24))
+    weights[np.arange(n_verts), dist.argmin(axis=1)] = 1.0
+    shapedirs = 0.01 * np.sin(verts[:, :, None] * rng.uniform(1, 4, (1, 3, n_betas)) + rng.uniform(0, 6, (1, 3, n_betas)))
+    posedirs = np.zeros((n_verts, 3, 207))
+    posedirs[:, :, :9] = 0.002 * rng.standard_normal((n_verts, 3, 9))
+    kintree = np.array([[4294967295] + list(SMPL_PARENTS[1:]), list(range(24))], dtype=np.uint32)
+    np.savez_compressed(path, v_template=verts.astype(dtype), shapedirs=shapedirs.astype(dtype),
+                        posedirs=posedirs.astype(dtype), J_regressor=regressor.astype(dtype),
+                        weights=weights.astype(dtype), kintree_table=kintree, f=faces.astype(np.uint32))
+    return path
+
+
+# ---- scene -------------------------------------------------------------------------------------
+@dataclass
+class Person:
+    """One person: SMPL parameters and its camera-frame mesh/joints (OpenCV, metres)."""
+
+    pid: int
+    pose: np.ndarray  # (24, 3) axis-angle; joint 0 in the camera frame
+    betas: np.ndarray  # (10,)
+    transl: np.ndarray  # (3,) SMPL transl in the camera frame
+    verts_cam: np.ndarray  # (V, 3)
+    joints_cam: np.ndarray  # (24, 3)
+
+
+def scene_camera(image_size=(640, 480), focal_px=500.0) -> Camera:
+    """The true camera of the fixture scenes: 15 deg down, 3 m high."""
+    return Camera(image_size, focal_px, None, np.deg2rad(15.0), 0.0, 3.0)
+
+
+def standing_person(model: BodyModel, camera: Camera, x_world: float, z_world: float, pid: int) -> Person:
+    """A person of template shape standing on the ground at (x, z) facing the camera.
+
+    Expected camera-frame vertices are a rigid transform of the template (body pose = 0), computed
+    here without LBS: ``X_cam = R_cam_from_world (v + (x, 0, z)) + t_cam_from_world``; the template
+    stands on y = 0 with its mid-sole at x = z = 0 (bodies.npz canonical frame = SMPL's).
+    """
+    R = camera.R_cam_from_world
+    t = camera.t_cam_from_world
+    offset = np.array([x_world, 0.0, z_world])
+    rest_joints = model.J_regressor @ model.v_template
+    verts_cam = (model.v_template + offset) @ R.T + t
+    joints_cam = (rest_joints + offset) @ R.T + t
+    rotvec = _matrix_to_rotvec(R)
+    pose = np.zeros((24, 3))
+    pose[0] = rotvec
+    j0 = rest_joints[0]
+    transl = joints_cam[0] - j0  # global_orient turns about the root joint: root lands at j0 + transl
+    return Person(pid, pose, np.zeros(10), transl, verts_cam, joints_cam)
+
+
+def _matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
+    """Axis-angle of a rotation matrix (angle < pi)."""
+    angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+    if angle < 1e-12:
+        return np.zeros(3)
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / (2 * np.sin(angle))
+    return axis * angle
+
+
+def default_scene(model: BodyModel, camera: Camera) -> list[list[Person]]:
+    """Three frames: two people, one person (same track id), nobody."""
+    return [
+        [standing_person(model, camera, -1.0, -7.0, 3), standing_person(model, camera, 1.2, -10.0, 5)],
+        [standing_person(model, camera, -0.8, -7.5, 3)],
+        [],
+    ]
+
+
+def project(points_cam: np.ndarray, focal: float, pp) -> np.ndarray:
+    return focal * points_cam[..., :2] / points_cam[..., 2:3] + np.asarray(pp)
+
+
+def rotmats(pose: np.ndarray) -> np.ndarray:
+    """(J, 3) axis-angle -> (J, 3, 3)."""
+    return axis_angle_to_matrix(pose, np.linalg.norm(pose, axis=-1))
+
+
+def fake_extra_joints(person: Person, n: int) -> np.ndarray:
+    """n camera-frame points on the mesh (stand-ins for a tool's extra joints)."""
+    idx = np.linspace(0, len(person.verts_cam) - 1, n).astype(int)
+    return person.verts_cam[idx]
+
+
+# ---- CLIFF ----------------------------------------------------------------------------------
+def write_cliff(path: Path, scene, image_size, pose_format="aa", fork=False) -> Path:
+    """demo.py --save_results: imgname, pose, shape, global_t, pred_joints, focal_l, detection_all."""
+    focal = float(np.hypot(*image_size))
+    rows, poses, betas, trans, pj = [], [], [], [], []
+    for i, frame in enumerate(scene):
+        for person in frame:
+            kp = project(person.verts_cam, focal, (image_size[0] / 2, image_size[1] / 2))
+            x1, y1 = kp.min(axis=0)
+            x2, y2 = kp.max(axis=0)
+            rows.append([i, x1, y1, x2, y2, 0.9, 0.99, person.pid if fork else 0])
+            poses.append(person.pose.reshape(72) if pose_format == "aa" else rotmats(person.pose))
+            betas.append(person.betas)
+            trans.append(person.transl)
+            joints = np.concatenate([person.joints_cam, fake_extra_joints(person, 21)])  # smplx SMPL: 24 + 21
+            pj.append(joints if not fork else np.concatenate([joints, fake_extra_joints(person, 4)]))
+    np.savez(path, imgname=[f"/data/imgs/{i:06d}.png" for i in range(len(scene))], pose=np.array(poses),
+             shape=np.array(betas), global_t=np.array(trans), pred_joints=np.array(pj),
+             focal_l=np.full(len(rows), focal), detection_all=np.array(rows))
+    return path
+
+
+# ---- BEV / ROMP -------------------------------------------------------------------------------
+def bev_geometry(image_size):
+    side = max(image_size)
+    left, top = (side - image_size[0]) // 2, (side - image_size[1]) // 2
+    return side, left, top
+
+
+def write_bev(folder: Path, scene, image_size, fmt="bev", video=False) -> Path:
+    """simple_romp ResultSaver: <image>.npz with results=dict (verts/joints without cam_trans)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    side, left, top = bev_geometry(image_size)
+    all_results = {}
+    for i, frame in enumerate(scene):
+        if not frame:
+            continue  # simple_romp saves nothing when nobody is detected
+        joints71 = np.stack([np.concatenate([p.joints_cam, fake_extra_joints(p, 47)]) for p in frame])
+        joints71[:, 45], joints71[:, 46] = joints71[:, 1], joints71[:, 2]  # the hips BEV root-aligns on
+        verts = np.stack([p.verts_cam for p in frame])
+        if fmt == "bev":
+            cam_trans = joints71[:, [45, 46]].mean(axis=1)
+            n = 443.4 / 256.0 * joints71[..., :2] / joints71[..., 2:3]  # perspective_projection(normalize=True)
+            cam = np.stack([np.full(len(frame), 0.3), np.zeros(len(frame)), np.zeros(len(frame))], axis=1)
+            betas = np.zeros((len(frame), 11))
+        else:  # ROMP: weak perspective (s, tx, ty), cam_trans = 2 (tx/s, ty/s, 1/s); verts = SMPL output
+            cam_trans = np.stack([p.transl for p in frame])  # SMPL(thetas, betas) + cam_trans = camera frame
+            s = 2.0 / cam_trans[:, 2]
+            cam = np.stack([s, cam_trans[:, 0] * s / 2, cam_trans[:, 1] * s / 2], axis=1)
+            rel = joints71 - cam_trans[:, None]
+            n = rel[..., :2] * cam[:, None, :1] + cam[:, None, 1:]  # batch_orth_proj
+            betas = np.zeros((len(frame), 10))
+        pj2d_org = np.empty_like(n)
+        pj2d_org[..., 0] = (n[..., 0] + 1) * side / 2 - left
+        pj2d_org[..., 1] = (n[..., 1] + 1) * side / 2 - top
+        results = {
+            "cam": cam, "cam_trans": cam_trans, "center_confs": np.full(len(frame), 0.8),
+            "smpl_thetas": np.stack([p.pose.reshape(72) for p in frame]), "smpl_betas": betas,
+            "verts": verts - cam_trans[:, None], "joints": joints71 - cam_trans[:, None], "pj2d_org": pj2d_org,
+            "track_ids": np.array([p.pid for p in frame], dtype=np.int32),
+        }
+        name = f"frame_{i:04d}"
+        if video:
+            all_results[name + ".png"] = results
+        else:
+            np.savez(folder / f"{name}.npz", results=results)
+    if video:
+        np.savez(folder / "video_results.npz", results=all_results, sequence_results={})
+    return folder
+
+
+# ---- joblib-format pickles (4D-Humans/PHALP, SPEC) --------------------------------------------
+class _JoblibPickler(pickle._Pickler):  # noqa: SLF001
+    """Writes numpy arrays as joblib does: a NumpyArrayWrapper placeholder, then the raw bytes."""
+
+    def __init__(self, file, protocol=4, align=True):
+        super().__init__(file, protocol=protocol)
+        self._fh = file
+        self._align = align
+
+    def save(self, obj, save_persistent_id=True):
+        if type(obj) is not np.ndarray:
+            return super().save(obj, save_persistent_id)
+        order = "F" if obj.flags.f_contiguous and not obj.flags.c_contiguous else "C"
+        state = {"subclass": np.ndarray, "shape": obj.shape, "order": order, "dtype": obj.dtype, "allow_mmap": False}
+        if self._align:
+            state["numpy_array_alignment_bytes"] = 16
+        self.write(pickle.GLOBAL + b"joblib.numpy_pickle\nNumpyArrayWrapper\n")
+        self.write(pickle.EMPTY_TUPLE + pickle.NEWOBJ)
+        super().save(state)
+        self.write(pickle.BUILD)
+        if self.proto >= 4:
+            self.framer.commit_frame(force=True)
+        if obj.dtype.hasobject:
+            pickle.dump(obj, self._fh, protocol=2)
+            return None
+        if self._align:
+            pad = 16 - ((self._fh.tell() + 1) % 16)
+            self._fh.write(bytes([pad]) + b"\xff" * pad)
+        self._fh.write(obj.tobytes(order=order))
+        return None
+
+
+def joblib_bytes(obj, compress: int = 3, protocol: int = 4, align: bool = True) -> bytes:
+    """``joblib.dump(obj, compress=compress)`` bytes (zlib, as joblib's default compressor)."""
+    buf = io.BytesIO()
+    _JoblibPickler(buf, protocol=protocol, align=align).dump(obj)
+    data = buf.getvalue()
+    return zlib.compress(data, compress) if compress else data
+
+
+def write_phalp(path: Path, scene, image_size, compress=3, protocol=4, ghost=True) -> Path:
+    """PHALP final_visuals_dic: {frame path: {'time', 'tid', 'tracked_time', 'smpl', 'camera', ...}}."""
+    side, left, top = bev_geometry(image_size)
+    out = {}
+    for i, frame in enumerate(scene):
+        key = f"/data/video/img/{i + 1:06d}.jpg"
+        entry = {"time": i, "shot": 0, "frame_path": key, "tid": [], "bbox": [], "tracked_time": [], "tracked_ids": [],
+                 "tracked_bbox": [], "center": [], "scale": [], "size": [], "img_path": [], "img_name": [],
+                 "class_name": [], "conf": [], "annotations": [], "smpl": [], "camera": [], "camera_bbox": [],
+                 "3d_joints": [], "2d_joints": [], "mask": []}
+        people = list(frame)
+        if ghost and i == 2:  # a track not detected here: PHALP repeats its last state with tracked_time > 0
+            people = [scene[1][0]]
+        for person in people:
+            model_space = person.joints_cam - person.transl  # SMPL output without translation
+            j44 = np.concatenate([model_space, fake_extra_joints(person, 20) - person.transl])
+            j45 = np.concatenate([j44, np.zeros((1, 3))])  # PHALP appends a zero joint
+            cam_space = j45 + person.transl
+            uv01 = 5000.0 / 256.0 * cam_space[:, :2] / cam_space[:, 2:3] + 0.5  # get_3d_parameters, / res
+            rot = rotmats(person.pose)
+            entry["tid"].append(person.pid)
+            entry["tracked_time"].append(1 if (ghost and i == 2) else 0)
+            if not (ghost and i == 2):
+                entry["tracked_ids"].append(person.pid)
+            entry["bbox"].append(np.array([10.0, 20.0, 50.0, 120.0]))
+            entry["size"].append([image_size[1], image_size[0]])
+            entry["img_path"].append(key)
+            entry["img_name"].append(Path(key).name)
+            entry["class_name"].append(np.int64(0))
+            entry["conf"].append(np.float32(0.95))
+            entry["annotations"].append([])
+            entry["smpl"].append({"global_orient": rot[:1].astype(np.float32), "body_pose": rot[1:].astype(np.float32),
+                                  "betas": person.betas.astype(np.float32)})
+            entry["camera"].append(person.transl.astype(np.float32))
+            entry["camera_bbox"].append(np.array([0.9, 0.0, 0.1], np.float32))
+            entry["3d_joints"].append(j45.astype(np.float32))
+            entry["2d_joints"].append(uv01.reshape(-1).astype(np.float32))
+            entry["mask"].append([{"size": [image_size[1], image_size[0]], "counts": "abc"}])
+        out[key] = entry
+    path.write_bytes(joblib_bytes(out, compress=compress, protocol=protocol))
+    return path
+
+
+# ---- Multi-HMR --------------------------------------------------------------------------------
+def smplx127_from_smpl24(person: Person) -> np.ndarray:
+    """A 127-joint SMPL-X-ordered set whose joints 0-21, 28, 43 are the person's SMPL-24 joints."""
+    j = fake_extra_joints(person, 127).copy()
+    j[:22] = person.joints_cam[:22]
+    j[28], j[43] = person.joints_cam[22], person.joints_cam[23]
+    return j
+
+
+def write_multihmr(folder: Path, scene, form="npz", net_size=896, fov=60.0, image_size=(640, 480)) -> Path:
+    """Per-image outputs: <image>.npy (verts only) / .npz (stacked keys) / .pkl (list of dicts)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    f_net = net_size / (2 * np.tan(np.radians(fov) / 2))  # j2d_smplx live in the padded network input
+    for i, frame in enumerate(scene):
+        stem = folder / f"img_{i:03d}"
+        verts = np.array([p.verts_cam for p in frame], dtype=np.float32)
+        j3d = np.array([smplx127_from_smpl24(p) for p in frame], dtype=np.float32).reshape(len(frame), 127, 3)
+        j2d = project(j3d, f_net, (net_size // 2, net_size // 2)) if len(frame) else np.zeros((0, 127, 2))
+        humans = [{"scores": np.float32(0.9), "loc": j2d[k, 15], "transl": j3d[k, 15], "transl_pelvis": j3d[k, 0],
+                   "rotvec": np.zeros((55, 3), np.float32), "shape": np.zeros(10, np.float32),
+                   "expression": np.zeros(10, np.float32), "verts_smplx": verts[k], "j3d_smplx": j3d[k],
+                   "j2d_smplx": j2d[k].astype(np.float32)} for k in range(len(frame))]
+        if form == "npy":
+            np.save(f"{stem}.npy", np.asarray([h["verts_smplx"] for h in humans]))
+        elif form == "npz":
+            np.savez(f"{stem}.npz", **{k: np.array([h[k] for h in humans]) for k in ("verts_smplx", "j3d_smplx", "j2d_smplx", "scores")})
+        else:
+            Path(f"{stem}.pkl").write_bytes(pickle.dumps(humans, protocol=4))
+    return folder
+
+
+# ---- SPEC ---------------------------------------------------------------------------------------
+def spec_rotation(pitch, roll):
+    rx = axis_angle_to_matrix(np.array([1.0, 0, 0]), pitch)
+    rz = axis_angle_to_matrix(np.array([0, 0, 1.0]), roll)
+    return rx @ rz
+
+
+def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, pitch: float, roll: float = 0.0) -> Path:
+    """SPEC demo output: camcalib/<img>.jpg.pkl and spec_results/<img>.pkl (joblib dumps)."""
+    (folder / "camcalib").mkdir(parents=True, exist_ok=True)
+    (folder / "spec_results").mkdir(parents=True, exist_ok=True)
+    R = spec_rotation(pitch, roll)
+    vfov = 2 * np.arctan(image_size[1] / 2 / focal)
+    rest_j0 = (model.J_regressor @ model.v_template)[0]
+    for i, frame in enumerate(scene):
+        name = f"{i:06d}.jpg"
+        calib = {"vfov": np.array(vfov, np.float32), "f_pix": np.float64(focal), "pitch": np.array(pitch, np.float32),
+                 "roll": np.array(roll, np.float32)}
+        (folder / "camcalib" / f"{name}.pkl").write_bytes(joblib_bytes(calib))
+        if not frame:
+            continue  # spec_tester skips images without detections
+        pose_world, verts_world, j49_world, t_all, j2d = [], [], [], [], []
+        for p in frame:
+            rot = rotmats(p.pose)
+            rot[0] = R.T @ rot[0]  # global orientation in SPEC's gravity-aligned frame
+            pose_world.append(rot)
+            t = p.joints_cam[0] - R @ rest_j0  # X_cam = R X + t with X the SMPL output without transl
+            t_all.append(t)
+            verts_world.append((p.verts_cam - t) @ R)
+            j49 = np.concatenate([fake_extra_joints(p, 25), p.joints_cam])  # SPIN order: 25 OP + 24
+            j49_world.append((j49 - t) @ R)
+            j2d.append(project(j49, focal, (image_size[0] / 2, image_size[1] / 2)))
+        out = {"smpl_vertices": np.array(verts_world, np.float32), "smpl_joints3d": np.array(j49_world, np.float32),
+               "smpl_joints2d": np.array(j2d, np.float32), "pred_cam_t": np.array(t_all, np.float32),
+               "pred_pose": np.array(pose_world, np.float32), "pred_shape": np.zeros((len(frame), 10), np.float32),
+               "pred_cam": np.zeros((len(frame), 3), np.float32)}
+        (folder / "spec_results" / f"{i:06d}.pkl").write_bytes(joblib_bytes(out))
+    return folder
+
+
+# ---- AGORA ----------------------------------------------------------------------------------------
+def write_agora(folder: Path, scene, image_size=(3840, 2160), scene_tag="cam01", params=False) -> Path:
+    """<image>_personId_<k>.pkl dicts: verts + allSmplJoints3d (camera) and joints (24, 2) at 3840x2160."""
+    folder.mkdir(parents=True, exist_ok=True)
+    focal_4k = 18.0 / 36.0 * 3840 if scene_tag.startswith("cam0") else 28.0 / 36.0 * 3840
+    for i, frame in enumerate(scene):
+        image = f"ag_validationset_renderpeople_bfh_archviz_5_10_{scene_tag}_{i:05d}"
+        for k, p in enumerate(frame):
+            joints_4k = project(p.joints_cam, focal_4k, (1920.0, 1080.0))
+            if params:
+                d = {"pose2rot": True, "joints": joints_4k,
+                     "params": {"transl": p.transl[None], "betas": p.betas[None], "global_orient": p.pose[None, :1],
+                                "body_pose": p.pose[None, 1:]}}
+            else:
+                d = {"joints": joints_4k, "verts": p.verts_cam, "allSmplJoints3d": p.joints_cam}
+            (folder / f"{image}_personId_{k}.pkl").write_bytes(pickle.dumps(d, protocol=2))
+    return folder
+
+
+# ---- BEDLAM ----------------------------------------------------------------------------------------
+def write_bedlam(path: Path, scene, image_size=(1280, 720), focal_mm=28.0) -> Path:
+    """Per-scene npz (SMPL variant, pose_cam (N, 72)): camera = smpl(pose_cam, shape, trans_cam) + cam_ext[:3, 3]."""
+    focal = focal_mm / 36.0 * image_size[0]
+    K = np.array([[focal, 0, image_size[0] / 2], [0, focal_mm / 20.25 * image_size[1], image_size[1] / 2], [0, 0, 1]])
+    rows = {k: [] for k in ("imgname", "pose_cam", "shape", "trans_cam", "cam_ext", "cam_int", "gtkps", "sub", "gender", "center", "scale")}
+    for i, frame in enumerate(scene):
+        for p in frame:
+            cam_t = np.array([0.3, -0.2, 1.5]) + 0.1 * p.pid  # per-person camera offset, as BEDLAM's get_cam_trans
+            ext = np.eye(4)
+            ext[:3, :3] = axis_angle_to_matrix(np.array([1.0, 0, 0]), np.deg2rad(15.0))
+            ext[:3, 3] = cam_t
+            rows["imgname"].append(f"seq_000001/seq_000001_{i:04d}.png")
+            rows["pose_cam"].append(p.pose.reshape(72))
+            rows["shape"].append(p.betas)
+            rows["trans_cam"].append(p.transl - cam_t)
+            rows["cam_ext"].append(ext)
+            rows["cam_int"].append(K)
+            kp = project(p.joints_cam, focal, (image_size[0] / 2, image_size[1] / 2))
+            rows["gtkps"].append(np.concatenate([kp, np.ones((24, 1))], axis=1))
+            rows["sub"].append(f"rp_subject_{p.pid:02d}")
+            rows["gender"].append("neutral")
+            rows["center"].append(kp.mean(axis=0))
+            rows["scale"].append(1.0)
+    np.savez(path, **{k: np.array(v) for k, v in rows.items()})
+    return path
+
+
+# ---- hostile and broken files -------------------------------------------------------------------
+class Evil:
+    """Unpickling this runs ``os.system`` (it touches ``marker``)."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.marker}",))
+
+
+def evil_pickle(marker: Path, protocol: int = 4) -> bytes:
+    """A pickle that would create ``marker`` if loaded with plain pickle."""
+    return pickle.dumps({"results": Evil(marker)}, protocol=protocol)
+
+
+def evil_npz(path: Path, marker: Path) -> Path:
+    """An .npz whose 'results' member is an object array pickling a code-executing object."""
+    obj = np.empty((), dtype=object)
+    obj[()] = {"verts": Evil(marker)}
+    np.savez(path, results=obj)
+    return path
+
+
+def truncate(path: Path, fraction: float = 0.5) -> Path:
+    """Cut a file to ``fraction`` of its size."""
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * fraction)])
+    return path
+
+
+def load_model(path: Path) -> BodyModel:
+    return load_body_model(path)
+

@@ -1,0 +1,440 @@
+"""Importers of HPS tools' own outputs: conventions (frame, units, focal, translation), round trips
+into contract sequences the other commands accept, and hostile / corrupt inputs (exit 2, one line)."""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import _format_fixtures as F
+from conftest import invoke, tree_hash
+from rotavat_cli.camera import horizon_v_px
+from rotavat_cli.errors import InputError
+from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
+from rotavat_cli.formats.agora import focal_mm
+from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
+
+W, H = 640, 480
+TOL_M = 1e-4  # float32 storage of metre-scale coordinates (~1e-6) plus LBS round-off
+TOL_PX = 0.02  # float32 pixels
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory) -> Path:
+    return F.write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
+
+
+@pytest.fixture(scope="module")
+def model(model_path):
+    return F.load_model(model_path)
+
+
+@pytest.fixture(scope="module")
+def camera():
+    return F.scene_camera((W, H), 500.0)
+
+
+@pytest.fixture(scope="module")
+def scene(model, camera):
+    return F.default_scene(model, camera)
+
+
+def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
+    """A fixture of ``fmt`` for the default scene."""
+    if fmt == "cliff":
+        return F.write_cliff(folder / "demo_cliff_hr48.npz", scene, (W, H))
+    if fmt in ("bev", "romp"):
+        return F.write_bev(folder / fmt, scene, (W, H), fmt=fmt)
+    if fmt == "4dhumans":
+        return F.write_phalp(folder / "demo_video.pkl", scene, (W, H))
+    if fmt == "multihmr":
+        return F.write_multihmr(folder / "mh", scene, image_size=(W, H))
+    if fmt == "spec":
+        return F.write_spec(folder / "spec_out", scene, (W, H), model, camera.focal_px, camera.pitch_rad)
+    if fmt == "agora":
+        return F.write_agora(folder / "agora", scene)
+    if fmt == "bedlam":
+        return F.write_bedlam(folder / "scene.npz", scene)
+    raise AssertionError(fmt)
+
+
+# Expected intrinsics of each tool (the formulas of docs/formats.md), and which frames survive.
+def _expected(fmt: str, camera):
+    side = max(W, H)
+    if fmt == "cliff":
+        return np.hypot(W, H), (W / 2, H / 2), (W, H)
+    if fmt == "bev":
+        return 443.4 / 512 * side, (side / 2, side / 2 - (side - H) // 2), (W, H)
+    if fmt == "romp":
+        return side / (2 * np.tan(np.radians(30))), (side / 2, side / 2 - (side - H) // 2), (W, H)
+    if fmt == "4dhumans":
+        return 5000 * side / 256, (side / 2, side / 2 - (side - H) // 2), (W, H)
+    if fmt == "multihmr":
+        return side / (2 * np.tan(np.radians(30))), (W / 2, H / 2), (W, H)
+    if fmt == "spec":
+        return camera.focal_px, (W / 2, H / 2), (W, H)
+    if fmt == "agora":
+        return 18.0 / 36.0 * 3840, (1920, 1080), (3840, 2160)
+    if fmt == "bedlam":
+        return 28.0 / 36.0 * 1280, (640, 360), (1280, 720)
+    raise AssertionError(fmt)
+
+
+def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
+    src = _write(fmt, tmp_path, scene, model, camera)
+    if fmt in ("cliff", "multihmr"):
+        kw.setdefault("image_size", (W, H))
+    out = tmp_path / "out"
+    summary = import_sequence(src, out, fmt, smpl_model=model_path, **kw)
+    return src, out, summary
+
+
+ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam"]
+
+
+def test_available_formats():
+    assert available_formats() == sorted(ALL)
+
+
+@pytest.mark.parametrize("fmt", ALL)
+def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model, camera, model_path, runner):
+    """People placed at known camera-frame positions come out there: OpenCV axes, metres, right focal."""
+    src, out, summary = _import(fmt, tmp_path, scene, model, camera, model_path)
+    assert detect_format(src) == fmt
+    seq = open_sequence(out)
+    focal, pp, size = _expected(fmt, camera)
+    intr = seq.intrinsics.with_defaults()
+    assert seq.meta["source"] == fmt
+    assert intr.image_size == size
+    assert intr.focal_px == pytest.approx(focal, rel=1e-9)
+    assert intr.principal_point == pytest.approx(pp, abs=1e-9)
+    people = [frame for frame in scene if frame]
+    frames = [f for f in seq.frames() if f.n_people]
+    assert len(frames) == len(people)
+    for frame, truth in zip(frames, people):
+        expected_verts = np.stack([p.verts_cam for p in truth])
+        expected_joints = np.stack([p.joints_cam for p in truth])
+        np.testing.assert_allclose(frame.data["vertices"], expected_verts, atol=TOL_M)
+        np.testing.assert_allclose(frame.data["joints"], expected_joints, atol=TOL_M)
+        assert frame.data["vertices"].dtype == np.float32
+        assert frame.data["faces"].shape[1] == 3  # faces come from --smpl-model
+        # A person 7-10 m in front of a camera 3 m up, looking 15 deg down: z forward, y down.
+        assert np.all(frame.data["joints"][:, 0, 2] > 6.0)
+        feet_y = frame.data["vertices"][..., 1].max(axis=1)
+        heads_y = frame.data["vertices"][..., 1].min(axis=1)
+        assert np.all(feet_y > heads_y)
+        kp = frame.get("keypoints_2d")
+        if kp is not None and fmt != "romp":  # ROMP's 2D are weak-perspective
+            proj = F.project(expected_joints, focal, pp)
+            idx = {"spec": slice(25, 49), "4dhumans": slice(None, 24), "bedlam": slice(None, 24),
+                   "agora": slice(None, 24), "bev": slice(None, 24)}.get(fmt)
+            if fmt == "multihmr":
+                proj = proj[:, :22]
+                idx = slice(None, 22)
+            np.testing.assert_allclose(kp[:, idx, :2], proj, atol=TOL_PX * max(1, focal / 1000))
+    assert summary["has_vertices"] and summary["joints_layout"].startswith("smpl24")
+    assert invoke(runner, "info", out).exit_code == 0
+
+
+@pytest.mark.parametrize("fmt", ["bev", "4dhumans", "bedlam"])
+def test_track_ids_are_kept(fmt, tmp_path, scene, model, camera, model_path):
+    _, out, _ = _import(fmt, tmp_path, scene, model, camera, model_path)
+    frames = [f for f in open_sequence(out).frames() if f.n_people]
+    if fmt == "bedlam":  # subject names -> integers in sorted order (rp_subject_03, rp_subject_05)
+        assert frames[0].data["person_ids"].tolist() == [0, 1] and frames[1].data["person_ids"].tolist() == [0]
+    else:
+        assert frames[0].data["person_ids"].tolist() == [3, 5] and frames[1].data["person_ids"].tolist() == [3]
+
+
+def test_imported_sequence_feeds_align_eval_and_render(tmp_path, scene, model, camera, model_path, runner):
+    _, out, _ = _import("bev", tmp_path, scene, model, camera, model_path)
+    cam_yaml = tmp_path / "camera.yaml"
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    aligned = tmp_path / "aligned"
+    result = invoke(runner, "align", "--in", out, "--camera", cam_yaml, "--out", aligned, "--quiet")
+    assert result.exit_code == 0, result.output
+    result = invoke(runner, "eval", aligned, out, "--gt", out, "--out", tmp_path / "metrics", "--quiet")
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "metrics" / "metrics.json").exists()
+    result = invoke(runner, "render", out, "--camera", cam_yaml, "--renderer", "fallback", "--size", "160", "120", "--out",
+                    tmp_path / "render", "--no-gif", "--no-glb")
+    assert result.exit_code == 0, result.output
+
+
+def test_calibrate_accepts_an_imported_sequence(tmp_path, model, model_path, runner):
+    """A larger scene imported from BEV calibrates close to the true camera."""
+    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
+    rng = np.random.default_rng(3)
+    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
+             for _ in range(6)]
+    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    out = tmp_path / "out"
+    import_sequence(src, out, "bev", smpl_model=model_path, image_size=(W, H))
+    result = invoke(runner, "calibrate", out, "--quiet")
+    assert result.exit_code == 0, result.output
+    est, _ = read_camera_yaml(out / "camera.yaml")
+    assert np.rad2deg(est.pitch_rad) == pytest.approx(15.0, abs=1.5)
+    assert est.height_m == pytest.approx(3.0, rel=0.15)
+
+
+def test_imported_sequence_context_manager(tmp_path, scene, model, camera, model_path):
+    src = _write("agora", tmp_path, scene, model, camera)
+    with imported_sequence(src, "agora") as seq:
+        assert len(seq) == 2 and seq.meta["source"] == "agora"
+        folder = seq.path
+    assert not folder.exists()
+
+
+# ---- conventions, format by format ---------------------------------------------------------------
+def test_spec_camera_yaml(tmp_path, scene, model, camera, model_path):
+    """CamCalib focal/pitch/roll plus the people's ground give the true camera."""
+    _, out, summary = _import("spec", tmp_path, scene, model, camera, model_path)
+    assert summary["camera_yaml"]
+    est, fit = read_camera_yaml(out / "camera.yaml")
+    assert est.focal_px == pytest.approx(camera.focal_px)
+    assert np.rad2deg(est.pitch_rad) == pytest.approx(15.0, abs=1e-4)
+    assert np.rad2deg(est.roll_rad) == pytest.approx(0.0, abs=1e-4)
+    assert est.height_m == pytest.approx(camera.height_m, abs=0.02)
+    assert fit["method"] == "spec-camcalib" and fit["people"] == 3
+
+
+def test_spec_roll_sign_matches_its_horizon(tmp_path, scene, model, camera):
+    """SPEC's horizon (camcalib/vis_utils.py): positive roll puts the right end of the horizon lower."""
+    src = F.write_spec(tmp_path / "spec", scene, (W, H), model, 500.0, np.deg2rad(10.0), np.deg2rad(8.0))
+    import_sequence(src, tmp_path / "out", "spec")
+    est, _ = read_camera_yaml(tmp_path / "out" / "camera.yaml")
+    left, right = horizon_v_px(np.array([0.0, W]), est.focal_px, est.principal_point, est.up_cam)
+    assert right > left
+    ctr = H * (0.5 - 0.5 * np.tan(np.deg2rad(10.0)) / (H / 2 / 500.0))  # SPEC's horizon row at the centre
+    assert horizon_v_px(W / 2, est.focal_px, est.principal_point, est.up_cam) == pytest.approx(ctr, abs=2.0)
+
+
+def test_spec_image_size_recovered_from_2d(tmp_path, scene, model, camera, model_path):
+    src = F.write_spec(tmp_path / "spec", scene, (W, H), model, 500.0, camera.pitch_rad)
+    summary = import_sequence(src, tmp_path / "out", "spec")
+    assert summary["image_size"] == [W, H]
+
+
+def test_bev_principal_point_with_odd_padding(tmp_path, scene, model, camera, model_path):
+    """The principal point is the centre of the padded square, not always the image centre."""
+    size = (641, 480)
+    src = F.write_bev(tmp_path / "bev", scene, size)
+    summary = import_sequence(src, tmp_path / "out", "bev", image_size=size)
+    seq = open_sequence(tmp_path / "out")
+    assert seq.intrinsics.principal_point == (320.5, 320.5 - 80)
+    assert summary["focal_px"] == pytest.approx(443.4 / 512 * 641)
+
+
+def test_bev_video_results_and_image_size_inference(tmp_path, scene):
+    src = F.write_bev(tmp_path / "bev", scene, (W, H), video=True)
+    summary = import_sequence(src, tmp_path / "out", "bev")  # no --image-size, no model
+    assert summary["image_size"] == [W, H] and summary["frames"] == 2 and summary["has_vertices"]
+    assert any("inferred" in w for w in summary["warnings"])
+
+
+def test_romp_without_vertices_poses_its_parameters(tmp_path, scene, model, model_path):
+    src = F.write_bev(tmp_path / "romp", scene, (W, H), fmt="romp")
+    for file in src.glob("*.npz"):  # as if run without --calc_smpl: parameters + cam_trans only
+        results = np.load(file, allow_pickle=True)["results"].item()  # our own fixture, trusted
+        for key in ("verts", "joints", "pj2d_org"):
+            results.pop(key)
+        np.savez(file, results=results)
+    import_sequence(src, tmp_path / "out", "romp", smpl_model=model_path, image_size=(W, H))
+    frame = next(open_sequence(tmp_path / "out").frames())
+    np.testing.assert_allclose(frame.data["vertices"], np.stack([p.verts_cam for p in scene[0]]), atol=TOL_M)
+
+
+def test_cliff_rotmat_pose_and_fork_track_ids(tmp_path, scene, model_path):
+    src = F.write_cliff(tmp_path / "r.npz", scene, (W, H), pose_format="rotmat", fork=True)
+    import_sequence(src, tmp_path / "out", "cliff", smpl_model=model_path, image_size=(W, H))
+    frames = list(open_sequence(tmp_path / "out").frames())
+    assert [f.n_people for f in frames] == [2, 1, 0]
+    assert frames[0].data["person_ids"].tolist() == [3, 5]
+    np.testing.assert_allclose(frames[1].data["vertices"][0], scene[1][0].verts_cam, atol=TOL_M)
+
+
+def test_cliff_image_size_from_image_headers(tmp_path, scene):
+    src = F.write_cliff(tmp_path / "r.npz", scene, (W, H))
+    data = dict(np.load(src))
+    data["imgname"] = np.array([f"imgs/{i:06d}.png" for i in range(3)])
+    np.savez(src, **data)
+    (tmp_path / "imgs").mkdir()
+    png = b"\x89PNG\r\n\x1a\n" + b"\x00\x00\x00\rIHDR" + W.to_bytes(4, "big") + H.to_bytes(4, "big") + b"\x08\x02\x00\x00\x00"
+    for i in range(3):
+        (tmp_path / "imgs" / f"{i:06d}.png").write_bytes(png)
+    summary = import_sequence(src, tmp_path / "out", "cliff")
+    assert summary["image_size"] == [W, H] and summary["focal_px"] == pytest.approx(np.hypot(W, H))
+
+
+def test_fourdhumans_skips_undetected_tracks_and_reads_plain_pickles(tmp_path, scene, model_path):
+    src = F.write_phalp(tmp_path / "r.pkl", scene, (W, H), compress=0, protocol=2)
+    import_sequence(src, tmp_path / "out", "4dhumans", smpl_model=model_path)
+    assert [f.n_people for f in open_sequence(tmp_path / "out").frames()] == [2, 1, 0]
+
+
+def test_multihmr_forms_and_fov(tmp_path, scene, model, camera):
+    for form in ("npy", "pkl"):
+        src = F.write_multihmr(tmp_path / form, scene, form=form)
+        summary = import_sequence(src, tmp_path / f"out_{form}", "multihmr", image_size=(W, H), fov_deg=40.0)
+        assert summary["focal_px"] == pytest.approx(640 / (2 * np.tan(np.radians(20))))
+        frame = next(open_sequence(tmp_path / f"out_{form}").frames())
+        np.testing.assert_allclose(frame.data["vertices"], np.stack([p.verts_cam for p in scene[0]]), atol=TOL_M)
+        assert (frame.get("joints") is None) == (form == "npy")
+
+
+def test_agora_focal_rule_params_and_small_images(tmp_path, scene, model_path):
+    assert [focal_mm(n) for n in ("x_hdri_y", "a_cam00_b", "a_cam03_b", "ag2_x", "archviz_x")] == [50, 18, 18, 28, 28]
+    src = F.write_agora(tmp_path / "agora", scene, params=True, scene_tag="hdri")
+    import_sequence(src, tmp_path / "out", "agora", smpl_model=model_path, image_size=(1280, 720))
+    seq = open_sequence(tmp_path / "out")
+    assert seq.intrinsics.focal_px == pytest.approx(50.0 / 36.0 * 1280)
+    frame = next(seq.frames())
+    np.testing.assert_allclose(frame.data["vertices"], np.stack([p.verts_cam for p in scene[0]]), atol=TOL_M)
+    kp4k = F.project(np.stack([p.joints_cam for p in scene[0]]), 28.0 / 36.0 * 3840, (1920, 1080))
+    np.testing.assert_allclose(frame.data["keypoints_2d"], kp4k / 3, atol=TOL_PX)  # written at 4K, read at 720p
+
+
+def test_parameter_formats_without_a_model_import_joints_only(tmp_path, scene, model, camera):
+    for fmt in ("cliff", "4dhumans", "bedlam"):
+        (tmp_path / fmt).mkdir()
+        src = _write(fmt, tmp_path / fmt, scene, model, camera)
+        summary = import_sequence(src, tmp_path / f"out_{fmt}", fmt, image_size=(W, H) if fmt == "cliff" else None)
+        assert not summary["has_vertices"]
+        assert any("smpl-model" in w for w in summary["warnings"])
+    cliff = next(open_sequence(tmp_path / "out_cliff").frames())
+    np.testing.assert_allclose(cliff.data["joints"], np.stack([p.joints_cam for p in scene[0]]), atol=TOL_M)
+    phalp = open_sequence(tmp_path / "out_4dhumans")
+    assert phalp.meta["import"]["joints_layout"].startswith("phalp44") and phalp.meta["import"]["root_joint"] == 8
+    assert "keypoints_2d" in next(open_sequence(tmp_path / "out_bedlam").frames()).data
+
+
+def test_wrong_model_family_is_refused(tmp_path, scene, model, camera):
+    model_file = tmp_path / "x.npz"
+    F.write_synthetic_smpl(model_file)
+    data = dict(np.load(model_file))
+    data["kintree_table"] = data["kintree_table"][:, :23]
+    data["J_regressor"] = data["J_regressor"][:23]
+    data["weights"] = data["weights"][:, :23]
+    data["posedirs"] = data["posedirs"][:, :, : 9 * 22]
+    np.savez(model_file, **data)
+    src = F.write_cliff(tmp_path / "r.npz", scene, (W, H))
+    with pytest.raises(InputError, match="24"):
+        import_sequence(src, tmp_path / "out", "cliff", smpl_model=model_file, image_size=(W, H))
+
+
+# ---- CLI: errors are one line with exit 2 --------------------------------------------------------
+def _one_line_error(result) -> str:
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = [line for line in result.output.strip().splitlines() if line.strip()]
+    assert len(lines) >= 1 and lines[0].startswith("error:")
+    return " ".join(lines)
+
+
+def test_cli_import_and_json(tmp_path, scene, model, camera, model_path, runner):
+    src = _write("4dhumans", tmp_path, scene, model, camera)
+    result = invoke(runner, "import", src, tmp_path / "out", "--smpl-model", model_path, "--json")
+    assert result.exit_code == 0, result.output
+    assert '"frames": 3' in result.stdout
+    result = invoke(runner, "import", src, tmp_path / "out2", "--from", "4dhumans", "--quiet")
+    assert result.exit_code == 0 and not (tmp_path / "out2" / "camera.yaml").exists()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--from", "nope"], "unknown format"),
+    ([], "cannot tell its format"),
+])
+def test_cli_format_errors(args, needle, tmp_path, runner):
+    (tmp_path / "src").mkdir()
+    (tmp_path / "src" / "x.txt").write_text("hello")
+    text = _one_line_error(invoke(runner, "import", tmp_path / "src", tmp_path / "out", *args))
+    assert needle in text
+
+
+def test_cli_missing_image_size_says_to_pass_it(tmp_path, scene, model, camera, runner):
+    src = _write("multihmr", tmp_path, scene, model, camera)
+    assert "--image-size W H" in _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "multihmr"))
+    src = F.write_cliff(tmp_path / "r.npz", scene, (W, H))
+    assert "--image-size W H" in _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "cliff"))
+
+
+def test_cli_refuses_a_non_empty_out_and_force_replaces(tmp_path, scene, model, camera, model_path, runner):
+    src = _write("agora", tmp_path, scene, model, camera)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    (out / "000099.npz").write_bytes(b"stale")
+    assert "not empty" in _one_line_error(invoke(runner, "import", src, out))
+    result = invoke(runner, "import", src, out, "--force", "--quiet")
+    assert result.exit_code == 0, result.output
+    assert (out / "notes.txt").read_text() == "keep me" and not (out / "000099.npz").exists()
+    assert len(open_sequence(out)) == 2
+
+
+def test_failed_import_leaves_out_untouched(tmp_path, scene, model, camera, runner):
+    src = _write("agora", tmp_path, scene, model, camera)
+    out = tmp_path / "out"
+    assert invoke(runner, "import", src, out, "--quiet").exit_code == 0
+    before = tree_hash(out)
+    bad = sorted(src.glob("*.pkl"))[-1]
+    F.truncate(bad)
+    _one_line_error(invoke(runner, "import", src, out, "--force"))
+    assert tree_hash(out) == before
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]
+
+
+def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Path:
+    """A fixture of ``fmt`` with a code-executing pickle where the tool stores a pickle."""
+    src = _write(fmt, tmp_path, scene, model, camera)
+    if fmt in ("bev", "romp"):
+        F.evil_npz(sorted(src.glob("*.npz"))[0], marker)
+    elif fmt == "4dhumans":
+        src.write_bytes(F.evil_pickle(marker))
+    elif fmt == "spec":
+        (src / "spec_results" / "000000.pkl").write_bytes(F.evil_pickle(marker, protocol=2))
+    elif fmt == "agora":
+        sorted(src.glob("*.pkl"))[0].write_bytes(F.evil_pickle(marker, protocol=0))
+    elif fmt == "multihmr":
+        for p in src.iterdir():
+            p.unlink()
+        (src / "img_000.pkl").write_bytes(F.evil_pickle(marker))
+    elif fmt in ("cliff", "bedlam"):  # npz: an object member where arrays are expected
+        data = dict(np.load(src))
+        obj = np.empty((), dtype=object)
+        obj[()] = F.Evil(marker)
+        data["imgname"] = obj
+        np.savez(src, **data)
+    return src
+
+
+@pytest.mark.parametrize("fmt", ALL)
+def test_hostile_pickles_exit_2_without_running_code(fmt, tmp_path, scene, model, camera, runner):
+    marker = tmp_path / "pwned"
+    src = _hostile(fmt, tmp_path, marker, scene, model, camera)
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", fmt, "--image-size", W, H))
+    assert "refused to unpickle global" in text and "system" in text
+    assert not marker.exists()
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("fmt", ALL)
+@pytest.mark.parametrize("damage", ["truncate", "garbage"])
+def test_corrupt_files_exit_2_with_one_line(fmt, damage, tmp_path, scene, model, camera, runner):
+    src = _write(fmt, tmp_path, scene, model, camera)
+    files = [src] if src.is_file() else sorted(p for p in src.rglob("*") if p.is_file())
+    for file in files[:2]:
+        if damage == "truncate":
+            F.truncate(file, 0.6)
+        else:
+            file.write_bytes(np.random.default_rng(1).bytes(300))
+    _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", fmt, "--image-size", W, H))
+
+
+def test_wrong_types_inside_a_valid_pickle_exit_2(tmp_path, runner):
+    src = tmp_path / "x_personId_0.pkl"
+    src.write_bytes(pickle.dumps({"verts": "not an array", "joints": [[1, 2]]}))
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "agora"))
+    assert "verts" in text

@@ -1,0 +1,246 @@
+"""The restricted unpickler: numpy arrays, numpy scalars and builtin containers in; everything else out,
+with a one-line InputError and without running any code."""
+
+from __future__ import annotations
+
+import io
+import os
+import pickle
+import subprocess
+import zlib
+from collections import OrderedDict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import _format_fixtures as F
+from rotavat_cli import safe_pickle
+from rotavat_cli.errors import InputError
+
+
+def _sample() -> dict:
+    rng = np.random.default_rng(0)
+    obj = np.empty(2, dtype=object)
+    obj[0], obj[1] = {"inner": np.arange(3)}, [1, "two"]
+    return {
+        "f32": rng.standard_normal((3, 4)).astype(np.float32),
+        "fortran": np.asfortranarray(rng.standard_normal((2, 5))),
+        "ints": np.arange(6, dtype=np.int16).reshape(2, 3),
+        "big_endian": np.arange(4, dtype=">f8"),
+        "empty": np.zeros((0, 3)),
+        "strings": np.array(["a", "bcd"]),
+        "record": np.zeros(2, dtype=[("x", "<f4"), ("n", "<i8")]),
+        "object": obj,
+        "scalars": [np.float32(1.5), np.int64(-3), np.bool_(True), 2.5, 7, None, True],
+        "containers": ((1, 2), {3, 4}, frozenset({5}), b"raw", bytearray(b"ba"), "text", 1 + 2j),
+        "ordered": OrderedDict(a=1, b=2),
+    }
+
+
+def _assert_same(got: dict, want: dict) -> None:
+    for key, value in want.items():
+        if isinstance(value, np.ndarray) and value.dtype != object:
+            # numpy itself may hand big-endian data back in native order: compare kind and size
+            assert got[key].dtype.str[1:] == value.dtype.str[1:] and got[key].shape == value.shape, key
+            np.testing.assert_array_equal(got[key], value)
+    assert got["object"][0]["inner"].tolist() == [0, 1, 2] and got["object"][1] == [1, "two"]
+    assert got["scalars"] == want["scalars"] and type(got["scalars"][0]) is np.float32
+    assert got["containers"] == want["containers"]
+    assert dict(got["ordered"]) == {"a": 1, "b": 2}
+
+
+@pytest.mark.parametrize("protocol", range(pickle.HIGHEST_PROTOCOL + 1))
+def test_round_trip_of_allowed_content(protocol):
+    data = _sample()
+    _assert_same(safe_pickle.loads(pickle.dumps(data, protocol=protocol), "x.pkl"), data)
+
+
+def test_python2_style_pickle_with_latin1_strings():
+    """Protocol-2 pickles of numpy arrays store the raw bytes through _codecs.encode(str, 'latin1')."""
+    arr = np.arange(300, dtype=np.float64)
+    assert np.array_equal(safe_pickle.loads(pickle.dumps(arr, protocol=2), "py2.pkl"), arr)
+    hand_made = b"\x80\x02c__builtin__\nset\nq\x00]q\x01K\x01a\x85q\x02Rq\x03."  # Python 2 names
+    assert safe_pickle.loads(hand_made, "py2.pkl") == {1}
+
+
+@pytest.mark.parametrize("compress", [0, 3])
+@pytest.mark.parametrize("protocol", [2, 3, 4, 5])
+@pytest.mark.parametrize("align", [True, False])
+def test_joblib_files(tmp_path, compress, protocol, align):
+    data = _sample()
+    path = tmp_path / "x.pkl"
+    path.write_bytes(F.joblib_bytes(data, compress=compress, protocol=protocol, align=align))
+    _assert_same(safe_pickle.load_file(path), data)
+
+
+@pytest.mark.parametrize("codec", ["gzip", "bz2", "xz", "lzma"])
+def test_joblib_compressors(tmp_path, codec):
+    import bz2
+    import gzip
+    import lzma
+
+    raw = F.joblib_bytes({"a": np.arange(5)}, compress=0)
+    packed = {"gzip": gzip.compress, "bz2": bz2.compress, "xz": lzma.compress,
+              "lzma": lambda b: lzma.compress(b, format=lzma.FORMAT_ALONE)}[codec](raw)
+    (tmp_path / "x.pkl").write_bytes(packed)
+    assert safe_pickle.load_file(tmp_path / "x.pkl")["a"].tolist() == [0, 1, 2, 3, 4]
+
+
+def test_npz_with_object_members(tmp_path):
+    results = {"verts": np.ones((2, 4, 3)), "ids": [1, 2]}
+    np.savez(tmp_path / "r.npz", results=results, plain=np.arange(3))
+    data = safe_pickle.load_npz(tmp_path / "r.npz")
+    assert data["plain"].tolist() == [0, 1, 2]
+    assert data["results"].shape == () and data["results"].item()["ids"] == [1, 2]
+    np.save(tmp_path / "o.npy", np.array([np.zeros(2), np.ones(3)], dtype=object))
+    assert [a.tolist() for a in safe_pickle.load_npy(tmp_path / "o.npy")] == [[0, 0], [1, 1, 1]]
+
+
+# ---- hostile -----------------------------------------------------------------------------------
+class _RunsCode:
+    def __init__(self, func, args):
+        self.func, self.args = func, args
+
+    def __reduce__(self):
+        return self.func, self.args
+
+
+def _hostile_payloads(marker: Path):
+    cmd = f"touch {marker}"
+    yield "os.system", pickle.dumps(_RunsCode(os.system, (cmd,)))
+    yield "builtins.eval", pickle.dumps(_RunsCode(eval, (f"__import__('os').system('{cmd}')",)))
+    yield "builtins.exec", pickle.dumps([1, {"k": _RunsCode(exec, (f"open('{marker}', 'w')",))}], protocol=2)
+    yield "subprocess.call", pickle.dumps((_RunsCode(subprocess.call, (["touch", str(marker)],)),), protocol=0)
+    yield "builtins.getattr", pickle.dumps(_RunsCode(getattr, ("text", "upper")))
+    yield "posix.system", b"cos\nsystem\n(V" + cmd.encode() + b"\ntR."  # protocol 0, GLOBAL + REDUCE
+    yield "posix.system", b"(V" + cmd.encode() + b"\nios\nsystem\n."  # INST opcode
+    inner = np.empty(1, dtype=object)
+    inner[0] = _RunsCode(os.system, (cmd,))
+    yield "os.system (inside an object array)", pickle.dumps({"a": inner})
+
+
+@pytest.mark.parametrize("index", range(8))
+def test_hostile_pickles_are_refused_without_running(tmp_path, index):
+    marker = tmp_path / "pwned"
+    what, payload = list(_hostile_payloads(marker))[index]
+    with pytest.raises(InputError, match=r"^evil\.pkl: refused to unpickle global '[\w.]+' \(only numpy arrays"):
+        safe_pickle.loads(payload, "evil.pkl")
+    assert not marker.exists(), what
+
+
+def test_refusal_message_names_file_and_global(tmp_path):
+    path = tmp_path / "evil.pkl"
+    path.write_bytes(F.evil_pickle(tmp_path / "pwned"))
+    with pytest.raises(InputError) as info:
+        safe_pickle.load_file(path)
+    message = str(info.value)
+    assert message.startswith(str(path)) and "'posix.system'" in message and "\n" not in message
+    assert not (tmp_path / "pwned").exists()
+
+
+def test_hostile_content_inside_containers(tmp_path):
+    marker = tmp_path / "pwned"
+    payload = F.joblib_bytes({"a": np.arange(3), "b": _RunsCode(os.system, (f"touch {marker}",))})
+    (tmp_path / "j.pkl").write_bytes(payload)
+    with pytest.raises(InputError, match="refused to unpickle global"):
+        safe_pickle.load_file(tmp_path / "j.pkl")
+    F.evil_npz(tmp_path / "e.npz", marker)
+    with pytest.raises(InputError, match=r"e\.npz \['results'\]: refused"):
+        safe_pickle.load_npz(tmp_path / "e.npz")
+    obj = np.empty(1, dtype=object)
+    obj[0] = _RunsCode(os.system, (f"touch {marker}",))
+    (tmp_path / "o.pkl").write_bytes(F.joblib_bytes({"obj": obj}))  # joblib pickles object arrays inline
+    with pytest.raises(InputError, match="refused"):
+        safe_pickle.load_file(tmp_path / "o.pkl")
+    assert not marker.exists()
+
+
+@pytest.mark.filterwarnings("ignore::PendingDeprecationWarning")
+@pytest.mark.parametrize("make, needle", [
+    (lambda: np.ma.masked_array([1.0, 2.0], mask=[False, True]), "numpy.ma"),
+    (lambda: np.matrix([[1, 2]]), "numpy.matrix"),
+    (lambda: np.datetime64("2020-01-01"), None),
+])
+def test_numpy_beyond_plain_arrays(make, needle):
+    payload = make()
+    data = pickle.dumps(payload)
+    if needle is None:  # numpy scalars of any dtype are plain data
+        assert safe_pickle.loads(data, "x") == payload
+        return
+    with pytest.raises(InputError, match="refused"):
+        safe_pickle.loads(data, "x")
+
+
+def test_array_reconstruction_rejects_subclasses_and_bad_arguments():
+    with pytest.raises(InputError, match="subclass"):
+        safe_pickle.loads(b"\x80\x02cnumpy.core.multiarray\n_reconstruct\ncnumpy\ndtype\nK\x00\x85C\x01b\x87R.", "x")
+    with pytest.raises(InputError, match="malformed numpy scalar"):
+        safe_pickle.loads(b"\x80\x02cnumpy.core.multiarray\nscalar\nK\x01K\x02\x86R.", "x")
+
+
+def test_persistent_ids_are_refused():
+    class _P(pickle.Pickler):
+        def persistent_id(self, obj):
+            return "external" if obj == "x" else None
+
+    buf = io.BytesIO()
+    _P(buf).dump(["x"])
+    with pytest.raises(InputError, match="persistent id"):
+        safe_pickle.loads(buf.getvalue(), "p.pkl")
+
+
+# ---- broken -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("data, needle", [
+    (b"", "empty file"),
+    (pickle.dumps({"a": np.arange(100)})[:-30], "truncated|not a readable"),
+    (b"\xff\xfe garbage", "invalid opcode|not a readable"),
+    (zlib.compress(b"\x80\x04garbage")[:-4], "truncated|not a readable|corrupt"),
+    (b"x\x9c not really zlib", "corrupt compressed"),
+    (b'\x04"M\x18rest', "lz4"),
+])
+def test_broken_files_give_one_line_errors(tmp_path, data, needle):
+    path = tmp_path / "b.pkl"
+    path.write_bytes(data)
+    with pytest.raises(InputError, match=needle) as info:
+        safe_pickle.load_file(path)
+    assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+def test_truncated_joblib_array_is_detected_before_allocating(tmp_path):
+    data = F.joblib_bytes({"a": np.zeros(1000)}, compress=0)
+    (tmp_path / "t.pkl").write_bytes(data[:-4000])
+    with pytest.raises(InputError, match="truncated joblib array"):
+        safe_pickle.load_file(tmp_path / "t.pkl")
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(InputError, match="file not found"):
+        safe_pickle.load_file(tmp_path / "nope.pkl")
+    with pytest.raises(InputError, match="is a directory"):
+        safe_pickle.load_file(tmp_path)
+    with pytest.raises(InputError, match="file not found"):
+        safe_pickle.load_npz(tmp_path / "nope.npz")
+
+
+def test_broken_npz_and_npy(tmp_path):
+    np.savez(tmp_path / "a.npz", x=np.arange(10))
+    F.truncate(tmp_path / "a.npz", 0.5)
+    with pytest.raises(InputError, match="not a readable .npz"):
+        safe_pickle.load_npz(tmp_path / "a.npz")
+    with pytest.raises(InputError, match="bad magic"):
+        safe_pickle.load_npy_bytes(b"not an npy file", "x.npy")
+    header = b"\x93NUMPY\x01\x00" + (60).to_bytes(2, "little") + b"{'descr': '<f8', 'fortran_order': False, 'shape': (-1,), }".ljust(60)
+    with pytest.raises(InputError, match="malformed .npy header"):
+        safe_pickle.load_npy_bytes(header, "x.npy")
+    np.save(tmp_path / "t.npy", np.arange(100.0))
+    F.truncate(tmp_path / "t.npy", 0.5)
+    with pytest.raises(InputError, match="corrupt or truncated"):
+        safe_pickle.load_npy(tmp_path / "t.npy")
+
+
+def test_decompression_bomb_is_capped(tmp_path, monkeypatch):
+    monkeypatch.setattr(safe_pickle, "MAX_BYTES", 1 << 16)
+    (tmp_path / "bomb.pkl").write_bytes(zlib.compress(b"\x80\x04" + b"N" * (1 << 20)))
+    with pytest.raises(InputError, match="decompresses to more than"):
+        safe_pickle.load_file(tmp_path / "bomb.pkl")
