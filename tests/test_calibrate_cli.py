@@ -1,0 +1,112 @@
+"""`rotavat calibrate` and calibrate-then-align through the command line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import invoke, tree_hash
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> Path:
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    out = tmp_path_factory.mktemp("calscene")
+    write_synth_scene(out, SynthOptions(seed=5, frames=12, people=8, noise_px=2.0, outliers=0.1))
+    return out
+
+
+def pairs_seq(path: Path, feet, heads, size=(640, 480)) -> Path:
+    path.mkdir(parents=True, exist_ok=True)
+    np.savez(path / "000000.npz", feet_2d=np.asarray(feet, float), heads_2d=np.asarray(heads, float))
+    (path / "meta.yaml").write_text(f"image_size: [{size[0]}, {size[1]}]\n")
+    return path
+
+
+def test_calibrate_recovers_the_true_camera(scene, tmp_path, runner):
+    before = tree_hash(scene / "pred")
+    result = invoke(runner, "calibrate", scene / "pred", "--out", tmp_path / "cam.yaml", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert tree_hash(scene / "pred") == before
+    est = json.loads(result.stdout)
+    true = yaml.safe_load((scene / "gt" / "camera.yaml").read_text())
+    assert est["fit"]["focal_policy"] == "declared" and est["focal_px"] == pytest.approx(true["focal_px"])
+    # 8 people: each one's crown sits a few cm off the vertical through the mid-sole (real posture),
+    # so the error is statistical; the reported std must cover it and stay small
+    std = est["fit"]["std"]
+    for key, limit in (("pitch_deg", 1.0), ("roll_deg", 1.0), ("height_m", 0.3)):
+        assert std[key] < limit
+        assert abs(est[key] - true[key]) < 3.0 * std[key], key
+    assert est["fit"]["inliers"] < est["fit"]["pairs"]  # the 10% gross outliers were rejected
+    written = yaml.safe_load((tmp_path / "cam.yaml").read_text())
+    assert written["fit"]["pairs"] == 96 and written["fit"]["frames"] == 12
+
+
+def test_paper_grid_mode(scene, tmp_path, runner):
+    result = invoke(runner, "calibrate", scene / "gt", "--method", "grid", "--out", tmp_path / "g.yaml", "--json")
+    assert result.exit_code == 0, result.stderr
+    est = json.loads(result.stdout)
+    assert est["fit"]["method"] == "grid" and est["roll_deg"] == 0.0
+    true = yaml.safe_load((scene / "gt" / "camera.yaml").read_text())
+    assert abs(est["height_m"] / true["height_m"] - 1.0) < 0.25  # one grid step is ~0.8 m
+
+
+def test_align_without_camera_calibrates_first(scene, tmp_path, runner):
+    result = invoke(runner, "align", "--in", scene / "pred", "--out", tmp_path / "al", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["camera"] == "calibrated from the people"
+    assert (tmp_path / "al" / "camera.yaml").exists()
+    res = invoke(runner, "eval", scene / "pred", tmp_path / "al", "--gt", scene / "gt", "--out", tmp_path, "--json")
+    before, after = (p["metrics"] for p in json.loads(res.stdout)["predictions"])
+    assert after["w_mpjpe"] < 0.4 * before["w_mpjpe"]  # > 60% drop with the estimated camera
+
+
+@pytest.mark.parametrize("feet,heads,size,message", [
+    ([[100, 400], [200, 420]], [[100, 300], [200, 310]], (640, 480), "need >= 3"),
+    ([[100, 400], [200, np.nan], [300, 430]], [[100, 300], [200, 310], [300, 320]], (640, 480), "NaN|non-finite"),
+    ([[100, 300], [200, 310], [300, 320], [400, 330]], [[100, 400], [200, 420], [300, 430], [400, 440]], (640, 480), "below|swapped"),
+])
+def test_calibrate_bad_pairs_exit_2(tmp_path, runner, feet, heads, size, message):
+    seq = pairs_seq(tmp_path / "s", feet, heads, size)
+    result = invoke(runner, "calibrate", seq, "--out", tmp_path / "c.yaml")
+    assert result.exit_code == 2, result.stderr
+    import re
+
+    assert re.search(message, result.stderr) and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "c.yaml").exists()
+
+
+def test_calibrate_missing_image_size_exit_2(tmp_path, runner):
+    seq = tmp_path / "s"
+    seq.mkdir()
+    np.savez(seq / "000000.npz", feet_2d=np.ones((4, 2)), heads_2d=np.zeros((4, 2)))
+    result = invoke(runner, "calibrate", seq)
+    assert result.exit_code == 2 and "image size" in result.stderr
+
+
+def test_calibrate_meshes_without_focal_exit_2(tmp_path, runner):
+    seq = tmp_path / "s"
+    seq.mkdir()
+    np.savez(seq / "000000.npz", vertices=np.random.default_rng(0).normal(size=(2, 50, 3)) + [0, 0, 5])
+    (seq / "meta.yaml").write_text("image_size: [640, 480]\n")
+    result = invoke(runner, "calibrate", seq)
+    assert result.exit_code == 2 and "focal" in result.stderr
+
+
+def test_per_frame_reports_spread(scene, tmp_path, runner):
+    result = invoke(runner, "calibrate", scene / "gt", "--per-frame", "--out", tmp_path / "c.yaml", "--json")
+    per_frame = json.loads(result.stdout)["per_frame"]
+    assert per_frame["frames_fitted"] + per_frame["frames_skipped"] == 12
+    assert set(per_frame["iqr"]) >= {"pitch_deg", "height_m"}
+
+
+def test_config_file_sets_options(scene, tmp_path, runner):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("calibrate:\n  estimate_roll: false\n")
+    result = invoke(runner, "calibrate", scene / "gt", "--config", cfg, "--out", tmp_path / "cam.yaml", "--json")
+    assert json.loads(result.stdout)["roll_deg"] == 0.0
