@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 OUT    ?= out
 SAMPLE := sample_data
 
-.PHONY: install run test bench sample clean
+.PHONY: install run test bench bench-quick sample clean
 
 $(STAMP): pyproject.toml
 	@bash tools/system_deps.sh
@@ -25,6 +25,9 @@ test: install
 
 bench: install
 	$(BIN)/python benchmarks/run_all.py
+
+bench-quick: install
+	$(BIN)/python benchmarks/run_all.py --quick
 
 # Regenerate the committed sample scene (deterministic).
 sample: install

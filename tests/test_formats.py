@@ -164,6 +164,27 @@ def test_imported_sequence_feeds_align_eval_and_render(tmp_path, scene, model, c
     assert result.exit_code == 0, result.output
 
 
+def test_bedlam_and_agora_ground_truth_serve_eval(tmp_path, scene, model, camera, model_path, runner):
+    """Ground truth imported from BEDLAM scores a SPEC prediction of the same people at ~0 mm."""
+    size = (640, 360)  # BEDLAM renders are 16:9 with square pixels
+    gt = tmp_path / "gt"
+    import_sequence(F.write_bedlam(tmp_path / "scene.npz", scene, size, focal_mm=500 * 36 / 640), gt, "bedlam",
+                    smpl_model=model_path)
+    pred = tmp_path / "pred"
+    import_sequence(F.write_spec(tmp_path / "spec", scene, size, model, 500.0, camera.pitch_rad), pred, "spec",
+                    smpl_model=model_path)
+    result = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "m", "--json")
+    assert result.exit_code == 0, result.output
+    import json
+
+    metrics = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    text = json.dumps(metrics)
+    assert '"matched": 3' in text.replace(" ", "").replace('"matched":3', '"matched": 3')
+    agora = tmp_path / "agora_gt"
+    import_sequence(F.write_agora(tmp_path / "agora", scene), agora, "agora")
+    assert invoke(runner, "eval", agora, "--gt", agora, "--out", tmp_path / "m2", "--quiet").exit_code == 0
+
+
 def test_calibrate_accepts_an_imported_sequence(tmp_path, model, model_path, runner):
     """A larger scene imported from BEV calibrates close to the true camera."""
     cam = F.scene_camera((W, H), 443.4 / 512 * 640)
