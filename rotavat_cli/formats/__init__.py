@@ -187,9 +187,22 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
     return Frame(name, data, str(source))
 
 
-def frame_name(index: int) -> str:
-    """Contract frame names: zero-padded indices (sort = time order)."""
-    return f"{index:06d}"
+def frame_names(sources: list[str], warnings: list[str]) -> list[str]:
+    """Contract frame names from the tool's image names, in the tool's (time) order.
+
+    The image stem is kept (characters outside ``[A-Za-z0-9._-]`` become ``_``) so sequences
+    imported from two tools run on the same images line up frame by frame in ``eval``. When stems
+    repeat, or sorting them by name would not give the tool's order (``img_2`` after ``img_10``),
+    names become ``<zero-padded index>_<stem>`` instead (order kept, cross-tool matching lost).
+    """
+    stems = [re.sub(r"[^A-Za-z0-9._-]", "_", Path(str(s)).name.rsplit(".", 1)[0] if "." in Path(str(s)).name else Path(str(s)).name)
+             or "frame" for s in sources]
+    if len(set(stems)) == len(stems) and stems == sorted(stems) and not any(s.startswith(".") for s in stems):
+        return stems
+    width = max(6, len(str(len(stems))))
+    warnings.append("frame names are the image names prefixed by their index (the image names repeat or do not "
+                    "sort in time order)")
+    return [f"{i:0{width}d}_{stem.lstrip('.')}" for i, stem in enumerate(stems)]
 
 
 def natural_key(name: str) -> tuple:
