@@ -318,7 +318,8 @@ def spec_rotation(pitch, roll):
     return rx @ rz
 
 
-def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, pitch: float, roll: float = 0.0) -> Path:
+def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, pitch: float, roll: float = 0.0,
+               names=None) -> Path:
     """SPEC demo output: camcalib/<img>.jpg.pkl and spec_results/<img>.pkl (joblib dumps)."""
     (folder / "camcalib").mkdir(parents=True, exist_ok=True)
     (folder / "spec_results").mkdir(parents=True, exist_ok=True)
@@ -326,7 +327,8 @@ def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, 
     vfov = 2 * np.arctan(image_size[1] / 2 / focal)
     rest_j0 = (model.J_regressor @ model.v_template)[0]
     for i, frame in enumerate(scene):
-        name = f"{i:06d}.jpg"
+        stem = names[i] if names else f"{i:06d}"
+        name = f"{stem}.jpg"
         calib = {"vfov": np.array(vfov, np.float32), "f_pix": np.float64(focal), "pitch": np.array(pitch, np.float32),
                  "roll": np.array(roll, np.float32)}
         (folder / "camcalib" / f"{name}.pkl").write_bytes(joblib_bytes(calib))
@@ -347,7 +349,7 @@ def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, 
                "smpl_joints2d": np.array(j2d, np.float32), "pred_cam_t": np.array(t_all, np.float32),
                "pred_pose": np.array(pose_world, np.float32), "pred_shape": np.zeros((len(frame), 10), np.float32),
                "pred_cam": np.zeros((len(frame), 3), np.float32)}
-        (folder / "spec_results" / f"{i:06d}.pkl").write_bytes(joblib_bytes(out))
+        (folder / "spec_results" / f"{stem}.pkl").write_bytes(joblib_bytes(out))
     return folder
 
 

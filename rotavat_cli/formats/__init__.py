@@ -188,15 +188,14 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
 
 
 def frame_names(sources: list[str], warnings: list[str]) -> list[str]:
-    """Contract frame names from the tool's image names, in the tool's (time) order.
+    """Contract frame names from the tool's image stems (no extension), in the tool's (time) order.
 
     The image stem is kept (characters outside ``[A-Za-z0-9._-]`` become ``_``) so sequences
     imported from two tools run on the same images line up frame by frame in ``eval``. When stems
     repeat, or sorting them by name would not give the tool's order (``img_2`` after ``img_10``),
     names become ``<zero-padded index>_<stem>`` instead (order kept, cross-tool matching lost).
     """
-    stems = [re.sub(r"[^A-Za-z0-9._-]", "_", Path(str(s)).name.rsplit(".", 1)[0] if "." in Path(str(s)).name else Path(str(s)).name)
-             or "frame" for s in sources]
+    stems = [re.sub(r"[^A-Za-z0-9._-]", "_", str(s)) or "frame" for s in sources]
     if len(set(stems)) == len(stems) and stems == sorted(stems) and not any(s.startswith(".") for s in stems):
         return stems
     width = max(6, len(str(len(stems))))

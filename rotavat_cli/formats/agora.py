@@ -29,7 +29,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces, natural_key,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces, natural_key,
                people_frame)
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width
@@ -101,6 +101,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
     constant_focal = len(set(focals.values())) == 1
     model = opts.body_model
     layout = {"value": None}
+    names = frame_names([image for image, _ in groups], warnings)
 
     def person(path: Path) -> dict[str, np.ndarray | None]:
         data = safe_pickle.load_file(path)
@@ -145,7 +146,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
                 raise fail(paths[0], "people of one image must all have vertices of the same size")
             n_verts = stacked["vertices"].shape[1]
             extra = {} if constant_focal else {"focal_length": np.float64(focals[image])}
-            yield people_frame(frame_name(index), f"{src} [{image}]", warnings, vertices=stacked["vertices"],
+            yield people_frame(names[index], f"{src} [{image}]", warnings, vertices=stacked["vertices"],
                                joints=stacked["joints"], keypoints_2d=stacked["keypoints_2d"],
                                faces=model_faces(model, n_verts), n_verts=n_verts, extra=extra)
         meta["import"]["joints_layout"] = layout["value"]

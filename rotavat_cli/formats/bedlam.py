@@ -29,7 +29,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, model_faces, natural_key,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
                people_frame)
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
@@ -104,6 +104,7 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     names = sorted(set(np.asarray(data["sub"]).reshape(-1).astype(str))) if "sub" in data else []
     sub_ids = ({n: i for i, n in enumerate(names)}, np.asarray(data["sub"]).reshape(-1).astype(str)) if names else None
     images = sorted(set(imgname), key=natural_key)
+    names = frame_names([Path(i).stem for i in images], warnings)
 
     def frames() -> Iterator[Frame]:
         for index, image in enumerate(images):
@@ -111,7 +112,7 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
             ids = np.array([sub_ids[0][sub_ids[1][r]] for r in rows], dtype=np.int64) if sub_ids else None
             extra = {} if constant_focal else {"focal_length": np.float64(fx[rows[0]])}
             kp = gtkps[rows][..., :2] if gtkps is not None else None
-            yield people_frame(frame_name(index), f"{path} [{image}]", warnings,
+            yield people_frame(names[index], f"{path} [{image}]", warnings,
                                vertices=None if vertices is None else vertices[rows],
                                joints=None if joints is None else joints[rows], keypoints_2d=kp, person_ids=ids,
                                faces=model_faces(model, None if vertices is None else vertices.shape[1]), extra=extra)

@@ -29,6 +29,7 @@ Source: Arthur151/ROMP ``simple_romp/bev/main.py``, ``simple_romp/bev/post_parse
 
 from __future__ import annotations
 
+import re
 import zipfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -38,7 +39,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
                natural_key, people_frame)
 
 _BEV_FOCAL_ON_512 = 443.4  # post_parser.py perspective_projection(focal_length=443.4), input 512 px
@@ -81,6 +82,13 @@ def _sources(src: Path) -> list[tuple[str, Callable[[], dict]]]:
             raise fail(files[0], "'results' must map image names to result dicts")
         return [(name, (lambda v=value: v)) for name, value in sorted(results.items(), key=lambda kv: natural_key(str(kv[0])))]
     return [(p.stem, (lambda p=p: _load_results(p))) for p in files]
+
+
+def _image_stem(name: str) -> str:
+    """Image stem of a result name: drop the extension and the '__<model id>_<threshold>' suffix
+    ``bev -m video`` adds to its file names (``saver(..., prefix=f'_{model_id}_{center_thresh}')``)."""
+    stem = Path(name).stem if Path(name).suffix.lower() in (".png", ".jpg", ".jpeg", ".npz") else name
+    return re.sub(r"__\d+_\d+(\.\d+)?$", "", stem)
 
 
 def _load_results(path: Path) -> dict:
@@ -197,13 +205,14 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
                         "approximately in the 60-degree camera")
     principal_point = (side / 2.0 - left, side / 2.0 - top)
     model = opts.body_model
+    names = frame_names([_image_stem(name) for name, _ in sources], warnings)
 
     def frames() -> Iterator[Frame]:
         for index, (name, load) in enumerate(sources):
             source = f"{src} [{name}]"
             people = _people(load(), source, fmt, opts)
             verts = people["vertices"]
-            yield people_frame(frame_name(index), source, warnings, vertices=verts, joints=people["joints"],
+            yield people_frame(names[index], source, warnings, vertices=verts, joints=people["joints"],
                                keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
                                faces=model_faces(model, None if verts is None else verts.shape[1]))
 

@@ -28,7 +28,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, image_size_from_header,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
                model_faces, no_model_warning, people_frame)
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
@@ -131,12 +131,13 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
                   for i in np.unique(frame_index))
     n_rows = n_params if model is not None else n_det
     faces = model_faces(model, None if vertices is None else vertices.shape[1])
+    names = frame_names([Path(str(n)).stem for n in imgnames], warnings)
 
     def frames() -> Iterator[Frame]:
         for i in range(len(imgnames)):
             rows = np.flatnonzero(frame_index[:n_rows] == i)
             yield people_frame(
-                frame_name(i), f"{path} [image {i}]", warnings,
+                names[i], f"{path} [image {i}]", warnings,
                 vertices=None if vertices is None else vertices[rows],
                 joints=joints[rows],
                 person_ids=track_col[rows] if use_ids else None,

@@ -32,7 +32,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
                no_model_warning, padded_square, people_frame)
 
 FOCAL_LENGTH = 5000.0  # phalp/configs/base.py ExtraConfig.FOCAL_LENGTH
@@ -120,12 +120,14 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
             out["joints"] = np.stack(j3d)[:, :44] + cams[:, None] if n else np.zeros((0, 44, 3))
         return out
 
+    names = frame_names([Path(str(k)).stem for k in order], warnings)
+
     def frames() -> Iterator[Frame]:
         for index, key in enumerate(order):
             source = f"{src} [{key}]"
             p = people(data[key], source)
             verts = p["vertices"]
-            yield people_frame(frame_name(index), source, warnings, vertices=verts, joints=p["joints"],
+            yield people_frame(names[index], source, warnings, vertices=verts, joints=p["joints"],
                                keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
                                faces=model_faces(model, None if verts is None else verts.shape[1]),
                                n_verts=None if model is None else model.n_verts)

@@ -33,7 +33,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, model_faces, natural_key,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
                need_image_size, people_frame, project_px)
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
@@ -111,6 +111,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     model = opts.body_model
     warnings: list[str] = []
     layout = {"value": None}
+    names = frame_names([p.stem for p in files], warnings)
 
     def frames() -> Iterator[Frame]:
         for index, path in enumerate(files):
@@ -131,7 +132,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                     joints = j3d
                     layout["value"] = layout["value"] or f"multihmr{j3d.shape[1]}"
                 kp = project_px(j3d, focal, principal_point)
-            yield people_frame(frame_name(index), path, warnings, vertices=verts if verts.shape[1] else None,
+            yield people_frame(names[index], path, warnings, vertices=verts if verts.shape[1] else None,
                                joints=joints, keypoints_2d=kp,
                                faces=model_faces(model, verts.shape[1] if verts.shape[1] else None),
                                n_verts=verts.shape[1] if verts.shape[1] else None)

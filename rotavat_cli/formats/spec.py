@@ -33,7 +33,7 @@ from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
 from ..smpl import lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_name, get, model_faces, natural_key,
+from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces, natural_key,
                people_frame)
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
@@ -156,6 +156,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
     focals = np.array([cams[s]["f_pix"] for s in stems])
     ups = np.stack([spec_rotation(cams[s]["pitch"], cams[s]["roll"]) @ _UP_SPEC_WORLD for s in stems])
     ground: list[float] = []
+    names = frame_names(stems, warnings)
     imported: ImportedSequence
 
     def frames() -> Iterator[Frame]:
@@ -165,13 +166,13 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
             source = results.get(stem, calib[stem])
             extra = {"focal_length": np.float64(cams[stem]["f_pix"])}
             if people is None:
-                yield people_frame(frame_name(index), source, warnings, n_verts=n_verts, extra=extra)
+                yield people_frame(names[index], source, warnings, n_verts=n_verts, extra=extra)
                 continue
             verts = people["vertices"]
             n_verts = verts.shape[1]
             feet_cam, _ = foot_head_points(verts)
             ground.extend((-(feet_cam @ ups[index]))[np.isfinite(feet_cam).all(axis=1)].tolist())
-            yield people_frame(frame_name(index), source, warnings, vertices=verts, joints=people["joints"],
+            yield people_frame(names[index], source, warnings, vertices=verts, joints=people["joints"],
                                keypoints_2d=people.get("keypoints_2d"), faces=model_faces(model, n_verts),
                                n_verts=n_verts, extra=extra)
         imported.camera, imported.camera_fit = _camera(image_size, principal_point, focals, ups, ground, warnings, src)
