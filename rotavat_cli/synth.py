@@ -50,10 +50,11 @@ class SynthOptions:
     noise_3d_m: float = 0.005
 
 
-def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None) -> Camera:
-    """Realistic surveillance camera: focal 0.6-2.5 H, pitch 10-60 deg, height 2.5-15 m."""
+def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None,
+                  roll_max_deg: float = 3.0) -> Camera:
+    """Realistic surveillance camera: focal 0.6-2.5 H, pitch 10-60 deg, height 2.5-15 m; roll given or +-max."""
     H = image_size[1]
-    roll = rng.uniform(-3.0, 3.0) if roll_deg is None else roll_deg
+    roll = rng.uniform(-roll_max_deg, roll_max_deg) if roll_deg is None else roll_deg
     return Camera(image_size, rng.uniform(0.6, 2.5) * H, None, np.deg2rad(rng.uniform(10.0, 60.0)),
                   np.deg2rad(roll), rng.uniform(2.5, 15.0))
 

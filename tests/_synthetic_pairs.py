@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rotavat_cli.camera import Camera
+from rotavat_cli.synth import random_camera
 
 __all__ = ["SyntheticPairs", "random_surveillance_camera", "synthetic_pairs"]
 
@@ -40,10 +41,7 @@ class SyntheticPairs:
 def random_surveillance_camera(rng: np.random.Generator, image_size: tuple[int, int] = (1920, 1080),
                                roll_deg: float | None = 0.0, roll_max_deg: float = 5.0) -> Camera:
     """Focal 0.6-2.5 H, pitch 10-60 deg, height 2.5-15 m; roll fixed, or uniform +-roll_max if None."""
-    H = image_size[1]
-    roll = rng.uniform(-roll_max_deg, roll_max_deg) if roll_deg is None else roll_deg
-    return Camera(image_size, rng.uniform(0.6, 2.5) * H, None, np.deg2rad(rng.uniform(10.0, 60.0)),
-                  np.deg2rad(roll), rng.uniform(2.5, 15.0))
+    return random_camera(rng, image_size, roll_deg, roll_max_deg)
 
 
 def _project_world(camera: Camera, points_world: np.ndarray) -> np.ndarray:

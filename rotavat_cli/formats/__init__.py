@@ -284,9 +284,13 @@ def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None
     if fov_deg is not None and not 0 < fov_deg < 180:
         raise InputError(f"--fov must be in (0, 180) degrees, got {fov_deg}")
     model = smpl_model if isinstance(smpl_model, BodyModel) or smpl_model is None else load_body_model(smpl_model)
-    return READERS[fmt](src, ImportOptions(image_size, model, fov_deg))
+    imported = READERS[fmt](src, ImportOptions(image_size, model, fov_deg))
+    if fov_deg is not None and fmt not in _FOV_FORMATS:
+        imported.warnings.append(f"--fov is ignored for {fmt} (its focal length is fixed by the method)")
+    return imported
 
 
+_FOV_FORMATS = ("multihmr",)  # formats whose field of view is a user setting of the method
 _READ_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError, MemoryError)
 
 

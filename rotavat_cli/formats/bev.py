@@ -174,8 +174,6 @@ def _infer_image_size(norm: np.ndarray, pix: np.ndarray, source: str) -> tuple[t
 def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
     sources = _sources(src)
     warnings: list[str] = []
-    if opts.fov_deg is not None:
-        warnings.append(f"--fov is ignored for {fmt}: its field of view is fixed at 60 degrees")
     if opts.image_size is not None:
         image_size = opts.image_size
         side, left, top = max(image_size), (max(image_size) - image_size[0]) // 2, (max(image_size) - image_size[1]) // 2
