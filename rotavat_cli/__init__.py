@@ -17,6 +17,7 @@ from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .config import default_config, load_config
 from .errors import DegenerateSceneError, GateError, InputError, RotavatError
 from .evaluate import EvalOptions, EvalResult, evaluate
+from .formats import available_formats, detect_format, import_sequence, imported_sequence
 from .landmarks import foot_head_points
 from .metrics import mpjpe, procrustes_align, pve
 from .people import gather_pairs
@@ -49,6 +50,10 @@ __all__ = [
     "SynthOptions",
     "align_frame",
     "align_sequence",
+    "available_formats",
+    "detect_format",
+    "import_sequence",
+    "imported_sequence",
     "apply_transforms",
     "camera_from_yaml_dict",
     "camera_to_yaml_dict",

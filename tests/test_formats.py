@@ -458,3 +458,27 @@ def test_wrong_types_inside_a_valid_pickle_exit_2(tmp_path, runner):
     src.write_bytes(pickle.dumps({"verts": "not an array", "joints": [[1, 2]]}))
     text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "agora"))
     assert "verts" in text
+
+
+def test_from_converts_on_the_fly_for_calibrate_align_eval(tmp_path, model, model_path, runner):
+    """`--from bev` reads the tool's own files directly: same results as importing first."""
+    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
+    rng = np.random.default_rng(3)
+    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
+             for _ in range(6)]
+    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    common = ["--from", "bev", "--smpl-model", model_path, "--image-size", str(W), str(H)]
+    result = invoke(runner, "calibrate", src, *common, "--out", tmp_path / "cam.yaml", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["pitch_deg"] == pytest.approx(15.0, abs=1.5)
+    assert invoke(runner, "calibrate", src, *common).exit_code == 2  # needs --out: the input is not a sequence
+    result = invoke(runner, "align", "--in", src, *common, "--camera", tmp_path / "cam.yaml", "--out", tmp_path / "al", "-q")
+    assert result.exit_code == 0, result.stderr
+    assert len(open_sequence(tmp_path / "al")) == 6
+    imported = tmp_path / "imported"
+    import_sequence(src, imported, "bev", smpl_model=model_path, image_size=(W, H))
+    result = invoke(runner, "eval", src, *common, "--gt", imported, "--out", tmp_path / "m", "--json")
+    assert result.exit_code == 0, result.stderr
+    row = json.loads(result.stdout)["predictions"][0]
+    assert row["pred"] == str(src) and row["metrics"]["w_mpjpe"] == pytest.approx(0.0, abs=1e-6)
+    assert invoke(runner, "eval", src, "--from", "nope", "--gt", imported).exit_code == 2

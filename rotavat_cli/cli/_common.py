@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
@@ -14,7 +15,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from typer.core import TyperGroup
 
 from ..config import load_config
-from ..errors import RotavatError
+from ..sequence import Sequence, open_sequence
+from ..errors import InputError, RotavatError
 from ..plain import to_plain
 
 console = Console(stderr=True)
@@ -23,6 +25,9 @@ T = TypeVar("T")
 ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file overriding configs/default.yaml (flags override it).", dir_okay=False)]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no summary on stderr.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON result on stdout (implies no progress bar).")]
+FromOpt = Annotated[str | None, typer.Option("--from", help="Read the input in an HPS tool's own format, converted on the fly (formats: see `rotavat import --help`).")]
+ImageSizeOpt = Annotated[tuple[int, int] | None, typer.Option(help="With --from: original image width and height (px), for formats that do not store it.")]
+SmplModelOpt = Annotated[Path | None, typer.Option(help="With --from: SMPL/SMPL-X .npz model to pose parameter-only formats.", dir_okay=False)]
 
 
 class RotavatGroup(TyperGroup):
@@ -39,6 +44,21 @@ class RotavatGroup(TyperGroup):
 def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:
     """Effective options of one config section: defaults < --config FILE < flags (None = unset)."""
     return load_config(config_file, {section: flags})[section]
+
+
+@contextmanager
+def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | None = None,
+                   smpl_model: Path | None = None, read_camera: bool = True) -> Iterator[Sequence]:
+    """Open a contract sequence, or with ``fmt`` import it into a temporary one for the command's duration."""
+    if fmt is None:
+        yield open_sequence(path, read_camera=read_camera)
+        return
+    from ..formats import available_formats, imported_sequence
+
+    if fmt not in available_formats():
+        raise InputError(f"unknown format '{fmt}' for --from (known: {', '.join(available_formats())})")
+    with imported_sequence(path, fmt, image_size=image_size, smpl_model=smpl_model) as seq:
+        yield seq if read_camera else replace(seq, camera=None, camera_fit={})
 
 
 def progress_enabled(quiet: bool, as_json: bool) -> bool:

@@ -8,9 +8,10 @@ from typing import Annotated
 import typer
 
 from ..align import align_sequence
-from ..sequence import read_camera_yaml, open_sequence
+from ..sequence import read_camera_yaml
 from . import app
-from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
+from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info, input_sequence,
+                      print_json, progress_bar, progress_enabled)
 from .calibrate import run_calibration
 
 
@@ -21,25 +22,28 @@ def align(
     out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input.", file_okay=False)] = None,
     upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
     height_from: Annotated[str | None, typer.Option(help="frame: each mesh keeps its stature; track: median stature per person_id.")] = None,
+    from_: FromOpt = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
     opts = config_for(config, "align", upright=upright, height_from=height_from)
-    sequence = open_sequence(seq)
-    out = out or seq.with_name(seq.name + "_aligned")
-    if camera is not None:
-        cam, fit = read_camera_yaml(camera, sequence.image_size)
-        origin = str(camera)
-    elif sequence.camera is not None:
-        cam, fit, origin = sequence.camera, sequence.camera_fit, str(seq / "camera.yaml")
-    else:
-        calib = run_calibration(sequence, config, quiet or as_json)
-        cam, fit, origin = calib.result.camera, calib.result.fit_dict(), "calibrated from the people"
-    enabled = progress_enabled(quiet, as_json)
-    with progress_bar("aligning", len(sequence), enabled) as advance:
-        summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance)
+    out = out or seq.with_name((seq.stem if seq.is_file() else seq.name) + "_aligned")
+    with input_sequence(seq, from_, image_size, smpl_model) as sequence:
+        if camera is not None:
+            cam, fit = read_camera_yaml(camera, sequence.image_size)
+            origin = str(camera)
+        elif sequence.camera is not None:
+            cam, fit = sequence.camera, sequence.camera_fit
+            origin = str(seq / "camera.yaml") if from_ is None else f"the camera imported with {seq}"
+        else:
+            calib = run_calibration(sequence, config, quiet or as_json)
+            cam, fit, origin = calib.result.camera, calib.result.fit_dict(), "calibrated from the people"
+        with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
+            summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance)
     result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out"}}
     if as_json:
         print_json(result)

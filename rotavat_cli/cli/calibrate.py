@@ -10,9 +10,11 @@ import typer
 from rich.table import Table
 
 from ..autocalib import SequenceCalibration, calibrate_sequence
-from ..sequence import Sequence, open_sequence, write_camera_yaml
+from ..errors import InputError
+from ..sequence import Sequence, write_camera_yaml
 from . import app
-from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, console, info, print_json
+from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
+                      input_sequence, print_json)
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
@@ -37,17 +39,22 @@ def calibrate(
     residual: Annotated[str | None, typer.Option(help="full (head u and v) or vertical (head row only; box-derived points).")] = None,
     fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Weak prior on the vertical field of view (deg).")] = None,
     per_frame: Annotated[bool | None, typer.Option("--per-frame/--pooled", help="Also calibrate each frame alone and report the spread.")] = None,
+    from_: FromOpt = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate focal, pitch, roll and height of the static camera from the people in a sequence."""
-    sequence = open_sequence(seq, read_camera=False)
-    calib = run_calibration(
-        sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
-        estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
-        person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, fov_prior_deg=fov_prior,
-        per_frame=per_frame)
+    if from_ and out is None:
+        raise InputError("with --from, pass --out FILE for the camera.yaml (the input is not a contract sequence)")
+    with input_sequence(seq, from_, image_size, smpl_model, read_camera=False) as sequence:
+        calib = run_calibration(
+            sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
+            estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
+            person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, fov_prior_deg=fov_prior,
+            per_frame=per_frame)
     target = out or seq / "camera.yaml"
     fit = {**calib.result.fit_dict(), "focal_policy": calib.focal_policy}
     write_camera_yaml(target, calib.result.camera, fit)

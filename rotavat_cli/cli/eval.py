@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Annotated
 
@@ -12,9 +13,9 @@ from rich.table import Table
 from ..errors import GateError
 from ..evaluate import EvalOptions, evaluate, parse_joints, write_per_person_csv
 from ..report import check_gates, format_value, metric_value, parse_gate, report_rows, write_reports
-from ..sequence import open_sequence
 from . import app
-from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, console, info, print_json, progress_bar, progress_enabled
+from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
+                      input_sequence, print_json, progress_bar, progress_enabled)
 
 
 @app.command("eval")
@@ -28,6 +29,10 @@ def eval_(
     threshold_px: Annotated[float | None, typer.Option(help="hungarian: max mean 2D joint distance of a match (px).")] = None,
     iou_threshold: Annotated[float | None, typer.Option(help="agora: min keypoint-box IoU of a match.")] = None,
     joints: Annotated[str | None, typer.Option(help="Joint subset used by both sides: '0-23', '0,1,2' or SMPL names.")] = None,
+    from_: FromOpt = None,
+    gt_from: Annotated[str | None, typer.Option("--gt-from", help="Read GT in a dataset's own format (agora, bedlam, ...), converted on the fly.")] = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
@@ -37,9 +42,13 @@ def eval_(
     gates = [parse_gate(text) for text in fail_if or []]
     options = EvalOptions(opts["match"], float(opts["threshold_px"]), float(opts["iou_threshold"]), parse_joints(joints))
     preds = pred or [Path(".")]
-    total = sum(len(open_sequence(p)) for p in preds)
-    with progress_bar("evaluating", total, progress_enabled(quiet, as_json)) as advance:
-        results = [evaluate(p, gt, options, advance) for p in preds]
+    with ExitStack() as stack:
+        gt_seq = stack.enter_context(input_sequence(gt, gt_from, image_size, smpl_model))
+        pred_seqs = [stack.enter_context(input_sequence(p, from_, image_size, smpl_model)) for p in preds]
+        with progress_bar("evaluating", sum(len(s) for s in pred_seqs), progress_enabled(quiet, as_json)) as advance:
+            results = [evaluate(s.path, gt_seq.path, options, advance) for s in pred_seqs]
+    for result, path in zip(results, preds):  # report the user's paths, not temporary imports
+        result.pred, result.gt = str(path), str(gt)
     json_path, md_path = write_reports(out, results, str(gt), {**opts, "joints": joints})
     if per_person:
         write_per_person_csv(per_person, results)
