@@ -145,18 +145,23 @@ def foot_head_points(
     up_hint_cam: (3,) or (P, 3), roughly "up" for the people (any norm); only its sign along the
         body axis matters. Default ``(0, -1, 0)``, up in the image. Unused for known topologies.
     """
-    verts = np.asarray(verts_cam, dtype=np.float64)
+    verts = np.asarray(verts_cam)
+    if verts.dtype.kind != "f":
+        verts = verts.astype(np.float64)
     if verts.ndim != 3 or verts.shape[-1] != 3:
         raise ValueError(f"verts_cam must have shape (P, V, 3), got {verts.shape}")
     n_people, n_verts = verts.shape[:2]
     if n_people == 0 or n_verts == 0:
         nan_rows = np.full((n_people, 3), np.nan)
         return nan_rows, nan_rows.copy()
-    valid = _valid_people(verts)
     topology = topology_for(n_verts)
     if topology is not None:
         feet_cam, heads_cam = _points_by_topology(verts, topology)
+        # all vertices identical <=> a collapsed mesh: its crown coincides with its mid-sole
+        valid = np.isfinite(verts).all(axis=(1, 2)) & np.any(feet_cam != heads_cam, axis=1)
     else:
+        verts = verts.astype(np.float64, copy=False)
+        valid = _valid_people(verts)
         hint_cam = _up_hint(up_hint_cam, n_people)
         safe_verts = np.where(valid[:, None, None], verts, 0.0)  # keeps NaN out of eigh
         feet_cam, heads_cam, ok = _points_by_geometry(safe_verts, hint_cam)
@@ -175,9 +180,9 @@ def _valid_people(verts: np.ndarray) -> np.ndarray:
 
 def _points_by_topology(verts: np.ndarray, topology: Topology) -> tuple[np.ndarray, np.ndarray]:
     """(P, V, 3) -> feet (P, 3) = midpoint of the two sole means, heads (P, 3) = crown vertex."""
-    left_sole = verts[:, topology.left_sole_indices].mean(axis=1)
-    right_sole = verts[:, topology.right_sole_indices].mean(axis=1)
-    return 0.5 * (left_sole + right_sole), verts[:, topology.crown_index].copy()
+    left_sole = verts[:, topology.left_sole_indices].astype(np.float64).mean(axis=1)
+    right_sole = verts[:, topology.right_sole_indices].astype(np.float64).mean(axis=1)
+    return 0.5 * (left_sole + right_sole), verts[:, topology.crown_index].astype(np.float64)
 
 
 def _up_hint(up_hint_cam: np.ndarray | None, n_people: int) -> np.ndarray:

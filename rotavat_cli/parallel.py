@@ -1,10 +1,12 @@
-"""Bounded, order-preserving parallel map over threads (for frame streams)."""
+"""Bounded, order-preserving parallel map over worker processes or threads (for frame streams)."""
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
+import multiprocessing
+import sys
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import TypeVar
 
 __all__ = ["ordered_map"]
@@ -13,11 +15,21 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 
-def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int = 2, window: int | None = None) -> Iterator[R]:
+def _executor(workers: int, processes: bool) -> Executor:
+    """A process pool (fork on Linux: cheap start, inherited imports) or a thread pool."""
+    if not processes:
+        return ThreadPoolExecutor(max_workers=workers)
+    method = "fork" if sys.platform.startswith("linux") else "spawn"
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method))
+
+
+def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int = 2, window: int | None = None,
+                processes: bool = False) -> Iterator[R]:
     """Yield ``fn(item)`` in input order, at most ``window`` items in flight (default 2 x workers).
 
-    ``workers <= 1`` runs inline. An exception in ``fn`` is raised when its result is reached;
-    pending work is cancelled.
+    ``workers <= 1`` runs inline. With ``processes`` the work runs in worker processes (``fn`` and
+    items must pickle): true parallelism for numpy code that holds the GIL between small calls.
+    An exception in ``fn`` is raised when its result is reached; pending work is cancelled.
 
     >>> list(ordered_map(lambda x: x * x, range(5), workers=2))
     [0, 1, 4, 9, 16]
@@ -27,7 +39,7 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int = 2, wind
         return
     window = window or 2 * workers
     pending: deque[Future] = deque()
-    with ThreadPoolExecutor(max_workers=workers) as pool:
+    with _executor(workers, processes) as pool:
         try:
             for item in items:
                 pending.append(pool.submit(fn, item))

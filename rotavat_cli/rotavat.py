@@ -25,7 +25,7 @@ import numpy as np
 
 from .rotations import axis_angle_to_matrix
 
-__all__ = ["FLAGS", "AlignTransform", "rotavat_transforms", "apply_transforms", "closest_scale_on_line"]
+__all__ = ["FLAGS", "AlignTransform", "rotavat_transforms", "apply_transforms", "closest_scale_on_line", "person_blocks"]
 
 # Flag codes of people that are left unchanged (0 = aligned).
 FLAGS = {
@@ -146,15 +146,33 @@ def rotavat_transforms(
     )
 
 
-def apply_transforms(points_cam: np.ndarray, transform: AlignTransform) -> np.ndarray:
-    """Apply per-person transforms to points (P, N, 3) -> float64; flagged people come back unchanged.
+_BLOCK_BYTES = 384 * 1024  # work per block of people: small temporaries stay in cache and off mmap
 
-    ``X' = pivot + s3 R (s1 X - pivot)`` is one affine map ``X' = A X + b`` per person, applied
-    with a single batched matmul (flagged people have ``A = I``, ``b = 0`` exactly).
+
+def person_blocks(n_people: int, bytes_per_person: int) -> list[slice]:
+    """Slices over people sized so a block's temporaries fit ``_BLOCK_BYTES``.
+
+    Whole-frame float64 temporaries (MBs) cost more in page faults than the arithmetic; a few
+    people per block keeps every temporary in cache, with one vectorised call per block.
+    """
+    step = max(1, _BLOCK_BYTES // max(1, bytes_per_person))
+    return [slice(start, start + step) for start in range(0, n_people, step)]
+
+
+def apply_transforms(points_cam: np.ndarray, transform: AlignTransform, dtype: np.dtype | None = None) -> np.ndarray:
+    """Apply per-person transforms to points (P, N, 3); flagged people come back unchanged.
+
+    ``X' = pivot + s3 R (s1 X - pivot)`` is one affine map ``X' = A X + b`` per person, computed
+    in float64 and stored as ``dtype`` (default float64), a block of people at a time
+    (:func:`person_blocks`). Flagged people have ``A = I``, ``b = 0`` exactly.
     """
     t = transform
-    A = (t.depth_scale * t.final_scale)[:, None, None] * t.rotation  # (P, 3, 3)
+    X = np.asarray(points_cam)
+    A_T = np.ascontiguousarray(np.swapaxes((t.depth_scale * t.final_scale)[:, None, None] * t.rotation, 1, 2))
     b = t.pivot_cam - t.final_scale[:, None] * np.einsum("pij,pj->pi", t.rotation, t.pivot_cam)
-    out = np.matmul(np.asarray(points_cam, dtype=np.float64), np.swapaxes(A, 1, 2))
-    out += b[:, None, :]
+    out = np.empty(X.shape, dtype=dtype or np.float64)
+    for block in person_blocks(X.shape[0], X.shape[1] * 3 * 8):
+        moved = np.matmul(X[block], A_T[block], dtype=np.float64)
+        moved += b[block, None, :]
+        out[block] = moved
     return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
@@ -22,6 +23,7 @@ def align(
     out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input.", file_okay=False)] = None,
     upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
     height_from: Annotated[str | None, typer.Option(help="frame: each mesh keeps its stature; track: median stature per person_id.")] = None,
+    jobs: Annotated[int | None, typer.Option(help="Worker processes for the frames (0 = one per core).", min=0)] = None,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
     smpl_model: SmplModelOpt = None,
@@ -30,7 +32,7 @@ def align(
     as_json: JsonOpt = False,
 ) -> None:
     """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
-    opts = config_for(config, "align", upright=upright, height_from=height_from)
+    opts = config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs)
     out = out or seq.with_name((seq.stem if seq.is_file() else seq.name) + "_aligned")
     with input_sequence(seq, from_, image_size, smpl_model) as sequence:
         if camera is not None:
@@ -43,7 +45,8 @@ def align(
             calib = run_calibration(sequence, config, quiet or as_json)
             cam, fit, origin = calib.result.camera, calib.result.fit_dict(), "calibrated from the people"
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
-            summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance)
+            summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance,
+                                     workers=opts["jobs"] or os.cpu_count() or 1)
     result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out"}}
     if as_json:
         print_json(result)
