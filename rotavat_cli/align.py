@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_open
+from .atomic import atomic_open, staged_directory
 from .parallel import ordered_map
 from .camera import Camera
 from .errors import InputError
@@ -121,7 +121,7 @@ def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray]]]:
 
 @dataclass
 class AlignSummary:
-    """What ``align_sequence`` did."""
+    """What ``align_sequence`` did (``add`` per frame, then ``finish``)."""
 
     out: Path
     frames: int = 0
@@ -133,6 +133,29 @@ class AlignSummary:
     median_rotation_deg: float = float("nan")
     median_stature_m: float = float("nan")
     max_head_drift_px: float = 0.0
+    _aligned_columns: list[dict[str, np.ndarray]] = field(default_factory=list, repr=False)
+
+    def add(self, n_people: int, cols: dict[str, np.ndarray]) -> None:
+        """Count one frame's people and keep the aligned people's factors."""
+        ok = cols["flag"] == ""
+        self.frames += 1
+        self.people += n_people
+        self.aligned += int(ok.sum())
+        for name in cols["flag"][~ok]:
+            self.flagged[str(name)] = self.flagged.get(str(name), 0) + 1
+        self._aligned_columns.append({k: cols[k][ok] for k in ("depth_scale", "rotation_deg", "stature_m", "head_drift_px")})
+
+    def finish(self) -> None:
+        """Medians over every aligned person (small: four floats per person)."""
+        if not self.aligned:
+            return
+        col = {k: np.concatenate([c[k] for c in self._aligned_columns]) for k in self._aligned_columns[0]}
+        self.median_depth_scale = float(np.median(col["depth_scale"]))
+        self.median_abs_depth_change_pct = float(np.median(np.abs(col["depth_scale"] - 1.0)) * 100.0)
+        self.median_rotation_deg = float(np.median(np.abs(col["rotation_deg"])))
+        self.median_stature_m = float(np.median(col["stature_m"]))
+        self.max_head_drift_px = float(np.max(col["head_drift_px"]))
+        self._aligned_columns.clear()
 
 
 def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str = "paper", height_from: str = "frame",
@@ -152,41 +175,23 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
         raise InputError(f"upright must be 'paper' or 'full', got {upright!r}")
     stature_by_id = track_statures(seq, camera, upright) if height_from == "track" else None
     summary = AlignSummary(out)
-    depth, rotation, stature, flags = [], [], [], defaultdict(int)
-    out.mkdir(parents=True, exist_ok=True)
-
-    with atomic_open(out / "people.csv", "w") as handle:
-        writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(PEOPLE_COLUMNS)
-        names = seq.frame_names
-        chunks = [names[i:i + _CHUNK_FRAMES] for i in range(0, len(names), _CHUNK_FRAMES)]
-        tasks = ((seq, chunk, camera, out, upright, stature_by_id) for chunk in chunks)
-        results = (item for chunk in ordered_map(_align_chunk, tasks, workers, processes=True) for item in chunk)
-        for n_people, cols in results:
-            _write_rows(writer, cols)
-            ok = cols["flag"] == ""
-            summary.frames += 1
-            summary.people += n_people
-            summary.aligned += int(ok.sum())
-            for name in cols["flag"][~ok]:
-                flags[str(name)] += 1
-            depth.append(cols["depth_scale"][ok])
-            rotation.append(np.abs(cols["rotation_deg"][ok]))
-            stature.append(cols["stature_m"][ok])
-            if ok.any():
-                summary.max_head_drift_px = max(summary.max_head_drift_px, float(np.max(cols["head_drift_px"][ok])))
-            if progress:
-                progress()
-    write_camera_yaml(out / "camera.yaml", camera, camera_fit)
-    if seq.meta:
-        write_meta(out, seq.meta)
-    summary.flagged = dict(flags)
-    if summary.aligned:
-        d = np.concatenate(depth)
-        summary.median_depth_scale = float(np.median(d))
-        summary.median_abs_depth_change_pct = float(np.median(np.abs(d - 1.0)) * 100.0)
-        summary.median_rotation_deg = float(np.median(np.concatenate(rotation)))
-        summary.median_stature_m = float(np.median(np.concatenate(stature)))
+    names = seq.frame_names
+    chunks = [names[i:i + _CHUNK_FRAMES] for i in range(0, len(names), _CHUNK_FRAMES)]
+    with staged_directory(out) as stage:
+        tasks = ((seq, chunk, camera, stage, upright, stature_by_id) for chunk in chunks)
+        with atomic_open(stage / "people.csv", "w") as handle:
+            writer = csv.writer(handle, lineterminator="\n")
+            writer.writerow(PEOPLE_COLUMNS)
+            for results in ordered_map(_align_chunk, tasks, workers, processes=True):
+                for n_people, cols in results:
+                    _write_rows(writer, cols)
+                    summary.add(n_people, cols)
+                    if progress:
+                        progress()
+        write_camera_yaml(stage / "camera.yaml", camera, camera_fit)
+        if seq.meta:
+            write_meta(stage, seq.meta)
+    summary.finish()
     return summary
 
 

@@ -122,3 +122,39 @@ def test_bad_option_value_exits_2(scene, tmp_path, runner):
     result = invoke(runner, "align", "--in", scene / "pred", "--camera", scene / "gt" / "camera.yaml",
                     "--out", tmp_path / "x", "--upright", "sideways")
     assert result.exit_code == 2 and "upright" in result.stderr
+
+
+def test_worker_count_does_not_change_the_output(scene, tmp_path):
+    cam = open_sequence(scene / "gt").camera
+    seq = open_sequence(scene / "pred")
+    align_sequence(seq, cam, tmp_path / "one", workers=1)
+    align_sequence(seq, cam, tmp_path / "two", workers=2)
+    for name in seq.frame_names:
+        assert (tmp_path / "one" / f"{name}.npz").read_bytes() == (tmp_path / "two" / f"{name}.npz").read_bytes()
+    assert (tmp_path / "one" / "people.csv").read_text() == (tmp_path / "two" / "people.csv").read_text()
+
+
+def test_error_in_a_worker_is_one_line(scene, tmp_path, runner):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for name in ("000000", "000001"):
+        (bad / f"{name}.npz").write_bytes((scene / "pred" / f"{name}.npz").read_bytes())
+    np.savez(bad / "000002.npz", joints=np.zeros((1, 24, 3)) + [0, 0, 5])  # people without meshes
+    (bad / "meta.yaml").write_text((scene / "pred" / "meta.yaml").read_text())
+    result = invoke(runner, "align", "--in", bad, "--camera", scene / "gt" / "camera.yaml", "--out", tmp_path / "o", "--jobs", "2")
+    assert result.exit_code == 2 and "000002.npz" in result.stderr and "vertices" in result.stderr
+
+
+def test_failed_align_leaves_no_partial_output(scene, tmp_path, runner):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "000000.npz").write_bytes((scene / "pred" / "000000.npz").read_bytes())
+    np.savez(bad / "000001.npz", joints=np.zeros((1, 24, 3)) + [0, 0, 5])
+    (bad / "meta.yaml").write_text((scene / "pred" / "meta.yaml").read_text())
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("previous result")
+    result = invoke(runner, "align", "--in", bad, "--camera", scene / "gt" / "camera.yaml", "--out", out, "--jobs", "1")
+    assert result.exit_code == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad", "out"]  # no staging left behind
+    assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]  # previous output untouched

@@ -47,7 +47,7 @@ def align(
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
             summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance,
                                      workers=opts["jobs"] or os.cpu_count() or 1)
-    result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out"}}
+    result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
     if as_json:
         print_json(result)
         return
