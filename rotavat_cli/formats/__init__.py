@@ -22,6 +22,7 @@ import re
 import shutil
 import struct
 import tempfile
+import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ import numpy as np
 
 from ..camera import Camera, project_cam_to_px
 from ..errors import InputError
+from ..plain import to_plain
 from ..sequence import Frame, Sequence, open_sequence, validate_frame, write_camera_yaml, write_frame, write_meta
 from ..smpl import BodyModel, load_body_model
 
@@ -75,6 +77,24 @@ class ImportedSequence:
 def fail(source: Any, message: str) -> InputError:
     """InputError whose message starts with the file name."""
     return InputError(f"{source}: {message}")
+
+
+def npz_has_keys(path: Path, keys: set[str]) -> bool:
+    """True for an .npz file holding at least ``keys`` (read from the zip index, no arrays loaded)."""
+    if not (path.is_file() and path.suffix == ".npz"):
+        return False
+    with zipfile.ZipFile(path) as archive:
+        return keys <= {n[:-4] for n in archive.namelist()}
+
+
+def single_file(src: Path, sniff: Callable[[Path], str | None], what: str, hint: str = "") -> Path:
+    """``src`` itself, or the one file in directory ``src`` that ``sniff`` recognises."""
+    if src.is_file():
+        return src
+    candidates = [p for p in sorted(src.glob("*.npz")) if sniff(p)]
+    if len(candidates) != 1:
+        raise fail(src, f"expected one {what} in the directory, found {len(candidates)}{hint}")
+    return candidates[0]
 
 
 def need_image_size(opts: ImportOptions, source: Any, why: str) -> tuple[int, int]:
@@ -349,7 +369,7 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
             raise _invalid(src, fmt, exc) from None
         if frames == 0:
             raise InputError(f"{src}: no frames found for format '{fmt}'")
-        meta = _plain(dict(imported.meta))
+        meta = to_plain(dict(imported.meta))
         meta.setdefault("import", {})["warnings"] = [str(w) for w in imported.warnings]
         write_meta(staging, meta)
         if imported.camera is not None:
@@ -371,19 +391,6 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         "camera_yaml": imported.camera is not None,
         "warnings": list(imported.warnings),
     }
-
-
-def _plain(value: Any) -> Any:
-    """YAML-safe plain types (numpy scalars and strings become Python ones)."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def _publish(staging: Path, out: Path) -> None:

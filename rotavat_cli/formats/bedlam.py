@@ -20,7 +20,6 @@ Source: pixelite1201/BEDLAM ``data_processing/df_full_body.py`` (``get_params``,
 
 from __future__ import annotations
 
-import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -29,7 +28,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
+from . import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
                people_frame)
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
@@ -37,25 +36,12 @@ _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
 
 def sniff(path: Path) -> str | None:
     """'bedlam' for a per-scene .npz with BEDLAM's keys."""
-    if path.is_file() and path.suffix == ".npz":
-        with zipfile.ZipFile(path) as archive:
-            return "bedlam" if _KEYS <= {n[:-4] for n in archive.namelist()} else None
-    return None
-
-
-def _find_file(src: Path) -> Path:
-    if src.is_file():
-        return src
-    candidates = [p for p in sorted(src.glob("*.npz")) if sniff(p)]
-    if len(candidates) != 1:
-        raise fail(src, f"expected one BEDLAM scene .npz in the directory, found {len(candidates)} "
-                        "(import one scene at a time: a sequence is one camera)")
-    return candidates[0]
+    return "bedlam" if npz_has_keys(path, _KEYS) else None
 
 
 def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     """BEDLAM per-scene .npz -> contract frames (one frame per image)."""
-    path = _find_file(src)
+    path = single_file(src, sniff, "BEDLAM scene .npz", ' (import one scene at a time: a sequence is one camera)')
     data = safe_pickle.load_npz(path)
     missing = sorted(_KEYS - set(data))
     if missing:

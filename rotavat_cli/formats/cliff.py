@@ -19,7 +19,6 @@ Source: huawei-noah/noah-research ``CLIFF/demo.py`` (and the multi-person fork h
 
 from __future__ import annotations
 
-import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -28,7 +27,7 @@ import numpy as np
 from .. import safe_pickle
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
+from . import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
                model_faces, no_model_warning, people_frame)
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
@@ -36,21 +35,7 @@ _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "dete
 
 def sniff(path: Path) -> str | None:
     """'cliff' for an .npz holding CLIFF's keys."""
-    if path.is_file() and path.suffix == ".npz":
-        with zipfile.ZipFile(path) as archive:
-            names = {n[:-4] for n in archive.namelist()}
-        return "cliff" if _KEYS <= names else None
-    return None
-
-
-def _find_file(src: Path) -> Path:
-    """The results file (a directory must hold exactly one CLIFF npz)."""
-    if src.is_file():
-        return src
-    candidates = [p for p in sorted(src.glob("*.npz")) if sniff(p)]
-    if len(candidates) != 1:
-        raise fail(src, f"expected one CLIFF results .npz in the directory, found {len(candidates)}")
-    return candidates[0]
+    return "cliff" if npz_has_keys(path, _KEYS) else None
 
 
 def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[tuple[int, int], str]:
@@ -68,7 +53,7 @@ def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[t
 
 def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     """CLIFF demo .npz -> contract frames (see the module docstring for the conventions)."""
-    path = _find_file(src)
+    path = single_file(src, sniff, "CLIFF results .npz")
     data = safe_pickle.load_npz(path)
     missing = sorted(k for k in ("imgname", "detection_all", "global_t", "focal_l", "pred_joints") if k not in data)
     if missing:
