@@ -157,3 +157,15 @@ def test_version_and_help(runner):
     assert invoke(runner, "--version").stdout.strip() == f"rotavat {__version__}"
     for command in ("info", "synth"):
         assert invoke(runner, command, "--help").exit_code == 0
+
+
+def test_progress_bars_stay_off_in_ci(monkeypatch):
+    from rotavat_cli.cli import _common
+
+    monkeypatch.setenv("FORCE_COLOR", "1")
+    monkeypatch.delenv("CI", raising=False)
+    assert _common.progress_enabled(False, False) is False  # stderr is not a tty under pytest
+    monkeypatch.setenv("CI", "true")
+    monkeypatch.setattr(_common.console.file, "isatty", lambda: True, raising=False)
+    assert _common.progress_enabled(False, False) is False
+    assert _common.progress_enabled(True, False) is False

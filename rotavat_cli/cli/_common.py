@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
@@ -62,8 +63,17 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
 
 
 def progress_enabled(quiet: bool, as_json: bool) -> bool:
-    """Live bars only on an interactive terminal and never with --quiet/--json (CI stays quiet)."""
-    return not (quiet or as_json) and console.is_terminal and not console.is_dumb_terminal
+    """Live bars only on a real interactive terminal: never with --quiet/--json or in CI.
+
+    rich treats FORCE_COLOR as "a terminal", so the stream itself must be a tty too, and a
+    ``CI`` environment variable turns bars off (CI logs get the summary lines only).
+    """
+    if quiet or as_json or os.environ.get("CI") or not console.is_interactive:
+        return False
+    try:
+        return bool(console.file.isatty())
+    except (AttributeError, ValueError):
+        return False
 
 
 @contextmanager
