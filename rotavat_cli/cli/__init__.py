@@ -39,7 +39,7 @@ def _root(
 
 
 # Commands register themselves on ``app`` when imported.
-from . import align, calibrate, eval, export, import_, info, render, synth  # noqa: E402,F401
+from . import align, batch, calibrate, eval, export, import_, info, render, synth  # noqa: E402,F401
 
 
 def main() -> None:
