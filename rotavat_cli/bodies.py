@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .landmarks import Topology, register_topology
+from .landmarks import PACKAGED_BODIES, Topology, topology_from_npz
 
 __all__ = ["BodyLibrary", "load_bodies", "BODIES_PATH", "SMPL_JOINT_NAMES"]
 
-BODIES_PATH = Path(__file__).resolve().parent / "data" / "bodies.npz"
+BODIES_PATH = PACKAGED_BODIES
 
 SMPL_JOINT_NAMES = (
     "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
@@ -42,17 +42,8 @@ class BodyLibrary:
 
 @lru_cache(maxsize=1)
 def load_bodies(path: str | None = None) -> BodyLibrary:
-    """Load the body library and register its topology for foot/crown look-ups."""
+    """Load the body library (the packaged one by default; its topology is built into landmarks)."""
     with np.load(Path(path) if path else BODIES_PATH, allow_pickle=False) as npz:
-        verts = npz["vertices"].astype(np.float64)
-        topology = Topology(
-            name="rotavat-synth",
-            n_verts=int(verts.shape[1]),
-            crown_index=int(npz["crown_index"]),
-            left_sole_indices=npz["left_sole_indices"].astype(np.int64),
-            right_sole_indices=npz["right_sole_indices"].astype(np.int64),
-        )
-        library = BodyLibrary(verts, npz["faces"].astype(np.int64), npz["joints"].astype(np.float64),
-                              npz["stature_m"].astype(np.float64), topology)
-    register_topology(topology)
-    return library
+        return BodyLibrary(npz["vertices"].astype(np.float64), npz["faces"].astype(np.int64),
+                           npz["joints"].astype(np.float64), npz["stature_m"].astype(np.float64),
+                           topology_from_npz(npz, "rotavat-synth"))

@@ -33,7 +33,7 @@ from .landmarks import foot_head_points
 from .matching import match_agora, match_by_ids, match_hungarian
 from .sequence import Frame, Intrinsics, Sequence, open_sequence
 
-__all__ = ["PERSON_METRICS", "EvalOptions", "EvalResult", "evaluate", "parse_joints"]
+__all__ = ["PERSON_METRICS", "EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
 
 # Per-person metrics, in report order.
 PERSON_METRICS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
@@ -182,8 +182,12 @@ def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
 
 
 def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | None = None,
-             progress: Callable[[], None] | None = None) -> EvalResult:
-    """Score one prediction sequence against the ground truth, frame by frame."""
+             progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
+    """Score one prediction sequence against the ground truth, frame by frame.
+
+    ``frames=(start, stop)`` scores only that range of the sorted union of both sides' frame
+    names; :func:`merge_results` joins the results of consecutive ranges into the whole one.
+    """
     opts = options or EvalOptions()
     if opts.match not in ("auto", "ids", "hungarian", "agora"):
         raise InputError(f"--match must be auto, ids, hungarian or agora, got {opts.match!r}")
@@ -194,12 +198,33 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
         result.camera = _camera_errors(pred_cam, gt_cam)
     pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
     columns: dict[str, list] = {k: [] for k in ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)}
-    for name in sorted(pred_names | gt_names):
+    names = sorted(pred_names | gt_names)
+    for name in names if frames is None else names[frames[0]:frames[1]]:
         _score_frame(name, pred_seq, gt_seq, pred_names, gt_names, pred_cam, gt_cam, opts, result, columns)
         if progress:
             progress()
     result.per_person = columns
     result.metrics = _aggregate(result, columns)
+    return result
+
+
+_COUNTS = ("frames", "frames_pred_only", "frames_gt_only", "people_gt", "people_pred", "matched", "missed",
+           "false_positives")
+
+
+def merge_results(parts: Seq[EvalResult]) -> EvalResult:
+    """One result from the results of consecutive frame ranges of the same two sequences, in order.
+
+    Counts are summed and per-person rows concatenated, so the metrics are the same floats that one
+    :func:`evaluate` call over the whole range gives.
+    """
+    if not parts:
+        raise ValueError("merge_results needs at least one part")
+    result = EvalResult(parts[0].pred, parts[0].gt, camera=dict(parts[0].camera))
+    for name in _COUNTS:
+        setattr(result, name, sum(getattr(part, name) for part in parts))
+    result.per_person = {key: [v for part in parts for v in part.per_person[key]] for key in parts[0].per_person}
+    result.metrics = _aggregate(result, result.per_person)
     return result
 
 

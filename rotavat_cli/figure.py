@@ -47,6 +47,21 @@ class FigureOptions:
     glb: bool = False
     style: RenderStyle = field(default_factory=RenderStyle)
 
+    @classmethod
+    def from_config(cls, render: dict, camera_path: Path | None = None, image_dir: Path | None = None) -> "FigureOptions":
+        """Options from a merged ``render`` config section; ValueError naming a bad option."""
+        from .render_gl import RENDERERS
+
+        if render["renderer"] not in RENDERERS:
+            raise ValueError(f"--renderer (render.renderer) must be one of {', '.join(RENDERERS)}, got {render['renderer']!r}")
+        if min(render["size"]) < 16 or max(render["size"]) > 8192:
+            raise ValueError(f"--size (render.size) must be between 16 and 8192 px, got {render['size']}")
+        if render["fps"] <= 0:
+            raise ValueError(f"render.fps must be > 0, got {render['fps']}")
+        return cls(parse_views(render["views"]), tuple(render["size"]),
+                   None if render["frames"] is None else str(render["frames"]), render["every"], render["renderer"],
+                   camera_path, image_dir, render["gif"], float(render["fps"]), render["glb"], RenderStyle.from_config(render))
+
 
 @dataclass
 class FigureSummary:

@@ -6,8 +6,8 @@ in the OpenCV camera frame (x right, y down, z forward, metres); so are the resu
 
 Two modes, chosen per call by the vertex count ``V``:
 
-- **Known topology** (SMPL 6890, SMPL-X 10475, or anything added with
-  :func:`register_topology`): sole point of a foot = mean of that foot's sole vertices;
+- **Known topology** (SMPL 6890, SMPL-X 10475, rotavat's packaged synthetic bodies, or
+  anything added with :func:`register_topology`): sole point of a foot = mean of that foot's sole vertices;
   mid-sole = midpoint of the two sole points; crown = the crown vertex. Pure fancy indexing.
 - **Any other mesh: geometry.** The body axis is the principal axis of the vertices (largest
   variance; for a standing person that is head-feet), turned to point along ``up_hint_cam``.
@@ -36,7 +36,10 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -46,6 +49,7 @@ __all__ = [
     "SMPLX",
     "register_topology",
     "topology_for",
+    "topology_from_npz",
     "foot_head_points",
     "DEFAULT_UP_HINT_CAM",
 ]
@@ -123,6 +127,27 @@ SMPLX = Topology("smplx", 10475, _SMPLX_CROWN, np.array(_SMPLX_LEFT_SOLE), np.ar
 
 _TOPOLOGIES: dict[int, Topology] = {SMPL.n_verts: SMPL, SMPLX.n_verts: SMPLX}
 
+# rotavat's own synthetic bodies (``rotavat synth``; data/bodies.npz) carry their sole and crown
+# indices in the package data. They are a built-in topology like SMPL's, read on first use, so
+# every process finds the same points whether or not it has synthesised anything.
+PACKAGED_BODIES = Path(__file__).resolve().parent / "data" / "bodies.npz"
+
+
+def topology_from_npz(npz: Mapping[str, np.ndarray], name: str) -> Topology:
+    """Topology from arrays ``vertices`` (B, V, 3), ``crown_index``, ``left/right_sole_indices``."""
+    return Topology(name, int(npz["vertices"].shape[1]), int(npz["crown_index"]),
+                    np.asarray(npz["left_sole_indices"]), np.asarray(npz["right_sole_indices"]))
+
+
+@lru_cache(maxsize=1)
+def _packaged_topologies() -> dict[int, Topology]:
+    """The packaged synthetic bodies' topology by vertex count (empty if the data file is absent)."""
+    if not PACKAGED_BODIES.exists():
+        return {}
+    with np.load(PACKAGED_BODIES, allow_pickle=False) as npz:
+        topology = topology_from_npz(npz, "rotavat-synth")
+    return {topology.n_verts: topology}
+
 
 def register_topology(topology: Topology) -> None:
     """Make ``topology`` the one used for meshes with ``topology.n_verts`` vertices (replaces any)."""
@@ -132,8 +157,9 @@ def register_topology(topology: Topology) -> None:
 
 
 def topology_for(n_verts: int) -> Topology | None:
-    """The registered topology with ``n_verts`` vertices, or None (geometry mode)."""
-    return _TOPOLOGIES.get(int(n_verts))
+    """The topology with ``n_verts`` vertices (registered, else built-in), or None (geometry mode)."""
+    n_verts = int(n_verts)
+    return _TOPOLOGIES.get(n_verts) or _packaged_topologies().get(n_verts)
 
 
 def foot_head_points(

@@ -20,7 +20,7 @@ import numpy as np
 from .bodies import BodyLibrary, load_bodies
 from .camera import Camera
 from .landmarks import foot_head_points
-from .rotations import axis_angle_to_matrix, rotate_about
+from .rotations import axis_angle_to_matrix
 from .rotavat import closest_scale_on_line
 from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 

@@ -277,8 +277,6 @@ def test_dask_cluster_results_equal_the_local_ones(dataset, tmp_path, runner):
 
     local = tmp_path / "local"
     common = ["--gt-root", dataset / "gt", *FAST]
-    # the local reference runs in fresh worker processes as Dask's do: this test process has run
-    # `synth`, whose load_bodies() registers a landmark topology process-wide (see docs/batch.md)
     assert batch(runner, dataset / "pred", local, *common, "--jobs", "2", "--chunk-frames", "100").exit_code == 0
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None, silence_logs=logging.ERROR) as cluster:

@@ -292,6 +292,21 @@ def test_register_topology_switches_the_mesh_to_its_indices(monkeypatch):
     assert _dist(heads_cam[0], _to_cam(crown_body, R, t)) < TOL_M
 
 
+def test_packaged_synthetic_topology_is_built_in_and_loading_bodies_changes_nothing():
+    """Every process finds the synthetic bodies' points by index, whether it has loaded them or not."""
+    from rotavat_cli.bodies import load_bodies
+
+    registered = dict(landmarks._TOPOLOGIES)
+    library = load_bodies()
+    assert landmarks._TOPOLOGIES == registered  # no process-wide side effect
+    n_verts = library.vertices.shape[1]
+    assert n_verts not in (6890, 10475) and n_verts not in registered
+    topology = topology_for(n_verts)
+    assert topology.name == "rotavat-synth"
+    np.testing.assert_array_equal(topology.left_sole_indices, library.topology.left_sole_indices)
+    assert topology.crown_index == library.topology.crown_index
+
+
 def test_topology_validates_indices():
     with pytest.raises(ValueError, match=r"must lie in \[0, 10\)"):
         Topology("bad", 10, 3, np.array([1, 2]), np.array([9, 10]))

@@ -8,9 +8,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ..figure import FigureOptions, parse_views, render_sequences
-from ..render import RenderStyle
-from ..render_gl import RENDERERS
+from ..figure import FigureOptions, render_sequences
 from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
 
@@ -36,18 +34,9 @@ def render(
     opts = config_for(config, "render", views=views, frames=frames, every=every, size=list(size) if size else None,
                       renderer=renderer, gif=gif, glb=glb)
     try:
-        style = RenderStyle.from_config(opts)
-        chosen_views = parse_views(opts["views"])
+        options = FigureOptions.from_config(opts, camera, image)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    if opts["renderer"] not in RENDERERS:
-        raise InputError(f"--renderer must be one of {', '.join(RENDERERS)}, got {opts['renderer']!r}")
-    if min(opts["size"]) < 16 or max(opts["size"]) > 8192:
-        raise InputError(f"--size must be between 16 and 8192 px, got {opts['size']}")
-    if opts["fps"] <= 0:
-        raise InputError(f"render.fps must be > 0, got {opts['fps']}")
-    options = FigureOptions(chosen_views, tuple(opts["size"]), None if opts["frames"] is None else str(opts["frames"]),
-                            opts["every"], opts["renderer"], camera, image, opts["gif"], float(opts["fps"]), opts["glb"], style)
     out = out or seqs[0].with_name(seqs[0].name + "_render")
     with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance:
         summary = render_sequences(seqs, out, options, advance)

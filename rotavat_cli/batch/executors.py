@@ -1,0 +1,124 @@
+"""Executors: one small interface (submit, wait, close) over this process, a process pool and a Dask client."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import InputError
+from .plan import BatchOptions
+from .tasks import one_line
+
+__all__ = ["InlineExecutor", "make_executor"]
+
+
+class InlineExecutor:
+    """Runs each task at submission, in this process (``jobs=1``)."""
+
+    name, workers, limit = "local", 1, 1
+
+    def submit(self, fn: Callable, *args: Any) -> cf.Future:
+        future: cf.Future = cf.Future()
+        try:
+            future.set_result(fn(*args))
+        except Exception as exc:  # delivered through the future, like the other executors
+            future.set_exception(exc)
+        return future
+
+    def wait(self, futures: list) -> set:
+        return set(futures)
+
+    def close(self, cancel: bool = False) -> None:
+        pass
+
+
+class _PoolExecutor:
+    """A process pool on this machine (spawned workers: no state forked from the driver)."""
+
+    name = "local"
+
+    def __init__(self, jobs: int) -> None:
+        self.workers, self.limit = jobs, jobs + 1  # one queued task so no worker waits for the driver
+        self._pool = self._new()
+
+    def _new(self) -> cf.ProcessPoolExecutor:
+        return cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, fn: Callable, *args: Any) -> cf.Future:
+        try:
+            return self._pool.submit(fn, *args)
+        except cf.process.BrokenProcessPool:  # a worker died (killed, out of memory): its tasks failed; start afresh
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = self._new()
+            return self._pool.submit(fn, *args)
+
+    def wait(self, futures: list) -> set:
+        return cf.wait(futures, return_when=cf.FIRST_COMPLETED).done
+
+    def close(self, cancel: bool = False) -> None:
+        self._pool.shutdown(wait=not cancel, cancel_futures=cancel)
+
+
+class _DaskExecutor:
+    """Tasks submitted to a Dask distributed cluster: an existing one (``scheduler``) or a LocalCluster here."""
+
+    name = "dask"
+
+    def __init__(self, scheduler: str | None, jobs: int) -> None:
+        try:
+            import distributed
+        except ImportError:
+            raise InputError("--executor dask needs Dask: pip install 'rotavat[dask]' (or dask[distributed])") from None
+        import logging
+
+        self._distributed, self._cluster = distributed, None
+        try:
+            if scheduler:
+                self._client = distributed.Client(scheduler, timeout=20, set_as_default=False)
+            else:
+                self._cluster = distributed.LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                                         host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+                self._client = distributed.Client(self._cluster, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(str(exc))})") from None
+        if not self._client.nthreads():
+            try:
+                self._client.wait_for_workers(1, timeout=60)
+            except (TimeoutError, OSError):
+                self.close()
+                raise InputError(f"the Dask cluster at {scheduler} has no workers") from None
+        self.workers = sum(self._client.nthreads().values())
+        self.limit = 2 * self.workers
+        self.address = self._client.scheduler.address
+
+    def submit(self, fn: Callable, *args: Any) -> Any:
+        return self._client.submit(fn, *args, pure=False)
+
+    def wait(self, futures: list) -> set:
+        with self._client.as_current():  # distributed.wait uses the current client; ours is not the default
+            return set(self._distributed.wait(futures, return_when="FIRST_COMPLETED").done)
+
+    def close(self, cancel: bool = False) -> None:
+        self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+
+def make_executor(options: BatchOptions) -> Any:
+    """The executor for ``options`` (a usage error if it cannot be had)."""
+    jobs = options.jobs or _cores()
+    if options.executor == "dask":
+        return _DaskExecutor(options.scheduler, jobs)
+    return InlineExecutor() if jobs == 1 else _PoolExecutor(jobs)
+
+
+def _cores() -> int:
+    """Cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # macOS, Windows
+        return os.cpu_count() or 1
+

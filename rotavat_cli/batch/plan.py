@@ -1,0 +1,152 @@
+"""Batch options, the run plan (one job per sequence) and the completion markers that make runs resumable."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..config import default_config
+from ..errors import InputError
+from ..figure import FigureOptions
+from ..plain import to_plain
+from .discover import discover_sequences, fingerprint, frames_hint
+
+__all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "BatchOptions", "parse_steps",
+           "make_plan", "completed_marker"]
+
+STEPS = ("calibrate", "align", "eval", "render")
+MARKER = ".rotavat-complete"
+MARKER_VERSION = 1
+ALIGN_STAGING = ".aligned.chunks"  # align chunks' staging (aligned/ and render/ are staged beside them by staged_directory)
+OUTPUTS = {"calibrate": "camera.yaml", "align": "aligned/people.csv", "eval": "eval/metrics.json", "render": "render"}
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """What ``rotavat batch`` can vary; ``config`` is a merged configuration (calibrate/align/eval/render)."""
+
+    steps: tuple[str, ...] = STEPS
+    gt_root: Path | None = None
+    fmt: str | None = None  # importer format of the sequences (--from)
+    image_size: tuple[int, int] | None = None  # --from: original image size
+    smpl_model: Path | None = None  # --from: body model for parameter-only formats
+    executor: str = "local"  # local | dask
+    jobs: int = 0  # 0: one per core
+    scheduler: str | None = None  # dask: address of an existing scheduler; None = a LocalCluster
+    chunk_frames: int = 100
+    force: bool = False
+    config: dict = field(default_factory=default_config)
+
+    @classmethod
+    def from_config(cls, config: dict, **fields: Any) -> "BatchOptions":
+        """Options from a merged config's ``batch`` section, overridden by ``fields``."""
+        section = config["batch"]
+        base = {"steps": parse_steps(section["steps"]), "executor": section["executor"], "jobs": int(section["jobs"]),
+                "scheduler": section["scheduler"], "chunk_frames": int(section["chunk_frames"]), "config": config}
+        return cls(**{**base, **fields})
+
+
+
+def parse_steps(text: str | Iterable[str]) -> tuple[str, ...]:
+    """'align,calibrate' -> ('calibrate', 'align'): known steps, always run in pipeline order."""
+    names = [s.strip().lower() for s in (text.split(",") if isinstance(text, str) else text) if s.strip()]
+    unknown = [s for s in names if s not in STEPS]
+    if unknown or not names:
+        raise InputError(f"--steps: unknown step(s) {', '.join(unknown) or '(none)'}; choose from {','.join(STEPS)}")
+    return tuple(s for s in STEPS if s in names)
+
+
+
+def _digest(value: Any) -> str:
+    """Stable digest of plain data."""
+    return hashlib.sha256(json.dumps(to_plain(value), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _step_digests(plan: dict) -> dict[str, str]:
+    """Per step, a digest of every option its outputs depend on (a changed option redoes the sequence)."""
+    cfg, imp = plan["config"], plan["import"]
+    align = {k: v for k, v in cfg["align"].items() if k != "jobs"}  # how many processes does not change the result
+    return {"calibrate": _digest([cfg["calibrate"], imp]), "align": _digest([cfg["calibrate"], align, imp]),
+            "eval": _digest([cfg["eval"], imp, plan["gt_root"]]), "render": _digest([cfg["render"], imp])}
+
+
+def completed_marker(job: dict, plan: dict) -> dict | None:
+    """The marker of ``job`` when its outputs are complete for ``plan``, else None (run it).
+
+    Complete: the marker exists (it is written last), lists every requested step with the same
+    options, was written after the newest input file, the inputs' fingerprints are unchanged, and
+    each step's main output exists.
+    """
+    out = Path(job["out"])
+    try:
+        marker = json.loads((out / MARKER).read_text())
+        written_ns = (out / MARKER).stat().st_mtime_ns
+    except (OSError, ValueError):
+        return None
+    if not isinstance(marker, dict) or marker.get("version") != MARKER_VERSION:
+        return None
+    options = marker.get("options") or {}
+    if any(step not in marker.get("steps", []) or options.get(step) != plan["digests"][step] for step in plan["steps"]):
+        return None
+    inputs = marker.get("inputs") or {}
+    if any(inputs.get(key) != value for key, value in job["inputs"].items()):
+        return None
+    if written_ns < max(v["newest_mtime_ns"] for v in job["inputs"].values()):
+        return None
+    if not all((out / OUTPUTS[step]).exists() for step in plan["steps"]):
+        return None
+    return marker
+
+
+
+def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[dict]]:
+    """Validate the options, find the sequences, and build the plan and one job per sequence."""
+    if options.executor not in ("local", "dask"):
+        raise InputError(f"--executor must be local or dask, got {options.executor!r}")
+    if options.jobs < 0 or options.chunk_frames < 1:
+        raise InputError(f"--jobs must be >= 0 and --chunk-frames >= 1, got {options.jobs} and {options.chunk_frames}")
+    if options.config["eval"]["match"] not in ("auto", "ids", "hungarian", "agora"):
+        raise InputError(f"eval.match must be auto, ids, hungarian or agora, got {options.config['eval']['match']!r}")
+    steps = parse_steps(options.steps)
+    if "eval" in steps and options.gt_root is None:
+        raise InputError("the eval step needs --gt-root (ground truth mirroring ROOT's tree)")
+    gt_root = Path(options.gt_root).resolve() if options.gt_root is not None else None
+    if gt_root is not None and not gt_root.is_dir():
+        raise InputError(f"{options.gt_root}: no such directory (--gt-root)")
+    if not root.is_dir():
+        raise InputError(f"{root}: no such directory")
+    if out.resolve() == root.resolve() or (gt_root is not None and out.resolve() == gt_root):
+        raise InputError(f"{out}: the output folder must differ from ROOT and --gt-root")
+    if "render" in steps:
+        try:
+            FigureOptions.from_config(options.config["render"])
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+    found = discover_sequences(root, options.fmt, exclude=[out] + ([gt_root] if gt_root else []))
+    if not found:
+        what = f"{options.fmt} outputs" if options.fmt else "sequences (folders of *.npz frames or of OBJ frame folders)"
+        raise InputError(f"{root}: no {what} found")
+    plan = {"steps": list(steps), "config": options.config, "chunk_frames": options.chunk_frames,
+            "gt_root": str(gt_root) if gt_root else None,
+            "import": {"format": options.fmt, "image_size": list(options.image_size) if options.image_size else None,
+                       "smpl_model": str(Path(options.smpl_model).resolve()) if options.smpl_model else None}}
+    plan["digests"] = _step_digests(plan)
+    jobs = []
+    out_abs = out.resolve()
+    for index, (rel, path) in enumerate(found):
+        target = out_abs / rel
+        gt = gt_root / rel if gt_root is not None and "eval" in steps else None
+        job = {"rel": rel, "index": index, "source": str(path.resolve()),
+               "seq": str(target / "input") if options.fmt else str(path.resolve()), "out": str(target),
+               "gt": str(gt) if gt is not None else None, "frames_hint": None if options.fmt else frames_hint(path)}
+        inputs = {"sequence": fingerprint(path, exclude=[out_abs] + ([gt_root] if gt_root else []))}
+        if gt is not None:
+            inputs["gt"] = fingerprint(gt) if gt.exists() else {"files": 0, "bytes": 0, "newest_mtime_ns": 0, "digest": "missing"}
+        job["inputs"] = inputs
+        jobs.append(job)
+    return plan, jobs
+

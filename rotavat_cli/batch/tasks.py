@@ -1,0 +1,263 @@
+"""The tasks of one sequence, run in workers: plain arguments in, plain results out, errors as one line.
+
+``prepare`` (import, then calibration on the pooled whole sequence), one ``align`` task per chunk of
+frames (each into its own staging folder), ``merge`` (the chunks' frames moved into ``aligned/``,
+their people.csv concatenated in order: byte-identical to one ``align_sequence`` call), one ``eval``
+task per chunk and side, and ``finish`` (metrics merged, reports, render, the marker written last).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import replace
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..atomic import atomic_open, atomic_write_text, staged_directory
+from ..errors import InputError, RotavatError
+from ..plain import to_plain
+from ..sequence import open_sequence, read_camera_yaml, write_camera_yaml
+from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
+
+__all__ = ["TaskError", "run_task", "one_line", "task_prepare", "task_align_chunk", "task_align_merge", "task_eval_chunk",
+           "task_finish"]
+
+
+class TaskError(RotavatError):
+    """A task of one sequence failed: the one-line reason (the sequence is reported failed, exit 1)."""
+
+    exit_code = 1
+
+
+
+def run_task(fn: Callable, *args: Any) -> dict:
+    """Run one task; its value, seconds and the worker's identity and peak RSS. Errors become a one-line TaskError."""
+    start = time.perf_counter()
+    try:
+        value = fn(*args)
+    except RotavatError as exc:
+        raise TaskError(one_line(str(exc))) from None
+    except Exception as exc:  # anything else in a worker: report it on one line, with where it happened
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" (at {Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
+        raise TaskError(one_line(f"{type(exc).__name__}: {exc}{where}")) from None
+    return {"value": value, "seconds": time.perf_counter() - start, "worker": _worker()}
+
+
+def one_line(text: str) -> str:
+    """Collapse whitespace so a reason fits one line."""
+    return " ".join(text.split()) or "failed"
+
+
+def _worker() -> dict:
+    """Host, pid and peak resident memory (MB) of this process."""
+    try:
+        import resource
+
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        rss_mb = rss / (1 << 20) if sys.platform == "darwin" else rss / 1024.0
+    except ImportError:  # Windows
+        rss_mb = float("nan")
+    return {"host": socket.gethostname(), "pid": os.getpid(), "peak_rss_mb": rss_mb}
+
+
+def _chunks(n: int, size: int) -> list[tuple[int, int]]:
+    """[start, stop) ranges of at most ``size`` covering 0..n."""
+    return [(a, min(a + size, n)) for a in range(0, n, max(1, size))]
+
+
+def _camera_summary(camera_file: Path, image_size: tuple[int, int] | None, origin: str) -> dict:
+    """Camera parameters in report units, with a few fit figures when estimated."""
+    camera, fit = read_camera_yaml(camera_file, image_size)
+    summary = {"origin": origin, "file": str(camera_file), "focal_px": camera.focal_px,
+               "pitch_deg": math.degrees(camera.pitch_rad), "roll_deg": math.degrees(camera.roll_rad),
+               "height_m": camera.height_m}
+    summary.update({k: fit[k] for k in ("method", "focal_policy", "pairs", "inliers", "rmse_px") if k in fit})
+    return summary
+
+
+def task_prepare(job: dict, plan: dict) -> dict:
+    """Clear the previous run's marker and staging, import (--from), calibrate on the whole sequence, plan chunks."""
+    out, steps = Path(job["out"]), plan["steps"]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER).unlink(missing_ok=True)  # from here on the outputs are not complete
+    for stale in [out / ALIGN_STAGING, *out.glob(".aligned.*-*"), *out.glob(".render.*-*")]:  # an interrupted run's staging
+        shutil.rmtree(stale, ignore_errors=True)
+    result: dict[str, Any] = {"seconds": {}, "warnings": [], "frame_passes": 0, "camera": None, "camera_file": None}
+    imp = plan["import"]
+    if imp["format"]:
+        from ..formats import import_sequence
+
+        start = time.perf_counter()
+        summary = import_sequence(job["source"], job["seq"], imp["format"], image_size=imp["image_size"],
+                                  smpl_model=imp["smpl_model"], overwrite=True)
+        result["warnings"] += [str(w) for w in summary.get("warnings", [])]
+        result["seconds"]["import"] = time.perf_counter() - start
+    seq_dir = Path(job["seq"])
+    seq = open_sequence(seq_dir, read_camera=False)
+    result["frames"] = len(seq)
+    camera_file, origin = None, None
+    if "calibrate" in steps or ("align" in steps and not (seq_dir / "camera.yaml").exists()):
+        from ..autocalib import calibrate_sequence
+
+        start = time.perf_counter()
+        calib = calibrate_sequence(seq, plan["config"]["calibrate"])
+        camera_file, origin = out / "camera.yaml", "calibrated"
+        write_camera_yaml(camera_file, calib.result.camera, {**calib.result.fit_dict(), "focal_policy": calib.focal_policy})
+        result["warnings"] += list(calib.result.warnings)
+        result["seconds"]["calibrate"] = time.perf_counter() - start
+        result["frame_passes"] = len(seq)
+    elif (seq_dir / "camera.yaml").exists():
+        camera_file, origin = seq_dir / "camera.yaml", "given"
+    if camera_file is not None:
+        result["camera_file"] = str(camera_file)
+        result["camera"] = _camera_summary(camera_file, seq.intrinsics.image_size, origin)
+    size = int(plan["chunk_frames"])
+    if "align" in steps:  # track statures need the whole sequence: one chunk
+        result["align_chunks"] = [(0, len(seq))] if plan["config"]["align"]["height_from"] == "track" else _chunks(len(seq), size)
+    if "eval" in steps:
+        gt = open_sequence(job["gt"], read_camera=False)
+        result["eval_chunks"] = _chunks(len(set(seq.frame_names) | set(gt.frame_names)), size)
+    return result
+
+
+def _chunk_dir(job: dict, index: int) -> Path:
+    """Staging folder of one align chunk."""
+    return Path(job["out"]) / ALIGN_STAGING / f"chunk-{index:06d}"
+
+
+def task_align_chunk(job: dict, plan: dict, camera_file: str, index: int, start: int, stop: int) -> dict:
+    """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
+    from ..align import align_sequence
+
+    seq = open_sequence(job["seq"], read_camera=False)
+    camera, fit = read_camera_yaml(camera_file, seq.intrinsics.image_size)
+    part = replace(seq, frame_names=seq.frame_names[start:stop])
+    opts = plan["config"]["align"]  # workers=1: the batch's own workers are the parallelism (no nested pools)
+    align_sequence(part, camera, _chunk_dir(job, index), opts["upright"], opts["height_from"], fit or None, workers=1)
+    return {"frames": stop - start}
+
+
+_CHUNK_FILES = ("people.csv", "camera.yaml", "meta.yaml")
+
+
+def task_align_merge(job: dict, plan: dict, n_chunks: int) -> dict:
+    """Move the chunks' frames into ``aligned/``, concatenate their people.csv in order; summarise people.csv."""
+    out = Path(job["out"])
+    parts = [_chunk_dir(job, i) for i in range(n_chunks)]
+    with staged_directory(out / "aligned") as merged:  # swapped in whole once complete
+        for k, part in enumerate(parts):
+            for entry in sorted(part.iterdir()):
+                if entry.name not in _CHUNK_FILES or (k == 0 and entry.name != "people.csv"):
+                    os.replace(entry, merged / entry.name)
+        with atomic_open(merged / "people.csv", "w") as handle:
+            for k, part in enumerate(parts):
+                with open(part / "people.csv", encoding="utf-8", newline="") as src:
+                    header = src.readline()
+                    if k == 0:
+                        handle.write(header)
+                    shutil.copyfileobj(src, handle)
+    shutil.rmtree(out / ALIGN_STAGING, ignore_errors=True)
+    return _people_summary(out / "aligned" / "people.csv")
+
+
+def _people_summary(people_csv: Path) -> dict:
+    """What align did, from its people.csv (the same numbers whatever the chunking)."""
+    people = aligned = 0
+    flagged: dict[str, int] = {}
+    depth, rotation, stature, drift = [], [], [], []
+    with open(people_csv, encoding="utf-8", newline="") as handle:
+        for row in csv.DictReader(handle):
+            people += 1
+            if row["flag"]:
+                flagged[row["flag"]] = flagged.get(row["flag"], 0) + 1
+                continue
+            aligned += 1
+            depth.append(float(row["depth_scale"]))
+            rotation.append(abs(float(row["rotation_deg"])))
+            stature.append(float(row["stature_m"]))
+            drift.append(float(row["head_drift_px"] or 0.0))
+    med = (lambda v: float(np.median(v)) if v else float("nan"))
+    return {"people": people, "aligned": aligned, "flagged": flagged, "median_depth_scale": med(depth),
+            "median_abs_depth_change_pct": med([abs(d - 1.0) * 100.0 for d in depth]),
+            "median_rotation_deg": med(rotation), "median_stature_m": med(stature),
+            "max_head_drift_px": max(drift, default=0.0)}
+
+
+def _eval_options(plan: dict) -> Any:
+    """EvalOptions from the eval config section."""
+    from ..evaluate import EvalOptions
+
+    opts = plan["config"]["eval"]
+    return EvalOptions(opts["match"], float(opts["threshold_px"]), float(opts["iou_threshold"]), None)
+
+
+def _eval_pred_dir(job: dict, side: str) -> str:
+    """The prediction scored by an eval side: the input ('before') or the aligned sequence ('after')."""
+    return job["seq"] if side == "before" else str(Path(job["out"]) / "aligned")
+
+
+def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> dict:
+    """Score frames [start, stop) of the sorted union of prediction and GT frame names, for one side."""
+    from ..evaluate import evaluate
+
+    part = evaluate(_eval_pred_dir(job, side), job["gt"], _eval_options(plan), frames=(start, stop))
+    return {"part": part, "frames": stop - start}
+
+
+def task_finish(job: dict, plan: dict, state: dict) -> dict:
+    """Merge and write the metrics, render, and write the marker last; returns the sequence's report row."""
+    out, steps = Path(job["out"]), plan["steps"]
+    seconds = dict(state["seconds"])
+    row = {"sequence": job["rel"], "status": "done", "reason": None, "source": job["source"], "out": job["out"],
+           "gt": job["gt"], "frames": state["frames"], "people": None, "camera": state["camera"],
+           "warnings": state["warnings"]}
+    if "align" in steps:
+        row["align"] = state["align"]
+        row["people"] = state["align"]["people"]
+    if "eval" in steps:
+        from ..evaluate import merge_results
+        from ..report import write_reports
+
+        start = time.perf_counter()
+        results = [merge_results(state["eval_parts"][side]) for side in ("before", "after") if side in state["eval_parts"]]
+        write_reports(out / "eval", results, job["gt"], {**plan["config"]["eval"], "joints": None})
+        row["eval"] = dict(zip(("before", "after"), (r.as_dict() for r in results)))
+        row["people"] = row["people"] if row["people"] is not None else results[0].people_pred
+        seconds["eval"] = seconds.get("eval", 0.0) + time.perf_counter() - start
+    if row["people"] is None and state["camera"] and state["camera"].get("pairs") is not None:
+        row["people"] = state["camera"]["pairs"]  # calibrate only: the foot/head pairs offered
+    if "render" in steps:
+        from ..figure import FigureOptions, render_sequences
+
+        start = time.perf_counter()
+        paths = [Path(job["seq"])] + ([out / "aligned"] if "align" in steps else []) + ([Path(job["gt"])] if job["gt"] else [])
+        camera = out / "aligned" / "camera.yaml" if "align" in steps else state["camera_file"]
+        try:
+            figure = FigureOptions.from_config(plan["config"]["render"], Path(camera) if camera else None)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        with staged_directory(out / "render") as staging:
+            summary = render_sequences(paths, staging, figure)
+        row["render"] = {"renderer": summary.renderer, "files": [Path(f).name for f in summary.files]}
+        seconds["render"] = time.perf_counter() - start
+    row["seconds"] = {**seconds, "total": sum(seconds.values())}
+    marker = {"version": MARKER_VERSION, "rotavat": __version__, "steps": list(steps),
+              "options": {s: plan["digests"][s] for s in steps}, "inputs": job["inputs"],
+              "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "row": row}
+    atomic_write_text(out / MARKER, json.dumps(to_plain(marker), indent=2) + "\n")
+    return row
+
