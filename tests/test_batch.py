@@ -291,3 +291,15 @@ def test_dask_cluster_results_equal_the_local_ones(dataset, tmp_path, runner):
         assert metrics_of(local, rel) == metrics_of(tmp_path / "dask", rel)
     assert (json.loads((local / "batch_report.json").read_text())["aggregate"]
             == json.loads((tmp_path / "dask" / "batch_report.json").read_text())["aggregate"])
+
+
+def test_rotavat_local_cluster_workers_run_without_dask_malloc_trim(monkeypatch):
+    """rotavat's own LocalCluster: one BLAS thread per worker as Dask sets it, but glibc's malloc left as is."""
+    distributed = pytest.importorskip("distributed")
+    from rotavat_cli.batch.executors import local_cluster
+
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    keys = ("MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS")
+    with local_cluster(1) as cluster, distributed.Client(cluster) as client:
+        (env,) = client.run(lambda: {k: os.environ.get(k) for k in keys}).values()
+    assert env == {"MALLOC_TRIM_THRESHOLD_": None, "OPENBLAS_NUM_THREADS": "1"}

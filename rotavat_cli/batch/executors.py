@@ -12,7 +12,7 @@ from ..errors import InputError
 from .plan import BatchOptions
 from .tasks import one_line
 
-__all__ = ["InlineExecutor", "make_executor"]
+__all__ = ["InlineExecutor", "LOCAL_CLUSTER_ENVIRON", "local_cluster", "make_executor"]
 
 
 class InlineExecutor:
@@ -72,15 +72,12 @@ class _DaskExecutor:
             import distributed
         except ImportError:
             raise InputError("--executor dask needs Dask: pip install 'rotavat[dask]' (or dask[distributed])") from None
-        import logging
-
         self._distributed, self._cluster = distributed, None
         try:
             if scheduler:
                 self._client = distributed.Client(scheduler, timeout=20, set_as_default=False)
             else:
-                self._cluster = distributed.LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                                         host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+                self._cluster = local_cluster(jobs)
                 self._client = distributed.Client(self._cluster, set_as_default=False)
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(str(exc))})") from None
@@ -105,6 +102,26 @@ class _DaskExecutor:
         self._client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+
+# The environment Dask's nanny gives worker processes it spawns (distributed.nanny.pre-spawn-environ),
+# for the LocalCluster rotavat starts itself: one BLAS/OpenMP thread per worker as Dask sets it, but
+# without MALLOC_TRIM_THRESHOLD_. Setting that variable switches off glibc's dynamic mmap threshold,
+# so every array above 128 kB (one float64 SMPL mesh is 165 kB) becomes a fresh mmap and page faults:
+# measured on align + eval, 3.5x the system time and 1.9x the wall time of the same work without it.
+LOCAL_CLUSTER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+
+def local_cluster(workers: int) -> Any:
+    """A dask.distributed LocalCluster on loopback: ``workers`` processes of one thread, rotavat's environment."""
+    import logging
+
+    import dask
+    import distributed
+
+    with dask.config.set(LOCAL_CLUSTER_ENVIRON):
+        return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                        dashboard_address=None, silence_logs=logging.ERROR)
 
 
 def make_executor(options: BatchOptions) -> Any:
