@@ -128,41 +128,28 @@ def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, o
 def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_cam: Camera | None,
                   gt_cam: Camera | None, opts: EvalOptions) -> dict[str, np.ndarray]:
     """Every per-person metric for matched pairs (M,) each; NaN where not computable."""
-    M_ = len(pi)
-    nan = np.full(M_, np.nan)
-    out = {name: nan for name in PERSON_METRICS}
+    out = {name: np.full(len(pi), np.nan) for name in PERSON_METRICS}
     pj, gj = pred.get("joints"), gt.get("joints")
-    pelvis_p = pelvis_g = None
     if pj is not None and gj is not None:
-        pj, gj = pj[pi].astype(np.float64), gj[gi].astype(np.float64)
+        pj, gj = pj[pi], gj[gi]
         if opts.joints:
             pj, gj = pj[:, list(opts.joints)], gj[:, list(opts.joints)]
         if pj.shape[1] != gj.shape[1]:
             raise InputError(f"{pred.source}: prediction has {pj.shape[1]} joints, ground truth {gj.shape[1]}: "
                              "pass --joints to choose a common subset")
-        pelvis_p, pelvis_g = pj[:, PELVIS], gj[:, PELVIS]
-        out["mpjpe"] = M.mpjpe(pj, gj, "root", PELVIS)
-        out["pa_mpjpe"] = M.mpjpe(pj, gj, "procrustes")
-        out["w_mpjpe"] = M.mpjpe(pj, gj, "none")
-        if pred_cam is not None and gt_cam is not None:
-            out["w_mpjpe_spec"] = M.w_spec_mpjpe(pj, gj, pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T, PELVIS)
         if gt_cam is not None:
-            out["root_err"] = M.root_err_mm(pelvis_p, pelvis_g)
+            out["root_err"] = M.root_err_mm(pj[:, PELVIS], gj[:, PELVIS])
+    else:
+        pj = gj = None
     pv, gv = pred.get("vertices"), gt.get("vertices")
-    if pv is not None and gv is not None and pv.shape[1] == gv.shape[1] and pv.shape[1] > 0:
-        pv, gv = pv[pi].astype(np.float64), gv[gi].astype(np.float64)
-        roots_p = pelvis_p if pelvis_p is not None else pv.mean(axis=1)
-        roots_g = pelvis_g if pelvis_g is not None else gv.mean(axis=1)
-        out["pve"] = M.pve(pv, gv, "root", roots_p, roots_g)
-        out["pa_pve"] = M.pve(pv, gv, "procrustes")
-        out["w_pve"] = M.pve(pv, gv, "none")
-        if pred_cam is not None and gt_cam is not None:
-            out["w_pve_spec"] = M.w_spec_pve(pv, gv, pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T, roots_p, roots_g)
-    elif pv is not None and gv is not None and pv.shape[1] != gv.shape[1]:
+    if pv is not None and gv is not None and pv.shape[1] != gv.shape[1]:
         raise InputError(f"{pred.source}: PVE needs equal vertex counts ({pv.shape[1]} vs {gv.shape[1]} in ground truth)")
-    if gt_cam is not None and pred.get("vertices") is not None and gt.get("vertices") is not None:
-        feet_p, heads_p = foot_head_points(pred.data["vertices"][pi])
-        feet_g, heads_g = foot_head_points(gt.data["vertices"][gi])
+    verts = pv is not None and gv is not None and pv.shape[1] > 0
+    rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
+    out.update(M.person_errors_mm(pj, gj, pv[pi] if verts else None, gv[gi] if verts else None, *rotations, PELVIS))
+    if gt_cam is not None and verts:
+        feet_p, heads_p = foot_head_points(pv[pi])
+        feet_g, heads_g = foot_head_points(gv[gi])
         out["foot_height"] = np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0
         out["lean_deg"] = M.lean_deg(feet_p, heads_p, gt_cam.up_cam)
         out["stature_err"] = M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)
