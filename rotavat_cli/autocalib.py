@@ -59,7 +59,8 @@ def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:
         track_id=pairs.person_ids if pairs.tracked else None, focal_px=focal,
         estimate_roll=options["estimate_roll"], principal_point=tuple(pp) if pp is not None else None,
         person_height_m=options["person_height_m"], person_height_sd_m=options["person_height_sd_m"],
-        residual=options["residual"], fov_prior_deg=options["fov_prior_deg"], grid=grid_from_config(options["grid"]),
+        residual=options["residual"], points=options["points"], box_depth_m=options["box_depth_m"],
+        distortion=options["distortion"], fov_prior_deg=options["fov_prior_deg"], grid=grid_from_config(options["grid"]),
     )
     try:
         result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, **kwargs)

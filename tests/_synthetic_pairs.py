@@ -10,6 +10,7 @@ Deterministic for a given generator state. Imported by tests/ and benchmarks/ (o
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from rotavat_cli.camera import Camera
 from rotavat_cli.synth import random_camera
 
-__all__ = ["SyntheticPairs", "random_surveillance_camera", "synthetic_pairs"]
+__all__ = ["SyntheticPairs", "box_points_px", "distort_px", "random_surveillance_camera", "synthetic_pairs"]
 
 FRAME_DT_S = 0.2  # 5 frames per second
 MAX_DISTANCE_M = 45.0  # people farther than this are too small to be detected
@@ -102,8 +103,18 @@ def synthetic_pairs(rng: np.random.Generator, *, camera: Camera | None = None,
                     image_size: tuple[int, int] = (1920, 1080), roll_deg: float | None = 0.0,
                     frames: int = 1, people: int = 10, noise_px: float = 2.0, stature_mean_m: float = 1.70,
                     stature_sd_m: float = 0.07, outlier_fraction: float = 0.0,
-                    walk_speed_mps: float = 1.3) -> SyntheticPairs:
-    """``people`` walkers seen over ``frames`` frames; roll_deg None = random roll (+-5 deg)."""
+                    walk_speed_mps: float = 1.3, points: str = "landmarks", distortion: float = 0.0,
+                    sway_sd_m: float = 0.0, noise_corr: float = 0.0) -> SyntheticPairs:
+    """``people`` walkers seen over ``frames`` frames; roll_deg None = random roll (+-5 deg).
+
+    Realism options (all off by default; the default draws are unchanged): ``points="boxes"``
+    replaces mid-sole/crown by box-derived points (:func:`box_points_px`); ``distortion``
+    radially distorts every point (:func:`distort_px`); ``sway_sd_m`` moves each crown
+    horizontally off the vertical through the mid-sole (walking pose, N(0, sd) per axis and pair);
+    ``noise_corr`` makes each track's pixel noise an AR(1) series over the frames (correlation).
+    """
+    if points not in ("landmarks", "boxes"):
+        raise ValueError(f"points must be 'landmarks' or 'boxes', got {points!r}")
     cam = random_surveillance_camera(rng, image_size, roll_deg) if camera is None else camera
     stature = rng.normal(stature_mean_m, stature_sd_m, people)
     pos = _spawn(rng, cam, stature)
@@ -120,14 +131,93 @@ def synthetic_pairs(rng: np.random.Generator, *, camera: Camera | None = None,
                 heading[gone] = rng.uniform(0, 2 * np.pi, gone.sum())
         feet = _project_world(cam, pos)
         heads = _project_world(cam, pos + stature[:, None] * up)
-        chunks.append((feet, heads, np.full(people, t), np.arange(people), pos.copy(), stature.copy()))
-    feet, heads, frame, track, ground, stat = (np.concatenate(c) for c in zip(*chunks))
+        chunks.append((feet, heads, np.full(people, t), np.arange(people), pos.copy(), stature.copy(),
+                       heading.copy()))
+    feet, heads, frame, track, ground, stat, head_dir = (np.concatenate(c) for c in zip(*chunks))
     n = len(feet)
+    crown = ground + stat[:, None] * up
+    if sway_sd_m > 0:
+        crown = crown + rng.normal(0.0, sway_sd_m, (n, 3)) * np.array([1.0, 0.0, 1.0])
+        heads = _project_world(cam, crown)
+    if points == "boxes":
+        phase = rng.uniform(0.0, 2.0 * np.pi, people)[track] + 2.0 * np.pi * frame * FRAME_DT_S  # ~1 stride/s
+        feet, heads = box_points_px(cam, ground, crown, head_dir, phase)
     outlier = np.zeros(n, bool)
     n_out = int(round(outlier_fraction * n))
     if n_out:
         outlier[rng.choice(n, n_out, replace=False)] = True
         feet[outlier], heads[outlier] = _make_outliers(rng, cam, ground[outlier], feet[outlier], heads[outlier])
-    feet = feet + rng.normal(0.0, noise_px, feet.shape)
-    heads = heads + rng.normal(0.0, noise_px, heads.shape)
+    if distortion:
+        feet, heads = distort_px(feet, cam, distortion), distort_px(heads, cam, distortion)
+    if noise_corr > 0:
+        feet = feet + _track_noise(rng, noise_px, noise_corr, frame, track, people)
+        heads = heads + _track_noise(rng, noise_px, noise_corr, frame, track, people)
+    else:
+        feet = feet + rng.normal(0.0, noise_px, feet.shape)
+        heads = heads + rng.normal(0.0, noise_px, heads.shape)
     return SyntheticPairs(cam, feet, heads, frame.astype(np.int64), track.astype(np.int64), outlier, stat)
+
+
+def _track_noise(rng: np.random.Generator, sd_px: float, corr: float, frame: np.ndarray, track: np.ndarray,
+                 people: int) -> np.ndarray:
+    """(N, 2) pixel noise, an AR(1) series over frames per track (marginal sd ``sd_px``)."""
+    frames = int(frame.max()) + 1 if len(frame) else 0
+    eps = rng.normal(0.0, sd_px, (frames, people, 2))
+    series = np.empty_like(eps)
+    if frames:
+        series[0] = eps[0]
+    for t in range(1, frames):
+        series[t] = corr * series[t - 1] + math.sqrt(1.0 - corr * corr) * eps[t]
+    return series[frame, track]
+
+
+def distort_px(points_px: np.ndarray, camera: Camera, corner: float) -> np.ndarray:
+    """Radially distorted pixels (N, 2): ``x_d = x (1 + corner |x|^2 / R^2)`` about the principal point.
+
+    R is the image half-diagonal, so ``corner`` is the relative displacement at the image corner
+    (negative: barrel; real surveillance lenses: a few percent). A polynomial (Brown) model, not
+    the division model the calibration fits.
+    """
+    pp = np.asarray(camera.principal_point)
+    x = points_px - pp
+    radius2 = (0.5 * math.hypot(*camera.image_size)) ** 2
+    return pp + x * (1.0 + corner * np.sum(x * x, axis=1, keepdims=True) / radius2)
+
+
+# Body silhouette of a walker (metres; why: adult anthropometry): foot length 0.26, feet 0.2 apart,
+# step length 0.65 (feet up to +-0.33 fore and aft of the mid-sole), head a 0.1 m sphere under the
+# crown, shoulders 0.44 wide at 0.82 of the stature.
+_FOOT_HALF_LENGTH_M, _FOOT_SPACING_M, _STEP_HALF_M = 0.13, 0.10, 0.33
+_HEAD_RADIUS_M, _SHOULDER_HALF_M, _SHOULDER_RATIO = 0.10, 0.22, 0.82
+
+
+def box_points_px(camera: Camera, ground_world: np.ndarray, crown_world: np.ndarray, heading_rad: np.ndarray,
+                  phase_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Box-derived (foot, head) pixels (N, 2): the bottom- and top-centre of the person's image box.
+
+    The box bounds the projected silhouette: heels and toes of two walking feet (gait phase
+    ``phase_rad``), the shoulders and a sphere under the crown. The bottom is the lowest foot
+    point (nearest the camera), the top the highest point of the head, both at the box's centre
+    column, as annotation boxes give them.
+    """
+    fwd = np.stack([np.cos(heading_rad), np.zeros_like(heading_rad), np.sin(heading_rad)], axis=1)
+    side = np.stack([-fwd[:, 2], np.zeros_like(heading_rad), fwd[:, 0]], axis=1)
+    stride = _STEP_HALF_M * np.sin(phase_rad)[:, None]
+    feet = []
+    for s_side, s_step in ((1.0, 1.0), (-1.0, -1.0)):
+        centre = ground_world + s_side * _FOOT_SPACING_M * side + s_step * stride * fwd
+        feet += [centre + _FOOT_HALF_LENGTH_M * fwd, centre - _FOOT_HALF_LENGTH_M * fwd]
+    u = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    w = np.linspace(0.0, 0.5 * np.pi, 7)
+    sphere = np.stack([np.outer(np.cos(w), np.cos(u)), np.outer(np.sin(w), np.ones_like(u)),
+                       np.outer(np.cos(w), np.sin(u))], axis=-1).reshape(-1, 3)
+    head = crown_world[:, None] + _HEAD_RADIUS_M * (sphere - np.array([0.0, 1.0, 0.0]))
+    stature = crown_world[:, 1] - ground_world[:, 1]
+    shoulder = ground_world + np.array([0.0, 1.0, 0.0]) * (_SHOULDER_RATIO * stature)[:, None]
+    body = [shoulder + _SHOULDER_HALF_M * side, shoulder - _SHOULDER_HALF_M * side]
+    feet_px = _project_world(camera, np.stack(feet, axis=1))
+    head_px = _project_world(camera, head)
+    all_u = np.concatenate([feet_px[..., 0], head_px[..., 0], _project_world(camera, np.stack(body, 1))[..., 0]], 1)
+    centre_u = 0.5 * (all_u.min(axis=1) + all_u.max(axis=1))
+    return (np.stack([centre_u, feet_px[..., 1].max(axis=1)], axis=1),
+            np.stack([centre_u, head_px[..., 1].min(axis=1)], axis=1))

@@ -9,12 +9,13 @@ import pytest
 import yaml
 
 from rotavat_cli.calibrate import CalibrationResult, calibrate, fit_camera, fit_per_frame
+from rotavat_cli.calibrate_uncertainty import jackknife_cov
 from rotavat_cli.calibrate_grid import (GridSpec, grid_costs, paper_grid_search, predict_heads_px,
                                         reference_cell_costs)
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import DegenerateSceneError
 
-from _synthetic_pairs import synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
+from _synthetic_pairs import box_points_px, synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
 
 # Tolerances (why): 100 frames x 20 walking people, 2 px noise, stature sd 0.07 m -> the camera is
 # limited by the 20 statures' sampling; the benchmark's medians are ~5x below these.
@@ -183,6 +184,94 @@ def test_fov_prior_pulls_an_undetermined_focal():
     assert tight.std["focal_px"] <= loose.std["focal_px"]
 
 
+# ---- box-derived points, lens distortion, honest std --------------------------------------------------------
+TC_LIKE = Camera((1920, 1080), 2700.0, None, math.radians(20.0), math.radians(1.4), 7.8)  # a street camera
+
+
+def test_box_points_are_the_box_bottom_and_top_centres():
+    cam = TC_LIKE
+    ground = cam.world_from_cam(cam.backproject_px_to_ground(np.array([[500.0, 900.0], [1400.0, 600.0]])))
+    crown = ground + [0.0, 1.7, 0.0]
+    feet, heads = box_points_px(cam, ground, crown, np.array([0.3, 2.0]), np.array([1.0, 0.0]))
+    np.testing.assert_array_equal(feet[:, 0], heads[:, 0])  # one column: the box's centre
+    assert np.all(feet[:, 1] > cam.project(cam.cam_from_world(ground))[:, 1])  # nearest toe: lower than mid-sole
+    assert np.all(heads[:, 1] <= cam.project(cam.cam_from_world(crown))[:, 1] + 1e-9)  # head top: at or above crown
+
+
+def test_boxes_point_model_removes_the_box_height_bias():
+    # box-derived points (nearest toe, head silhouette) read as mid-sole/crown put the camera ~6% low;
+    # the box model (box top 0.25 m beyond the bottom, head row) recovers it
+    data = synthetic_pairs(np.random.default_rng(31), camera=TC_LIKE, frames=100, people=20, points="boxes",
+                           outlier_fraction=0.05)
+    kw = dict(frame_index=data.frame_index, track_id=data.track_id, focal_px=TC_LIKE.focal_px)
+    naive = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, residual="vertical", **kw)
+    boxes = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, points="boxes", **kw)
+    assert naive.camera.height_m / TC_LIKE.height_m - 1 < -0.03
+    assert_close_camera(boxes.camera, TC_LIKE, pitch=0.4, roll=0.5, height=0.03)
+    assert boxes.residual == "vertical" and boxes.points == "boxes" and boxes.box_depth_m == 0.25
+    assert boxes.std["height_m"] > naive.std["height_m"]  # the box depth's uncertainty is in the std
+    fit = boxes.fit_dict()
+    assert fit["points"] == "boxes" and fit["box_depth_m"] == 0.25 and "distortion" not in fit
+
+
+def test_distortion_is_fitted_when_asked():
+    data = synthetic_pairs(np.random.default_rng(32), camera=TC_LIKE, frames=100, people=20, distortion=-0.03)
+    kw = dict(frame_index=data.frame_index, track_id=data.track_id, focal_px=TC_LIKE.focal_px)
+    plain = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, **kw)
+    lens = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, distortion=True, **kw)
+    pitch_err = [abs(math.degrees(r.camera.pitch_rad - TC_LIKE.pitch_rad)) for r in (plain, lens)]
+    assert pitch_err[0] > 0.15 and pitch_err[1] < 0.4 * pitch_err[0]  # barrel distortion tilts the pinhole fit
+    assert lens.distortion < 0 and lens.std["distortion"] < abs(lens.distortion) / 3  # barrel, and determined
+    assert lens.fit_dict()["distortion"] == lens.distortion and "distortion" in lens.fit_dict()["std"]
+    assert math.isnan(plain.distortion) and "distortion" not in plain.std
+
+
+def test_distortion_free_data_keep_a_small_coefficient():
+    data = synthetic_pairs(np.random.default_rng(33), frames=60, people=20, roll_deg=None, outlier_fraction=0.1)
+    res = fit_camera(data.feet_px, data.heads_px, data.camera.image_size, frame_index=data.frame_index,
+                     track_id=data.track_id, distortion=True)
+    assert abs(res.distortion) < 3 * res.std["distortion"] + 1e-3
+    assert_close_camera(res.camera, data.camera)
+
+
+def test_jackknife_is_leave_one_cluster_out_on_a_linear_problem():
+    rng = np.random.default_rng(34)
+    J = rng.normal(size=(60, 3))
+    y = J @ [1.0, -2.0, 0.5] + rng.normal(size=60)
+    cluster = np.repeat(np.arange(6), 10)
+    theta = np.linalg.lstsq(J, y, rcond=None)[0]
+    loo = np.array([np.linalg.lstsq(J[cluster != g], y[cluster != g], rcond=None)[0] for g in range(6)])
+    expected = (loo - theta).T @ (loo - theta) * 5 / 6  # CV3 about the full-sample estimate
+    np.testing.assert_allclose(jackknife_cov(J, J @ theta - y, cluster, 6), expected, rtol=1e-9, atol=1e-12)
+
+
+def test_track_correlated_noise_with_few_people_is_in_the_std():
+    # 6 people whose pixel noise drifts slowly (AR(1) 0.95 over frames): the cluster jackknife over
+    # the people, not Gauss-Newton over the pairs, sets the std
+    errs, sds = [], []
+    for seed in range(4):
+        data = synthetic_pairs(np.random.default_rng(40 + seed), camera=TC_LIKE, frames=150, people=6,
+                               noise_corr=0.95)
+        res = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, frame_index=data.frame_index,
+                         track_id=data.track_id, focal_px=TC_LIKE.focal_px, residual="vertical")
+        errs.append(math.degrees(res.camera.roll_rad - TC_LIKE.roll_rad))
+        sds.append(res.std_statistical["roll_deg"])
+    assert np.mean(np.abs(errs) < 2.5 * np.array(sds)) >= 0.75
+
+
+def test_head_columns_that_disagree_with_the_rows_inflate_the_focal_std():
+    data = synthetic_pairs(np.random.default_rng(35), camera=TC_LIKE, frames=100, people=20, points="boxes")
+    res = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, frame_index=data.frame_index,
+                     track_id=data.track_id)  # box-derived points read as mid-sole/crown, full residual
+    assert any("head columns disagree" in w for w in res.warnings)
+    assert abs(res.camera.focal_px - TC_LIKE.focal_px) < 2 * res.std["focal_px"]
+    assert res.std["focal_px"] > res.std_statistical["focal_px"]
+    clean = synthetic_pairs(np.random.default_rng(35), camera=TC_LIKE, frames=100, people=20)
+    ok = fit_camera(clean.feet_px, clean.heads_px, TC_LIKE.image_size, frame_index=clean.frame_index,
+                    track_id=clean.track_id)
+    assert not any("head columns disagree" in w for w in ok.warnings)
+
+
 # ---- diagnostics and wrappers ---------------------------------------------------------------------------
 def test_fit_dict_is_plain_yaml():
     data = synthetic_pairs(np.random.default_rng(10), frames=5, people=10)
@@ -244,6 +333,10 @@ def test_nan_and_swapped_inputs():
     (dict(focal_px=-5.0), "focal_px"),
     (dict(person_height_m=0.0), "person_height_m"),
     (dict(frame_index=np.zeros(3, int)), "frame_index"),
+    (dict(points="keypoints"), "points"),
+    (dict(method="grid", distortion=True), "need method 'refine'"),
+    (dict(method="grid", points="boxes"), "need method 'refine'"),
+    (dict(points="boxes", box_depth_sd_m=-0.1), "box_depth"),
 ])
 def test_bad_arguments(kwargs, match):
     feet = np.array([[100.0, 400.0], [300.0, 420.0], [500.0, 440.0], [200.0, 380.0]])

@@ -37,9 +37,10 @@ def test_calibrate_recovers_the_true_camera(scene, tmp_path, runner):
     true = yaml.safe_load((scene / "gt" / "camera.yaml").read_text())
     assert est["fit"]["focal_policy"] == "declared" and est["focal_px"] == pytest.approx(true["focal_px"])
     # 8 people: each one's crown sits a few cm off the vertical through the mid-sole (real posture),
-    # so the error is statistical; the reported std must cover it and stay small
+    # so the error is statistical; the reported std must cover it and stay small (with 8 people the
+    # cluster jackknife, not the optimistic Gauss-Newton, sets the pitch std: ~1 deg, error ~1.5 deg)
     std = est["fit"]["std"]
-    for key, limit in (("pitch_deg", 1.0), ("roll_deg", 1.0), ("height_m", 0.3)):
+    for key, limit in (("pitch_deg", 1.5), ("roll_deg", 1.0), ("height_m", 0.3)):
         assert std[key] < limit
         assert abs(est[key] - true[key]) < 3.0 * std[key], key
     assert est["fit"]["inliers"] < est["fit"]["pairs"]  # the 10% gross outliers were rejected
@@ -110,3 +111,39 @@ def test_config_file_sets_options(scene, tmp_path, runner):
     cfg.write_text("calibrate:\n  estimate_roll: false\n")
     result = invoke(runner, "calibrate", scene / "gt", "--config", cfg, "--out", tmp_path / "cam.yaml", "--json")
     assert json.loads(result.stdout)["roll_deg"] == 0.0
+
+
+def box_seq(path: Path) -> tuple[Path, dict]:
+    """A sequence of box-derived foot/head points (with track ids) and its true camera."""
+    import math
+
+    from _synthetic_pairs import synthetic_pairs
+    from rotavat_cli.camera import Camera
+
+    cam = Camera((1280, 720), 1800.0, None, math.radians(18.0), math.radians(1.0), 6.5)
+    data = synthetic_pairs(np.random.default_rng(51), camera=cam, frames=40, people=15, points="boxes",
+                           distortion=-0.02)
+    path.mkdir(parents=True)
+    for t in range(40):
+        sel = data.frame_index == t
+        np.savez(path / f"{t:06d}.npz", feet_2d=data.feet_px[sel], heads_2d=data.heads_px[sel],
+                 person_ids=data.track_id[sel])
+    (path / "meta.yaml").write_text("image_size: [1280, 720]\n")
+    return path, {"focal_px": cam.focal_px, "height_m": cam.height_m}
+
+
+def test_calibrate_box_points_with_distortion(tmp_path, runner):
+    seq, true = box_seq(tmp_path / "boxes")
+    result = invoke(runner, "calibrate", seq, "--points", "boxes", "--distortion", "--focal", true["focal_px"],
+                    "--out", tmp_path / "cam.yaml", "--json")
+    assert result.exit_code == 0, result.stderr
+    fit = json.loads(result.stdout)["fit"]
+    assert fit["points"] == "boxes" and fit["box_depth_m"] == 0.25 and fit["residual"] == "vertical"
+    assert fit["distortion"] < 0 and "distortion" in fit["std"]  # barrel
+    assert abs(json.loads(result.stdout)["height_m"] / true["height_m"] - 1) < 0.05
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("calibrate:\n  points: boxes\n  box_depth_m: 0.0\n")
+    result = invoke(runner, "calibrate", seq, "--config", cfg, "--focal", true["focal_px"],
+                    "--out", tmp_path / "cam2.yaml", "--json")
+    fit = json.loads(result.stdout)["fit"]
+    assert fit["box_depth_m"] == 0.0 and "distortion" not in fit

@@ -36,7 +36,10 @@ def calibrate(
     principal_point: Annotated[tuple[float, float] | None, typer.Option(help="Known principal point cx cy (px).")] = None,
     person_height: Annotated[float | None, typer.Option(help="Mean stature sole->crown (m).")] = None,
     height_sd: Annotated[float | None, typer.Option(help="Spread of the stature prior (m).")] = None,
-    residual: Annotated[str | None, typer.Option(help="full (head u and v) or vertical (head row only; box-derived points).")] = None,
+    residual: Annotated[str | None, typer.Option(help="full (head u and v) or vertical (head row only).")] = None,
+    points: Annotated[str | None, typer.Option(help="landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
+    box_depth: Annotated[float | None, typer.Option(help="With --points boxes: box top's extra distance from the camera over the box bottom (m).")] = None,
+    distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
     fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Weak prior on the vertical field of view (deg).")] = None,
     per_frame: Annotated[bool | None, typer.Option("--per-frame/--pooled", help="Also calibrate each frame alone and report the spread.")] = None,
     from_: FromOpt = None,
@@ -53,8 +56,8 @@ def calibrate(
         calib = run_calibration(
             sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
             estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
-            person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, fov_prior_deg=fov_prior,
-            per_frame=per_frame)
+            person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, points=points,
+            box_depth_m=box_depth, distortion=distortion, fov_prior_deg=fov_prior, per_frame=per_frame)
     target = out or seq / "camera.yaml"
     fit = {**calib.result.fit_dict(), "focal_policy": calib.focal_policy}
     write_camera_yaml(target, calib.result.camera, fit)
@@ -79,6 +82,8 @@ def _table(summary: dict) -> Table:
     for key, unit in (("focal_px", "px"), ("pitch_deg", "°"), ("roll_deg", "°"), ("height_m", "m")):
         sd = std.get(key)
         table.add_row(key, f"{summary[key]:.3f} {unit}", "fixed" if sd is None or not np.isfinite(sd) else f"{sd:.3f}")
+    if "distortion" in fit:
+        table.add_row("distortion", f"{fit['distortion']:+.4f}", f"{std.get('distortion', float('nan')):.4f}")
     table.caption = (f"{fit.get('inliers')}/{fit.get('pairs')} pairs inliers over {fit.get('frames')} frames, "
-                     f"head rmse {fit.get('rmse_px', float('nan')):.2f} px")
+                     f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}")
     return table

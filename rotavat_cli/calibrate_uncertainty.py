@@ -1,0 +1,243 @@
+"""Uncertainty of a calibration: covariances (statistical, cluster jackknife, assumed systematics,
+the head-column test), standard deviations and correlations, and warnings in plain words.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.stats import chi2 as chi2_dist
+
+from .calibrate_grid import order_invariant_subset
+from .camera import Camera, horizon_v_px
+from .calibrate_model import (MODEL_NAMES, PARAM_NAMES, Problem, model_residual, pair_chi2, residual_and_jacobian,
+                              robust_least_squares, robust_scale, to_internal, undistort)
+
+__all__ = ["WARN_FOCAL_REL_SD", "WARN_FOCAL_PITCH_CORR", "WARN_PITCH_SD_DEG", "WARN_HEIGHT_REL_SD",
+           "WARN_INLIER_FRACTION", "Systematics", "covariances", "jackknife_cov", "std_and_corr", "fit_warnings"]
+
+_COLUMN_TEST_PAIRS = 5000  # the head-column test runs on at most this many inliers (order-independent)
+_MIN_CLUSTERS = 2  # cluster-robust (jackknife) covariance from this many clusters (tracks, else frames)
+_NULL_EIG = 1e-9  # information eigenvalues below this fraction of the largest: direction undetermined
+
+# Warning thresholds: a parameter is "poorly determined" past these standard deviations.
+WARN_FOCAL_REL_SD = 0.10
+WARN_FOCAL_PITCH_CORR = 0.95
+WARN_PITCH_SD_DEG = 2.0
+WARN_HEIGHT_REL_SD = 0.10
+WARN_INLIER_FRACTION = 0.6
+
+
+# ---- uncertainty ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Systematics:
+    """Prior sds of what the model assumes but does not fit (propagated into the reported std)."""
+
+    principal_point_px: float  # per axis
+    distortion: float  # radial displacement at the image corner / half-diagonal
+    stature_mean_m: float  # population mean stature
+    box_depth_m: float  # box depth (box-derived points)
+
+
+def _statistical_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float,
+                     clusters: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Covariance (n_free, n_free) of the free internal parameters, with the residuals and Jacobian.
+
+    Gauss-Newton ``(J^T J)^-1`` of the whitened residuals; with >= 2 clusters (tracks, else frames)
+    each variance is the larger of it and the cluster jackknife's (:func:`jackknife_cov`: correlated
+    errors of a person, honest with few people).
+    """
+    r, J = residual_and_jacobian(prob, to_internal(params)[free], params, free, scale)
+    A_inv = np.linalg.pinv(J.T @ J, rcond=_NULL_EIG)
+    if clusters is None or len(np.unique(clusters)) < _MIN_CLUSTERS:
+        return A_inv, r, J
+    row_cluster, n_groups = _row_clusters(prob, clusters, len(r))
+    sandwich = jackknife_cov(J, r, row_cluster, n_groups)
+    ratio = np.diag(sandwich) / np.maximum(np.diag(A_inv), 1e-300)
+    base = sandwich if np.mean(ratio) > 1.0 else A_inv  # correlations from the larger of the two
+    sd_base = np.sqrt(np.maximum(np.diag(base), 1e-300))
+    sd = np.sqrt(np.maximum(np.diag(A_inv), np.diag(sandwich)))
+    return base / np.outer(sd_base, sd_base) * np.outer(sd, sd), r, J
+
+
+def _row_clusters(prob: Problem, clusters: np.ndarray | None, n_rows: int) -> tuple[np.ndarray, int]:
+    """Cluster (M,) of each residual row (-1: none, e.g. a prior) and the number of clusters.
+
+    Pair rows take their pair's cluster (each pair its own when ``clusters`` is None); a track's
+    stature-prior row belongs to the cluster of its pairs.
+    """
+    n_pairs = len(prob.rel_feet)
+    groups, inv = np.unique(np.arange(n_pairs) if clusters is None else clusters, return_inverse=True)
+    row_cluster = np.full(n_rows, -1)
+    row_cluster[: n_pairs * prob.dof] = np.repeat(inv, prob.dof)
+    if prob.n_tracks:
+        tracked = np.flatnonzero(prob.track >= 0)
+        member = np.zeros(prob.n_tracks, int)
+        member[prob.track[tracked]] = tracked  # any pair of the track (tracks sit inside one cluster)
+        row_cluster[n_pairs * prob.dof : n_pairs * prob.dof + prob.n_tracks] = inv[member]
+    return row_cluster, len(groups)
+
+
+def _cluster_sums(values: np.ndarray, row_cluster: np.ndarray, n_groups: int) -> np.ndarray:
+    """(G, ...) sums of the rows of ``values`` (M, ...) per cluster; rows of cluster -1 are left out."""
+    rows = np.flatnonzero(row_cluster >= 0)
+    member = csr_matrix((np.ones(len(rows)), (row_cluster[rows], np.arange(len(rows)))), shape=(n_groups, len(rows)))
+    flat = values[rows].reshape(len(rows), -1)
+    return np.asarray(member @ flat).reshape((n_groups,) + values.shape[1:])
+
+
+def jackknife_cov(J: np.ndarray, r: np.ndarray, row_cluster: np.ndarray, n_groups: int) -> np.ndarray:
+    """Cluster jackknife covariance (k, k): ``(G-1)/G sum_g d_g d_g^T`` over the G clusters.
+
+    ``d_g = (A - A_g)^-1 J_g^T r_g`` is the linearised shift of the estimate when cluster g is left
+    out (``A = J^T J``; rows of cluster -1, such as priors, are never left out). Unlike the plain
+    sandwich, it does not shrink with few clusters (MacKinnon, Nielsen & Webb 2023, "CV3").
+    """
+    scores = _cluster_sums(J * r[:, None], row_cluster, n_groups)
+    A_g = _cluster_sums(J[:, :, None] * J[:, None, :], row_cluster, n_groups)
+    shifts = np.einsum("gij,gj->gi", np.linalg.pinv((J.T @ J)[None] - A_g, rcond=_NULL_EIG), scores)
+    return shifts.T @ shifts * (n_groups - 1) / n_groups
+
+
+def _column_shift(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
+                  cov_full: np.ndarray) -> tuple[np.ndarray, float, int]:
+    """How far the head rows alone move the full fit, and a Hausman test of that move.
+
+    Refits the inliers on the head rows only (``vertical``) from the full fit and returns the
+    shift ``d`` (n_free,) of the internal parameters, the statistic ``d^T V^+ d`` with
+    ``V = cov_rows - cov_full`` (the rows-only fit is the less efficient of two consistent
+    estimates), and V's rank. Under a right model the two agree to within V; head columns that
+    do not follow the person's vertical (drawn straight above the foot, as boxes are) make them
+    disagree.
+    """
+    rows = replace(prob, vertical=True)
+    scale_rows = robust_scale(pair_chi2(rows, params), rows)
+    refit = robust_least_squares(rows, params, free, scale_rows, "soft_l1", 3.0)
+    cov_rows = _statistical_cov(rows, refit, free, scale_rows, clusters)[0]
+    shift = to_internal(refit)[free] - to_internal(params)[free]
+    w, U = np.linalg.eigh(cov_rows - cov_full)
+    keep = w > _NULL_EIG * max(float(w.max()), 1e-300)
+    proj = U[:, keep].T @ shift
+    return shift, float(np.sum(proj**2 / w[keep])), int(keep.sum())
+
+
+def _perturbed(prob: Problem, which: str, amount: float) -> Problem:
+    """The problem with its principal point, lens distortion or stature moved by ``amount``."""
+    rel_feet, diff, height = prob.rel_feet, prob.diff, prob.person_height_m
+    if which == "cx":
+        rel_feet = rel_feet - (amount, 0.0)
+    elif which == "cy":
+        rel_feet = rel_feet - (0.0, amount)
+    elif which == "distortion":  # corner displacement ``amount`` (division model, first order)
+        rel_feet, diff = (p[0] for p in undistort(rel_feet, diff, np.array([[-amount]]), prob.radius_px))
+    elif which == "stature":
+        height = height + amount
+    return replace(prob, rel_feet=rel_feet, diff=diff, person_height_m=height)
+
+
+def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, r: np.ndarray,
+                    J: np.ndarray, assumed: Systematics) -> np.ndarray:
+    """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
+    sds = {"cx": assumed.principal_point_px, "cy": assumed.principal_point_px, "distortion": assumed.distortion,
+           "stature": assumed.stature_mean_m, "box": assumed.box_depth_m}
+    gain = -np.linalg.pinv(J.T @ J, rcond=_NULL_EIG) @ J.T
+    cov = np.zeros((J.shape[1], J.shape[1]))
+    for name, sd in sds.items():
+        if sd <= 0:
+            continue
+        step = 0.1 * sd
+        if name == "box":  # a fixed parameter of the model
+            r_moved = model_residual(prob, (params + step * np.eye(len(params))[5])[None], free, scale)[0]
+        else:
+            r_moved = model_residual(_perturbed(prob, name, step), params[None], free, scale)[0]
+        shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
+        cov += np.outer(shift, shift)
+    return cov
+
+
+def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
+                 assumed: Systematics, test_columns: bool) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(total, statistical) covariances (6, 6) of the internal parameters (zero for fixed ones), warnings.
+
+    With ``test_columns`` (full residual), when the head rows alone disagree with the joint fit
+    beyond their noise (:func:`_column_shift`, 99% chi-square), the total adds the disagreement:
+    the head columns do not follow the model (box-derived heads, principal point, distortion).
+    """
+    stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
+    total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
+    warns = []
+    if test_columns and prob.dof == 2:
+        sub = order_invariant_subset(prob.rel_feet, prob.rel_feet - prob.diff, _COLUMN_TEST_PAIRS)
+        sub_clusters = None if clusters is None else clusters[sub]
+        sub_prob = prob.subset(sub)
+        sub_stat = stat if len(sub) == len(prob.rel_feet) else _statistical_cov(sub_prob, params, free, scale,
+                                                                               sub_clusters)[0]
+        shift, stat_h, rank = _column_shift(sub_prob, params, free, scale, sub_clusters, sub_stat)
+        if rank and stat_h > chi2_dist.ppf(0.99, rank):
+            total = total + np.outer(shift, shift)
+            warns.append(f"the head columns disagree with the head rows (chi-square {stat_h:.0f} on {rank} dof): "
+                         "box-derived points (then use points 'boxes'), an off-centre principal point or lens "
+                         "distortion; the std includes the disagreement")
+    lost = _undetermined(J)
+    out = []
+    for cov in (total, stat):
+        cov = cov.copy()
+        cov[lost, :] = cov[:, lost] = np.nan
+        cov[lost, lost] = np.inf
+        full = np.zeros((len(free), len(free)))
+        full[np.ix_(free, free)] = cov
+        out.append(full)
+    return out[0], out[1], warns
+
+
+def _undetermined(J: np.ndarray) -> np.ndarray:
+    """(n_free,) bool: parameters with a component in the null space of the information J^T J."""
+    w, V = np.linalg.eigh(J.T @ J)
+    null = w <= _NULL_EIG * max(float(w.max()), 1e-300)
+    return (V[:, null] ** 2).sum(axis=1) > 1e-6
+
+
+def std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple[dict[str, float], float]:
+    """Standard deviations (px, deg, deg, m; NaN if fixed; then the fitted point-model ones) and corr(focal, pitch)."""
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    values = [params[0] * sd[0], math.degrees(sd[1]), math.degrees(sd[2]), params[3] * sd[3], sd[4]]
+    std = {k: (float(v) if free[i] else math.nan) for i, (k, v) in enumerate(zip(MODEL_NAMES, values))
+           if k in PARAM_NAMES or free[i]}
+    ok = free[0] and free[1] and 0 < sd[0] < math.inf and 0 < sd[1] < math.inf
+    corr = float(np.clip(cov[0, 1] / (sd[0] * sd[1]), -1.0, 1.0)) if ok else math.nan
+    return std, corr
+
+
+def fit_warnings(camera: Camera, std: dict[str, float], corr: float, inliers: int, usable: int,
+              pairs: int) -> list[str]:
+    """Plain-words warnings about what the data could not determine."""
+    out = []
+    lost = [k for k, v in std.items() if v == math.inf]
+    horizon = float(horizon_v_px(camera.image_size[0] / 2.0, camera.focal_px, camera.principal_point,
+                                 camera.up_cam))
+    if lost:
+        out.append(f"the pairs cannot determine {', '.join(lost)}: their values are arbitrary (the horizon, "
+                   f"row {horizon:.0f} at the centre, may still be right); give the focal length or a "
+                   "field-of-view prior")
+    f_sd = std["focal_px"]
+    if math.isfinite(f_sd) and f_sd > WARN_FOCAL_REL_SD * camera.focal_px:
+        valley = (f"; focal and pitch trade off (correlation {corr:+.2f}): the horizon is better determined than "
+                  "either") if abs(corr) > WARN_FOCAL_PITCH_CORR else ""
+        out.append(f"focal length poorly determined: {camera.focal_px:.0f} +- {f_sd:.0f} px "
+                   f"({100 * f_sd / camera.focal_px:.0f}%){valley}; give the focal length if it is known, "
+                   "or a field-of-view prior")
+    if math.isfinite(std["pitch_deg"]) and std["pitch_deg"] > WARN_PITCH_SD_DEG:
+        out.append(f"pitch poorly determined: +- {std['pitch_deg']:.1f} deg")
+    if math.isfinite(std["height_m"]) and std["height_m"] > WARN_HEIGHT_REL_SD * camera.height_m:
+        out.append(f"camera height poorly determined: {camera.height_m:.2f} +- {std['height_m']:.2f} m")
+    if inliers < WARN_INLIER_FRACTION * usable:
+        out.append(f"only {inliers} of {usable} usable pairs fit upright people of the given stature "
+                   "(sitting, cropped or mis-detected people, or a wrong stature?)")
+    if usable < pairs:
+        out.append(f"{pairs - usable} pairs with the head below the foot were ignored")
+    return out
+
+
