@@ -7,6 +7,8 @@ are transformed, every other key is copied through, float32 stays float32.
 from __future__ import annotations
 
 import csv
+import io
+import math
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,7 +21,7 @@ from .parallel import ordered_map
 from .camera import Camera
 from .errors import InputError
 from .landmarks import foot_head_points
-from .rotavat import FLAGS, AlignTransform, apply_transforms, person_blocks, rotavat_transforms
+from .rotavat import FLAGS, AlignTransform, apply_transforms, points_from_coords, rotavat_transforms, transformed_blocks
 from .sequence import Frame, Sequence, write_camera_yaml, write_frame, write_meta
 
 __all__ = ["PEOPLE_COLUMNS", "AlignSummary", "align_frame", "track_statures", "align_sequence"]
@@ -30,7 +32,27 @@ PEOPLE_COLUMNS = (
 )
 
 
-def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: dict[int, float] | None) -> tuple[AlignTransform, np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class _CameraView:
+    """A camera plus what align derives from it, computed once (``Camera`` properties redo the trig)."""
+
+    camera: Camera
+    up_cam: np.ndarray  # (3,) world up in the camera frame
+    R_cam_from_world: np.ndarray  # (3, 3)
+    t_cam_from_world: np.ndarray  # (3,)
+
+    @classmethod
+    def of(cls, camera: Camera) -> "_CameraView":
+        """Derive once from ``camera``."""
+        return cls(camera, camera.up_cam, camera.R_cam_from_world, camera.t_cam_from_world)
+
+    def world_from_cam(self, points_cam: np.ndarray) -> np.ndarray:
+        """Camera-frame points (..., 3) -> world frame (``Camera.world_from_cam`` with cached R, t)."""
+        return (np.asarray(points_cam, dtype=np.float64) - self.t_cam_from_world) @ self.R_cam_from_world
+
+
+def _frame_transform(frame: Frame, view: _CameraView, upright: str,
+                     stature_by_id: dict[int, float] | None) -> tuple[AlignTransform, np.ndarray, np.ndarray]:
     """Transforms for a frame's people plus their original feet/heads (P, 3)."""
     verts = frame.get("vertices")
     if verts is None:
@@ -39,38 +61,88 @@ def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: 
     stature = None
     if stature_by_id is not None:
         stature = np.array([stature_by_id.get(int(i), np.nan) for i in frame.person_ids])
-    return rotavat_transforms(feet_cam, heads_cam, camera.up_cam, camera.ground_offset_m, upright, stature), feet_cam, heads_cam
+    transform = rotavat_transforms(feet_cam, heads_cam, view.up_cam, view.camera.ground_offset_m, upright, stature)
+    return transform, feet_cam, heads_cam
 
 
 def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, focal_px: float) -> np.ndarray:
-    """Image motion (P, V) in px of points (P, V, 3) that moved; float32 suffices for a report."""
-    drift = np.empty(before_cam.shape[:2], dtype=np.float32)
-    for block in person_blocks(before_cam.shape[0], before_cam.shape[1] * 4 * 8):
-        a = np.asarray(before_cam[block], dtype=np.float32)
-        b = np.asarray(after_cam[block], dtype=np.float32)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv_a, inv_b = 1.0 / a[..., 2], 1.0 / b[..., 2]
-            du = b[..., 0] * inv_b - a[..., 0] * inv_a
-            dv = b[..., 1] * inv_b - a[..., 1] * inv_a
-        drift[block] = np.hypot(du, dv)
-    return np.float32(focal_px) * drift
+    """Image motion (p, N) in px of points that moved, given coordinates first (p, 3, N); float32 suffices."""
+    a = np.asarray(before_cam, dtype=np.float32)
+    b = np.asarray(after_cam, dtype=np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_a, inv_b = 1.0 / a[:, 2], 1.0 / b[:, 2]
+        du = b[:, 0] * inv_b - a[:, 0] * inv_a
+        dv = b[:, 1] * inv_b - a[:, 1] * inv_a
+    return np.float32(focal_px) * _hypot_f32(du, dv)
+
+
+def _hypot_f32(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``np.hypot`` of float32 arrays (...,) -> float32 (...,), bit for bit, several times faster.
+
+    A float32 value squared is exact in float64, so the sum of squares rounded once, its root and
+    one rounding to float32 is what glibc's ``hypotf`` (hence ``np.hypot`` on Linux) computes.
+    As in ``hypot``, an infinite side gives inf even when the other one is NaN.
+    """
+    squares = np.square(x, dtype=np.float64)
+    squares += np.square(y, dtype=np.float64)
+    length = np.sqrt(squares, out=squares).astype(np.float32)
+    if np.isnan(length).any():
+        length[np.isinf(x) | np.isinf(y)] = np.inf
+    return length
+
+
+def _nan_mean_max(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row means and maxima (p,) of (p, V) ignoring NaN, as ``np.nanmean``/``np.nanmax``.
+
+    Without NaN the plain reductions give the same numbers (same pairwise sums, one correctly
+    rounded division) for a fraction of the passes; a row with NaN takes the nan-aware ones.
+    """
+    mean = values.mean(axis=1)
+    if np.isnan(mean).any():
+        return np.nanmean(values, axis=1), np.nanmax(values, axis=1)
+    return mean, values.max(axis=1)
+
+
+def _align_points(verts_cam: np.ndarray, transform: AlignTransform,
+                  focal_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Transformed vertices (P, V, 3) in their dtype, and each person's mean and max drift (P,) in px.
+
+    A block of people's drift is measured on the values written, right after they are computed,
+    while both are in cache (:func:`transformed_blocks`); NaN drifts are ignored; 0 if V == 0.
+    """
+    P, V = verts_cam.shape[:2]
+    if V == 0:
+        return verts_cam.copy(), np.zeros(P), np.zeros(P)
+    moved, means, peaks = [], [], []
+    for before, after in transformed_blocks(verts_cam, transform, verts_cam.dtype):  # (p, 3, V) each
+        mean, peak = _nan_mean_max(_pixel_drift_px(before, after, focal_px))
+        moved.append(after)
+        means.append(mean)
+        peaks.append(peak)
+    return points_from_coords(moved, V, verts_cam.dtype), np.concatenate(means), np.concatenate(peaks)
 
 
 def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
                 stature_by_id: dict[int, float] | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
     """Align one frame: the new frame and per-person columns (see ``PEOPLE_COLUMNS``)."""
+    return _align_frame(frame, _CameraView.of(camera), upright, stature_by_id)
+
+
+def _align_frame(frame: Frame, view: _CameraView, upright: str,
+                 stature_by_id: dict[int, float] | None) -> tuple[Frame, dict[str, np.ndarray]]:
+    """:func:`align_frame` with the camera's derived quantities computed once per sequence."""
     P = frame.n_people
     if P == 0:
         return frame, {c: np.zeros(0) for c in PEOPLE_COLUMNS}
-    transform, feet_cam, heads_cam = _frame_transform(frame, camera, upright, stature_by_id)
+    camera = view.camera
+    transform, feet_cam, heads_cam = _frame_transform(frame, view, upright, stature_by_id)
     verts = frame.data["vertices"]
-    new_verts = apply_transforms(verts, transform, verts.dtype)
+    new_verts, drift_mean, drift_max = _align_points(verts, transform, camera.focal_px)
     arrays = {"vertices": new_verts}
     if frame.get("joints") is not None:
         arrays["joints"] = apply_transforms(frame.data["joints"], transform, frame.data["joints"].dtype)
-    drift = _pixel_drift_px(verts, new_verts, camera.focal_px)  # (P, V)
     new_heads = apply_transforms(heads_cam[:, None], transform)[:, 0]
-    foot_world = camera.world_from_cam(transform.pivot_cam)
+    foot_world = view.world_from_cam(transform.pivot_cam)
     ok = transform.ok
     columns = {
         "frame": np.full(P, frame.name, dtype=object),
@@ -81,8 +153,8 @@ def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
         "depth_scale": transform.depth_scale,
         "rotation_deg": transform.rotation_deg,
         "final_scale": transform.final_scale,
-        "drift_mean_px": np.nanmean(drift, axis=1) if drift.shape[1] else np.zeros(P),
-        "drift_max_px": np.nanmax(drift, axis=1) if drift.shape[1] else np.zeros(P),
+        "drift_mean_px": drift_mean,
+        "drift_max_px": drift_max,
         "head_drift_px": np.linalg.norm(camera.project(new_heads) - camera.project(heads_cam), axis=-1),
         "flag": np.array([FLAGS[int(c)] for c in transform.flag], dtype=object),
     }
@@ -92,12 +164,13 @@ def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
 def track_statures(seq: Sequence, camera: Camera, upright: str = "paper") -> dict[int, float]:
     """Median RotAvat stature per ``person_id`` over the sequence (one landmark pass, no writing)."""
     samples: dict[int, list[float]] = defaultdict(list)
+    view = _CameraView.of(camera)
     for frame in seq.frames():
         if frame.n_people == 0:
             continue
         if frame.get("person_ids") is None:
             raise InputError(f"{frame.source}: --height-from track needs 'person_ids' (track ids) in every frame")
-        transform, _, _ = _frame_transform(frame, camera, upright, None)
+        transform, _, _ = _frame_transform(frame, view, upright, None)
         for pid, stature in zip(frame.person_ids, transform.stature_m):
             if np.isfinite(stature):
                 samples[int(pid)].append(float(stature))
@@ -107,15 +180,16 @@ def track_statures(seq: Sequence, camera: Camera, upright: str = "paper") -> dic
 _CHUNK_FRAMES = 8  # frames per worker task: amortises task overhead, keeps memory bounded
 
 
-def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray]]]:
-    """Read, align and write a few frames; per frame its people count and per-person columns."""
+def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray], str]]:
+    """Read, align and write a few frames; per frame its people count, columns and people.csv rows."""
     seq, names, camera, out, upright, stature_by_id = task
+    view = _CameraView.of(camera)
     results = []
     for name in names:
         frame = seq.read_frame(name)
-        new_frame, cols = align_frame(frame, camera, upright, stature_by_id)
+        new_frame, cols = _align_frame(frame, view, upright, stature_by_id)
         write_frame(out, new_frame, seq.form)
-        results.append((frame.n_people, cols))
+        results.append((frame.n_people, cols, _csv_rows(cols)))
     return results
 
 
@@ -180,11 +254,10 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
     with staged_directory(out) as stage:
         tasks = ((seq, chunk, camera, stage, upright, stature_by_id) for chunk in chunks)
         with atomic_open(stage / "people.csv", "w") as handle:
-            writer = csv.writer(handle, lineterminator="\n")
-            writer.writerow(PEOPLE_COLUMNS)
+            csv.writer(handle, lineterminator="\n").writerow(PEOPLE_COLUMNS)
             for results in ordered_map(_align_chunk, tasks, workers, processes=True):
-                for n_people, cols in results:
-                    _write_rows(writer, cols)
+                for n_people, cols, rows in results:
+                    handle.write(rows)
                     summary.add(n_people, cols)
                     if progress:
                         progress()
@@ -195,16 +268,16 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
     return summary
 
 
-def _write_rows(writer: "csv._writer", cols: dict[str, np.ndarray]) -> None:
-    """Write a frame's per-person columns, floats with 6 significant digits, NaN as empty."""
-    n = len(cols["frame"])
-    for i in range(n):  # one row per person: a loop over people is I/O here, not numerics
-        writer.writerow([_cell(cols[c][i]) for c in PEOPLE_COLUMNS])
+def _csv_rows(cols: dict[str, np.ndarray]) -> str:
+    """A frame's people.csv rows (one per person), floats with 6 significant digits, NaN as empty."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(zip(*(_cells(cols[c]) for c in PEOPLE_COLUMNS)))
+    return buffer.getvalue()
 
 
-def _cell(value: object) -> str:
-    """CSV cell text."""
-    if isinstance(value, (float, np.floating)):
-        return "" if not np.isfinite(value) else f"{float(value):.6g}"
-    return str(value)
-
+def _cells(column: np.ndarray) -> list[str]:
+    """CSV cells of one column (P,): a loop over people is formatting here, not numerics."""
+    values = column.tolist()
+    if column.dtype.kind == "f":
+        return ["" if not math.isfinite(v) else f"{v:.6g}" for v in values]
+    return [str(v) for v in values]

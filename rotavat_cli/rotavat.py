@@ -19,13 +19,17 @@ change is reported); a per-person ``stature_m`` (e.g. one per track) replaces st
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from .rotations import axis_angle_to_matrix
 
-__all__ = ["FLAGS", "AlignTransform", "rotavat_transforms", "apply_transforms", "closest_scale_on_line", "person_blocks"]
+__all__ = [
+    "FLAGS", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",
+    "coords_first", "points_from_coords", "closest_scale_on_line", "person_blocks",
+]
 
 # Flag codes of people that are left unchanged (0 = aligned).
 FLAGS = {
@@ -56,9 +60,21 @@ class AlignTransform:
         return self.flag == 0
 
 
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms (...,) of vectors (..., 3): ``np.linalg.norm(v, axis=-1)``'s arithmetic, less overhead."""
+    return np.sqrt(np.add.reduce(v * v, axis=-1))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products (..., 3) of vectors (..., 3): ``np.cross``'s arithmetic, less overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors (..., 3) and norms (...,); zero vectors stay zero."""
-    norm = np.linalg.norm(v, axis=-1)
+    norm = _norm(v)
     return np.divide(v, norm[..., None], out=np.zeros_like(v), where=norm[..., None] > 0), norm
 
 
@@ -97,7 +113,7 @@ def rotavat_transforms(
     finite = np.all(np.isfinite(F), axis=-1) & np.all(np.isfinite(H), axis=-1)
     F = np.where(finite[:, None], F, 0.0)
     H = np.where(finite[:, None], H, 0.0)
-    scale_ref = np.maximum(np.linalg.norm(F, axis=-1), 1e-12)
+    scale_ref = np.maximum(_norm(F), 1e-12)
 
     # (i) scale about the camera centre: n . (s1 F) + h = 0
     nF = F @ n
@@ -109,14 +125,14 @@ def rotavat_transforms(
 
     # (ii) rotate about F1 in the plane (O, F1, H1) so the axis follows n projected on it
     axis, length = _unit(H1 - F1)
-    m, m_norm = _unit(np.cross(F1, H1))
+    m, m_norm = _unit(_cross(F1, H1))
     degenerate = ~finite | (length <= _EPS * s1 * scale_ref)
-    same_ray = m_norm <= _EPS * np.linalg.norm(F1, axis=-1) * np.maximum(np.linalg.norm(H1, axis=-1), 1e-12)
+    same_ray = m_norm <= _EPS * _norm(F1) * np.maximum(_norm(H1), 1e-12)
     if upright == "paper":
         target, _ = _unit(n - (m @ n)[:, None] * m)
     else:
         target = np.broadcast_to(n, F.shape).copy()
-    rot_axis, sin_a = _unit(np.cross(axis, target))
+    rot_axis, sin_a = _unit(_cross(axis, target))
     angle = np.arctan2(sin_a, np.sum(axis * target, axis=-1))
     R = axis_angle_to_matrix(rot_axis, angle)
 
@@ -146,33 +162,109 @@ def rotavat_transforms(
     )
 
 
-_BLOCK_BYTES = 384 * 1024  # work per block of people: small temporaries stay in cache and off mmap
+# Bytes of arrays per block of people (3 SMPL meshes). Measured on frames of 10 SMPL meshes: 1 to 5
+# people a block are within noise of each other, the whole frame in one block is 10-30% slower
+# (its MBs of float64 temporaries fall out of cache into fresh, page-faulting memory).
+_BLOCK_BYTES = 1024 * 1024
 
 
 def person_blocks(n_people: int, bytes_per_person: int) -> list[slice]:
-    """Slices over people sized so a block's temporaries fit ``_BLOCK_BYTES``.
-
-    Whole-frame float64 temporaries (MBs) cost more in page faults than the arithmetic; a few
-    people per block keeps every temporary in cache, with one vectorised call per block.
-    """
+    """Slices over people sized so a block's arrays fit ``_BLOCK_BYTES``, in order."""
     step = max(1, _BLOCK_BYTES // max(1, bytes_per_person))
     return [slice(start, start + step) for start in range(0, n_people, step)]
+
+
+def affine_maps(transform: AlignTransform) -> tuple[np.ndarray, np.ndarray]:
+    """Each person's transform as one affine map ``X' = A X + b``: A (P, 3, 3), b (P, 3), float64."""
+    t = transform
+    A = (t.depth_scale * t.final_scale)[:, None, None] * t.rotation
+    b = t.pivot_cam - t.final_scale[:, None] * np.einsum("pij,pj->pi", t.rotation, t.pivot_cam)
+    return A, b
+
+
+def coords_first(points: np.ndarray) -> np.ndarray:
+    """Points (p, N, 3) -> a coordinates-first copy (p, 3, N) of the same dtype.
+
+    One coordinate at a time: a single transposing copy would run its inner loop over 3 values.
+
+    >>> points = np.arange(12.0).reshape(2, 2, 3)
+    >>> coords_first(points)[0]
+    array([[0., 3.],
+           [1., 4.],
+           [2., 5.]])
+    >>> np.array_equal(points_from_coords([coords_first(points)], 2, points.dtype), points)
+    True
+    """
+    coords = np.empty((points.shape[0], 3, points.shape[1]), dtype=points.dtype)
+    for k in range(3):
+        coords[:, k] = points[..., k]
+    return coords
+
+
+def points_from_coords(blocks: list[np.ndarray], n_points: int, dtype: np.dtype) -> np.ndarray:
+    """Coordinates-first blocks [(p, 3, N), ...] -> their points stacked (sum of p, N, 3) as ``dtype``.
+
+    The inverse of :func:`coords_first` over a list of blocks, again one coordinate at a time.
+    """
+    points = np.empty((sum(len(block) for block in blocks), n_points, 3), dtype=dtype)
+    start = 0
+    for block in blocks:
+        for k in range(3):
+            points[start:start + len(block), :, k] = block[:, k]
+        start += len(block)
+    return points
+
+
+def _affine_coords_first(coords: np.ndarray, A: np.ndarray, b: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """``A X + b`` per person on coordinates-first points (p, 3, N) of any float dtype -> (p, 3, N) ``dtype``.
+
+    Each output coordinate is a float64 row of three products and sums over whole input rows,
+    then stored as ``dtype``; two float64 rows are reused, so the temporaries stay small. (A
+    float64 BLAS matmul spends more on zeroing and packing 3x3 operands than on the products;
+    a mixed-dtype matmul falls back to a slow casting loop.)
+    """
+    moved = np.empty(coords.shape, dtype=dtype)
+    row = np.empty(coords[:, 0].shape, dtype=np.float64)
+    term = np.empty_like(row)
+    for i in range(3):
+        np.multiply(coords[:, 0], A[:, i, 0, None], out=row)
+        for j in (1, 2):
+            row += np.multiply(coords[:, j], A[:, i, j, None], out=term)
+        row += b[:, i, None]
+        moved[:, i] = row
+    return moved
+
+
+def transformed_blocks(points_cam: np.ndarray, transform: AlignTransform,
+                       dtype: np.dtype | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Points (P, N, 3) before and after the transforms, a block of people at a time, coordinates first.
+
+    Yields (before (p, 3, N) in the input dtype, after (p, 3, N) as ``dtype``, default float64)
+    for consecutive blocks of :func:`person_blocks`, so a caller that also reduces each block
+    (align's drift report) does it while the block is in cache. Flagged people come back unchanged.
+    """
+    X = np.asarray(points_cam)
+    A, b = affine_maps(transform)
+    flagged = ~transform.ok
+    bytes_per_person = X.shape[1] * (2 * 3 * X.itemsize + 2 * 8)  # before, after, two float64 rows
+    for block in person_blocks(X.shape[0], bytes_per_person):
+        before = coords_first(X[block])
+        with np.errstate(invalid="ignore"):  # a flagged (degenerate) person may hold inf; replaced below
+            after = _affine_coords_first(before, A[block], b[block], dtype or np.float64)
+        keep = flagged[block]
+        if keep.any():
+            after[keep] = before[keep]
+        yield before, after
 
 
 def apply_transforms(points_cam: np.ndarray, transform: AlignTransform, dtype: np.dtype | None = None) -> np.ndarray:
     """Apply per-person transforms to points (P, N, 3); flagged people come back unchanged.
 
-    ``X' = pivot + s3 R (s1 X - pivot)`` is one affine map ``X' = A X + b`` per person, computed
-    in float64 and stored as ``dtype`` (default float64), a block of people at a time
-    (:func:`person_blocks`). Flagged people have ``A = I``, ``b = 0`` exactly.
+    ``X' = pivot + s3 R (s1 X - pivot)`` is one affine map ``X' = A X + b`` per person
+    (:func:`affine_maps`), computed in float64 and stored as ``dtype`` (default float64), a block
+    of people at a time (:func:`transformed_blocks`).
     """
-    t = transform
     X = np.asarray(points_cam)
-    A_T = np.ascontiguousarray(np.swapaxes((t.depth_scale * t.final_scale)[:, None, None] * t.rotation, 1, 2))
-    b = t.pivot_cam - t.final_scale[:, None] * np.einsum("pij,pj->pi", t.rotation, t.pivot_cam)
-    out = np.empty(X.shape, dtype=dtype or np.float64)
-    for block in person_blocks(X.shape[0], X.shape[1] * 3 * 8):
-        moved = np.matmul(X[block], A_T[block], dtype=np.float64)
-        moved += b[block, None, :]
-        out[block] = moved
-    return out
+    dtype = np.dtype(dtype or np.float64)
+    moved = [after for _, after in transformed_blocks(X, transform, dtype)]
+    return points_from_coords(moved, X.shape[1], dtype)

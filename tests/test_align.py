@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -158,3 +159,63 @@ def test_failed_align_leaves_no_partial_output(scene, tmp_path, runner):
     assert result.exit_code == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad", "out"]  # no staging left behind
     assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]  # previous output untouched
+
+
+def _reference_drift_px(before: np.ndarray, after: np.ndarray, focal_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-person mean and max drift (P,), the plain way: float32 projections, np.hypot, nanmean/nanmax."""
+    a, b = before.astype(np.float32), after.astype(np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        du = b[..., 0] * (1.0 / b[..., 2]) - a[..., 0] * (1.0 / a[..., 2])
+        dv = b[..., 1] * (1.0 / b[..., 2]) - a[..., 1] * (1.0 / a[..., 2])
+    drift = np.float32(focal_px) * np.hypot(du, dv)
+    return np.nanmean(drift, axis=1), np.nanmax(drift, axis=1)
+
+
+@pytest.mark.parametrize("upright", ["paper", "full"])
+def test_drift_columns_equal_the_plain_computation(scene, upright):
+    frame = open_sequence(scene / "pred").read_frame("000003")
+    cam = open_sequence(scene / "gt").camera
+    new, cols = align_frame(frame, cam, upright)
+    mean, peak = _reference_drift_px(frame.data["vertices"], new.data["vertices"], cam.focal_px)
+    np.testing.assert_array_equal(cols["drift_mean_px"], mean)
+    np.testing.assert_array_equal(cols["drift_max_px"], peak)
+    assert np.all(cols["drift_max_px"] > 0.1)  # a real per-vertex measurement, not the foot/crown's zero
+
+
+def test_hypot_f32_is_np_hypot():
+    from rotavat_cli.align import _hypot_f32
+
+    rng = np.random.default_rng(3)
+    x = (rng.normal(size=20000) * 10.0 ** rng.uniform(-40, 38, 20000)).astype(np.float32)
+    y = (rng.normal(size=20000) * 10.0 ** rng.uniform(-40, 38, 20000)).astype(np.float32)
+    x[:6] = [np.inf, np.nan, -np.inf, np.nan, 0.0, 3e38]
+    y[:6] = [np.nan, np.inf, 1.0, np.nan, -0.0, 3e38]
+    with np.errstate(over="ignore"):  # 3e38 * sqrt(2) overflows float32 either way
+        expected, got = np.hypot(x, y), _hypot_f32(x, y)
+    np.testing.assert_array_max_ulp(got, expected, maxulp=1)
+    np.testing.assert_array_equal(got[:6], expected[:6])  # inf beats NaN, as in hypot
+    if sys.platform.startswith("linux"):  # glibc's hypotf computes exactly this way
+        np.testing.assert_array_equal(got, expected)
+
+
+def test_nan_mean_max_is_nanmean_nanmax():
+    from rotavat_cli.align import _nan_mean_max
+
+    values = np.random.default_rng(4).uniform(0, 50, (4, 6890)).astype(np.float32)
+    for rows in (values, np.where(np.arange(6890) % 7 == 0, np.nan, values).astype(np.float32)):
+        mean, peak = _nan_mean_max(rows)
+        assert mean.dtype == np.float32
+        np.testing.assert_array_equal(mean, np.nanmean(rows, axis=1))
+        np.testing.assert_array_equal(peak, np.nanmax(rows, axis=1))
+
+
+def test_people_csv_cells():
+    from rotavat_cli.align import PEOPLE_COLUMNS, _csv_rows
+
+    cols = {c: np.array([1.0 / 3.0, np.nan]) for c in PEOPLE_COLUMNS}
+    cols.update(frame=np.array(["a,b", "000001"], dtype=object), person_id=np.array([7, 8]),
+                drift_mean_px=np.array([2.5, np.inf], dtype=np.float32), flag=np.array(["", "degenerate_mesh"], dtype=object))
+    rows = list(csv.reader(_csv_rows(cols).splitlines()))
+    assert rows[0] == ["a,b", "7", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "2.5",
+                       "0.333333", "0.333333", ""]
+    assert rows[1] == ["000001", "8"] + [""] * 9 + ["degenerate_mesh"]

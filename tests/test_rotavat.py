@@ -115,3 +115,44 @@ def test_fixed_stature():
     assert T.stature_m[0] == pytest.approx(1.6) and T.stature_m[2] == pytest.approx(1.9)
     free = rotavat_transforms(feet, heads, cam.up_cam, cam.height_m)
     assert T.stature_m[1] == pytest.approx(free.stature_m[1])
+
+
+def _leaning_people(seed: int, P: int, V: int):
+    """A camera, the RotAvat transforms of P leaning people, and meshes (P, V, 3) float32 around them."""
+    rng = np.random.default_rng(seed)
+    cam = random_camera(rng)
+    feet, heads = random_people(rng, cam, P)
+    T = rotavat_transforms(feet, heads, cam.up_cam, cam.height_m)
+    mesh = (feet[:, None] + rng.normal(0, 0.3, (P, V, 3))).astype(np.float32)
+    return cam, T, mesh
+
+
+def test_float32_points_are_transformed_in_float64_then_stored():
+    _, T, mesh = _leaning_people(6, 5, 200)
+    out = apply_transforms(mesh, T, np.float32)
+    assert out.dtype == np.float32
+    np.testing.assert_array_equal(out, apply_transforms(mesh.astype(np.float64), T).astype(np.float32))
+    A = (T.depth_scale * T.final_scale)[:, None, None] * T.rotation  # X' = pivot + s3 R (s1 X - pivot)
+    expected = T.pivot_cam[:, None] + np.einsum("pij,pnj->pni", A, mesh.astype(np.float64)) \
+        - T.final_scale[:, None, None] * np.einsum("pij,pj->pi", T.rotation, T.pivot_cam)[:, None]
+    np.testing.assert_allclose(apply_transforms(mesh, T), expected, rtol=0, atol=1e-12)
+
+
+def test_blocks_of_people_do_not_change_the_result(monkeypatch):
+    import rotavat_cli.rotavat as rotavat
+
+    _, T, mesh = _leaning_people(7, 7, 300)
+    whole = apply_transforms(mesh, T, np.float32)
+    monkeypatch.setattr(rotavat, "_BLOCK_BYTES", 1)  # one person per block
+    assert len(rotavat.person_blocks(7, 300 * 40)) == 7
+    np.testing.assert_array_equal(apply_transforms(mesh, T, np.float32), whole)
+    before = np.concatenate([b for b, _ in rotavat.transformed_blocks(mesh, T)])
+    np.testing.assert_array_equal(rotavat.points_from_coords([before], 300, np.float32), mesh)
+
+
+def test_flagged_people_are_copied_not_multiplied():
+    cam = Camera((1280, 720), 1000, None, np.deg2rad(20), 0.0, 5.0)
+    feet = np.array([[0.0, -8.0, 10.0], [0.0, -8.0, 10.0]])  # above the horizon: flagged
+    T = rotavat_transforms(feet, feet + [0.0, -1.0, 0.0], cam.up_cam, cam.height_m)
+    pts = np.array([[[1.0, np.nan, 3.0]], [[np.inf, 2.0, 3.0]]], dtype=np.float32)
+    np.testing.assert_array_equal(apply_transforms(pts, T, np.float32), pts)  # 0 * NaN would spread NaN
