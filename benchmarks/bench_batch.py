@@ -1,7 +1,7 @@
 """Wall time of ``rotavat batch`` on a synthetic dataset: one worker, two workers, and a Dask cluster.
 
 Usage: python benchmarks/bench_batch.py [--sequences 20] [--frames 200] [--people 10] [--quick]
-                                        [--no-dask] [--workdir DIR] [--keep]
+                                        [--repeats 3] [--no-dask] [--workdir DIR] [--keep]
 
 Writes ``--sequences`` synthetic scenes (``rotavat synth``, one seed each) as a dataset
 ``pred/seq_XX`` with ground truth ``gt/seq_XX``, warms the page cache, then times the whole command
@@ -12,6 +12,11 @@ each time, start-up included) with:
 - ``--jobs 2`` (a process pool): target speed-up >= 1.7x on 2 cores;
 - ``--executor dask --jobs 2``: the ``dask.distributed.LocalCluster`` rotavat starts itself on loopback
   (2 worker processes, 1 thread each; its start-up is timed): target overhead <= 15% over ``--jobs 2``.
+
+The ``--jobs 2`` and Dask runs are repeated ``--repeats`` times (default 3), interleaved, so both see
+the same machine: a shared virtual machine's speed drifts by +-10% from minute to minute. The table
+gives the median wall time of each, the Dask overhead as the median of the pairwise ratios, and every
+run's figure beside it.
 
 It checks that the Dask run's aligned meshes and people.csv equal the local run's byte for byte,
 prints each run's peak RSS per worker (from batch_report.json), and, for memory against sequence
@@ -24,6 +29,7 @@ import argparse
 import json
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -99,6 +105,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--people", type=int, default=10)
     parser.add_argument("--quick", action="store_true", help="6 sequences x 40 frames x 10 people")
+    parser.add_argument("--repeats", type=int, default=3, help="interleaved --jobs 2 / Dask runs (median)")
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask run")
     parser.add_argument("--workdir", type=Path, default=None)
     parser.add_argument("--keep", action="store_true")
@@ -115,30 +122,42 @@ def main() -> None:
         warm(work)
         common = [str(work / "pred"), "--gt-root", str(work / "gt")]
         t1 = run([*common, "--out", str(work / "out_j1"), "--jobs", "1"])
-        t2 = run([*common, "--out", str(work / "out_j2"), "--jobs", "2"])
-        rows = [("`--jobs 1` (one process)", t1, "1.00x", worker_rss(work / "out_j1")),
-                ("`--jobs 2` (process pool)", t2, f"{t1 / t2:.2f}x speed-up (target >= 1.7x)", worker_rss(work / "out_j2"))]
-        if not args.no_dask:
-            rows.append(dask_run(work, common, t2))
+        local, dask = [], []
+        for _ in range(max(1, args.repeats)):
+            local.append(run([*common, "--out", str(work / "out_j2"), "--force", "--jobs", "2"]))
+            if not args.no_dask:
+                dask.append(run([*common, "--out", str(work / "out_dask"), "--force", "--executor", "dask", "--jobs", "2"]))
+        t2 = statistics.median(local)
+        rows = [("`--jobs 1` (one process)", f"{t1:.1f}", "1.00x", worker_rss(work / "out_j1")),
+                ("`--jobs 2` (process pool)", runs(local), (f"{t1 / t2:.2f}x speed-up (target >= 1.7x); "
+                 f"runs {', '.join(f'{t1 / t:.2f}x' for t in local)}"), worker_rss(work / "out_j2"))]
+        if dask:
+            rows.append(dask_row(work, local, dask))
         print()
         print("| run | wall s | vs baseline | peak RSS per worker |")
         print("|---|---|---|---|")
         for name, seconds, ratio, rss in rows:
-            print(f"| {name} | {seconds:.1f} | {ratio} | {rss} |")
+            print(f"| {name} | {seconds} | {ratio} | {rss} |")
         memory(work, args)
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
 
 
-def dask_run(work: Path, common: list[str], local_seconds: float) -> tuple:
-    """The same batch with ``--executor dask --jobs 2``: the LocalCluster rotavat starts itself (start-up timed)."""
-    seconds = run([*common, "--out", str(work / "out_dask"), "--executor", "dask", "--jobs", "2"])
+def runs(seconds: list[float]) -> str:
+    """Median wall time, and every run's when there are several."""
+    median = f"{statistics.median(seconds):.1f}"
+    return median if len(seconds) == 1 else f"{median} ({', '.join(f'{s:.1f}' for s in seconds)})"
+
+
+def dask_row(work: Path, local: list[float], dask: list[float]) -> tuple:
+    """The Dask runs (rotavat's LocalCluster, start-up timed): overhead as the median of the pairwise ratios."""
     n = same_meshes(work / "out_j2", work / "out_dask")
     print(f"Dask outputs equal the local ones byte for byte ({n} aligned files)")
-    overhead = 100.0 * (seconds / local_seconds - 1.0)
-    return ("`--executor dask --jobs 2` (rotavat's LocalCluster, 2 workers)", seconds,
-            f"{overhead:+.1f}% vs `--jobs 2` (target <= 15%)", worker_rss(work / "out_dask"))
+    overheads = [100.0 * (d / t - 1.0) for t, d in zip(local, dask)]
+    return ("`--executor dask --jobs 2` (rotavat's LocalCluster, 2 workers)", runs(dask),
+            (f"{statistics.median(overheads):+.1f}% vs `--jobs 2` (target <= 15%); "
+             f"runs {', '.join(f'{o:+.1f}%' for o in overheads)}"), worker_rss(work / "out_dask"))
 
 
 def memory(work: Path, args: argparse.Namespace) -> None:

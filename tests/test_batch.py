@@ -293,13 +293,40 @@ def test_dask_cluster_results_equal_the_local_ones(dataset, tmp_path, runner):
             == json.loads((tmp_path / "dask" / "batch_report.json").read_text())["aggregate"])
 
 
-def test_rotavat_local_cluster_workers_run_without_dask_malloc_trim(monkeypatch):
-    """rotavat's own LocalCluster: one BLAS thread per worker as Dask sets it, but glibc's malloc left as is."""
+def test_rotavat_local_cluster_workers_run_without_dask_malloc_trim_and_housekeeping(monkeypatch):
+    """rotavat's own LocalCluster: one BLAS thread per worker as Dask sets it, glibc's malloc left as is,
+    no stack profiler and a slow event-loop tick in the workers."""
     distributed = pytest.importorskip("distributed")
     from rotavat_cli.batch.executors import local_cluster
 
     monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
     keys = ("MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS")
+
+    def worker_state() -> dict:
+        import dask
+
+        return {"env": {k: os.environ.get(k) for k in keys},
+                "profile": dask.config.get("distributed.worker.profile.enabled"),
+                "tick": dask.config.get("distributed.admin.tick.interval")}
+
     with local_cluster(1) as cluster, distributed.Client(cluster) as client:
-        (env,) = client.run(lambda: {k: os.environ.get(k) for k in keys}).values()
-    assert env == {"MALLOC_TRIM_THRESHOLD_": None, "OPENBLAS_NUM_THREADS": "1"}
+        (state,) = client.run(worker_state).values()
+    assert state == {"env": {"MALLOC_TRIM_THRESHOLD_": None, "OPENBLAS_NUM_THREADS": "1"},
+                     "profile": False, "tick": "500ms"}
+
+
+def test_pool_workers_get_one_blas_thread_and_the_driver_env_is_restored(monkeypatch):
+    """--jobs N > 1: each spawned worker runs single-threaded BLAS; a value the user set wins; close restores."""
+    from rotavat_cli.batch.executors import POOL_WORKER_ENVIRON, _PoolExecutor
+
+    for key in POOL_WORKER_ENVIRON:
+        monkeypatch.delenv(key, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")  # the user's own choice
+    pool = _PoolExecutor(2)
+    try:
+        env = {key: pool.submit(os.getenv, key).result() for key in POOL_WORKER_ENVIRON}
+    finally:
+        pool.close()
+    assert (env["OMP_NUM_THREADS"], env["OPENBLAS_NUM_THREADS"], env["MKL_NUM_THREADS"]) == ("1", "1", "3")
+    assert "OMP_NUM_THREADS" not in os.environ and "OPENBLAS_NUM_THREADS" not in os.environ
+    assert os.environ["MKL_NUM_THREADS"] == "3"
