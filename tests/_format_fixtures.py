@@ -33,7 +33,7 @@ def write_synthetic_smpl(path: Path, n_betas: int = 10, seed: int = 0, dtype=np.
     shapedirs: smooth random fields; posedirs: random in the first 9 columns only (small file).
     """
     rng = np.random.default_rng(seed)
-    with np.load(BODIES_PATH) as bodies:
+    with np.load(BODIES_PATH, allow_pickle=False) as bodies:
         verts = bodies["vertices"][0].astype(np.float64)
         joints = bodies["joints"][0].astype(np.float64)
         faces = bodies["faces"].astype(np.int64)

@@ -15,6 +15,7 @@ from conftest import invoke, tree_hash
 from rotavat_cli.camera import horizon_v_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
+from rotavat_cli import safe_pickle
 from rotavat_cli.formats.agora import focal_mm
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
@@ -259,7 +260,7 @@ def test_bev_video_results_and_image_size_inference(tmp_path, scene):
 def test_romp_without_vertices_poses_its_parameters(tmp_path, scene, model, model_path):
     src = F.write_bev(tmp_path / "romp", scene, (W, H), fmt="romp")
     for file in src.glob("*.npz"):  # as if run without --calc_smpl: parameters + cam_trans only
-        results = np.load(file, allow_pickle=True)["results"].item()  # our own fixture, trusted
+        results = safe_pickle.load_npz(file)["results"].item()  # the importer's own restricted reader
         for key in ("verts", "joints", "pj2d_org"):
             results.pop(key)
         np.savez(file, results=results)
@@ -279,7 +280,7 @@ def test_cliff_rotmat_pose_and_fork_track_ids(tmp_path, scene, model_path):
 
 def test_cliff_image_size_from_image_headers(tmp_path, scene):
     src = F.write_cliff(tmp_path / "r.npz", scene, (W, H))
-    data = dict(np.load(src))
+    data = dict(np.load(src, allow_pickle=False))
     data["imgname"] = np.array([f"imgs/{i:06d}.png" for i in range(3)])
     np.savez(src, **data)
     (tmp_path / "imgs").mkdir()
@@ -335,7 +336,7 @@ def test_parameter_formats_without_a_model_import_joints_only(tmp_path, scene, m
 def test_wrong_model_family_is_refused(tmp_path, scene, model, camera):
     model_file = tmp_path / "x.npz"
     F.write_synthetic_smpl(model_file)
-    data = dict(np.load(model_file))
+    data = dict(np.load(model_file, allow_pickle=False))
     data["kintree_table"] = data["kintree_table"][:, :23]
     data["J_regressor"] = data["J_regressor"][:23]
     data["weights"] = data["weights"][:, :23]
@@ -423,7 +424,7 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
             p.unlink()
         (src / "img_000.pkl").write_bytes(F.evil_pickle(marker))
     elif fmt in ("cliff", "bedlam"):  # npz: an object member where arrays are expected
-        data = dict(np.load(src))
+        data = dict(np.load(src, allow_pickle=False))
         obj = np.empty((), dtype=object)
         obj[()] = F.Evil(marker)
         data["imgname"] = obj

@@ -144,7 +144,7 @@ def test_joint_mappings():
 # ---- model files: wrong ones are InputErrors naming the file and key --------------------------
 def test_model_file_errors(tmp_path):
     good = _write_chain(tmp_path / "good.npz")
-    data = dict(np.load(good))
+    data = dict(np.load(good, allow_pickle=False))
     cases = {
         "missing.npz": ({k: v for k, v in data.items() if k != "weights"}, "missing weights"),
         "shape.npz": ({**data, "weights": data["weights"][:, :2]}, "'weights' must be"),
