@@ -32,26 +32,7 @@ PEOPLE_COLUMNS = (
 )
 
 
-@dataclass(frozen=True)
-class _CameraView:
-    """A camera plus what align derives from it, computed once (``Camera`` properties redo the trig)."""
-
-    camera: Camera
-    up_cam: np.ndarray  # (3,) world up in the camera frame
-    R_cam_from_world: np.ndarray  # (3, 3)
-    t_cam_from_world: np.ndarray  # (3,)
-
-    @classmethod
-    def of(cls, camera: Camera) -> "_CameraView":
-        """Derive once from ``camera``."""
-        return cls(camera, camera.up_cam, camera.R_cam_from_world, camera.t_cam_from_world)
-
-    def world_from_cam(self, points_cam: np.ndarray) -> np.ndarray:
-        """Camera-frame points (..., 3) -> world frame (``Camera.world_from_cam`` with cached R, t)."""
-        return (np.asarray(points_cam, dtype=np.float64) - self.t_cam_from_world) @ self.R_cam_from_world
-
-
-def _frame_transform(frame: Frame, view: _CameraView, upright: str,
+def _frame_transform(frame: Frame, camera: Camera, upright: str,
                      stature_by_id: dict[int, float] | None) -> tuple[AlignTransform, np.ndarray, np.ndarray]:
     """Transforms for a frame's people plus their original feet/heads (P, 3)."""
     verts = frame.get("vertices")
@@ -61,7 +42,7 @@ def _frame_transform(frame: Frame, view: _CameraView, upright: str,
     stature = None
     if stature_by_id is not None:
         stature = np.array([stature_by_id.get(int(i), np.nan) for i in frame.person_ids])
-    transform = rotavat_transforms(feet_cam, heads_cam, view.up_cam, view.camera.ground_offset_m, upright, stature)
+    transform = rotavat_transforms(feet_cam, heads_cam, camera.up_cam, camera.ground_offset_m, upright, stature)
     return transform, feet_cam, heads_cam
 
 
@@ -125,24 +106,17 @@ def _align_points(verts_cam: np.ndarray, transform: AlignTransform,
 def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
                 stature_by_id: dict[int, float] | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
     """Align one frame: the new frame and per-person columns (see ``PEOPLE_COLUMNS``)."""
-    return _align_frame(frame, _CameraView.of(camera), upright, stature_by_id)
-
-
-def _align_frame(frame: Frame, view: _CameraView, upright: str,
-                 stature_by_id: dict[int, float] | None) -> tuple[Frame, dict[str, np.ndarray]]:
-    """:func:`align_frame` with the camera's derived quantities computed once per sequence."""
     P = frame.n_people
     if P == 0:
         return frame, {c: np.zeros(0) for c in PEOPLE_COLUMNS}
-    camera = view.camera
-    transform, feet_cam, heads_cam = _frame_transform(frame, view, upright, stature_by_id)
+    transform, feet_cam, heads_cam = _frame_transform(frame, camera, upright, stature_by_id)
     verts = frame.data["vertices"]
     new_verts, drift_mean, drift_max = _align_points(verts, transform, camera.focal_px)
     arrays = {"vertices": new_verts}
     if frame.get("joints") is not None:
         arrays["joints"] = apply_transforms(frame.data["joints"], transform, frame.data["joints"].dtype)
     new_heads = apply_transforms(heads_cam[:, None], transform)[:, 0]
-    foot_world = view.world_from_cam(transform.pivot_cam)
+    foot_world = camera.world_from_cam(transform.pivot_cam)
     ok = transform.ok
     columns = {
         "frame": np.full(P, frame.name, dtype=object),
@@ -164,13 +138,12 @@ def _align_frame(frame: Frame, view: _CameraView, upright: str,
 def track_statures(seq: Sequence, camera: Camera, upright: str = "paper") -> dict[int, float]:
     """Median RotAvat stature per ``person_id`` over the sequence (one landmark pass, no writing)."""
     samples: dict[int, list[float]] = defaultdict(list)
-    view = _CameraView.of(camera)
     for frame in seq.frames():
         if frame.n_people == 0:
             continue
         if frame.get("person_ids") is None:
             raise InputError(f"{frame.source}: --height-from track needs 'person_ids' (track ids) in every frame")
-        transform, _, _ = _frame_transform(frame, view, upright, None)
+        transform, _, _ = _frame_transform(frame, camera, upright, None)
         for pid, stature in zip(frame.person_ids, transform.stature_m):
             if np.isfinite(stature):
                 samples[int(pid)].append(float(stature))
@@ -183,11 +156,10 @@ _CHUNK_FRAMES = 8  # frames per worker task: amortises task overhead, keeps memo
 def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray], str]]:
     """Read, align and write a few frames; per frame its people count, columns and people.csv rows."""
     seq, names, camera, out, upright, stature_by_id = task
-    view = _CameraView.of(camera)
     results = []
     for name in names:
         frame = seq.read_frame(name)
-        new_frame, cols = _align_frame(frame, view, upright, stature_by_id)
+        new_frame, cols = align_frame(frame, camera, upright, stature_by_id)
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols)))
     return results

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -145,6 +146,12 @@ def horizon_v_px(u_px: np.ndarray | float, focal_px: float, principal_point: tup
         return cy - (n[0] * (u - cx) + n[2] * focal_px) / n[1]
 
 
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """``array`` marked read-only (a cached value shared by every caller)."""
+    array.flags.writeable = False
+    return array
+
+
 @dataclass(frozen=True)
 class Camera:
     """Static pinhole camera over a ground plane; angles in radians, lengths in metres."""
@@ -170,31 +177,33 @@ class Camera:
         if w <= 0 or h <= 0:
             raise ValueError(f"image_size must be positive, got {self.image_size}")
 
-    # ---- derived quantities (never stored twice) -------------------------------------------
-    @property
+    # ---- derived quantities ---------------------------------------------------------------
+    # The arrays are derived once per camera (a frame-by-frame loop asks for them per frame) and
+    # returned read-only, so no caller can change a cached value under another.
+    @cached_property
     def K(self) -> np.ndarray:
         """Intrinsics (3, 3)."""
-        return intrinsics_matrix(self.focal_px, self.principal_point)
+        return _read_only(intrinsics_matrix(self.focal_px, self.principal_point))
 
-    @property
+    @cached_property
     def up_cam(self) -> np.ndarray:
         """World up ``n`` (3,) in the camera frame."""
-        return up_vector_cam(self.pitch_rad, self.roll_rad)
+        return _read_only(up_vector_cam(self.pitch_rad, self.roll_rad))
 
     @property
     def ground_offset_m(self) -> float:
         """``h`` in the ground plane ``n.X + h = 0`` (equals the camera height)."""
         return self.height_m
 
-    @property
+    @cached_property
     def R_cam_from_world(self) -> np.ndarray:
         """Rotation (3, 3): ``X_cam = R_cam_from_world @ X_world + t_cam_from_world``."""
-        return R_cam_from_world_from_up(self.up_cam)
+        return _read_only(R_cam_from_world_from_up(self.up_cam))
 
-    @property
+    @cached_property
     def t_cam_from_world(self) -> np.ndarray:
         """Translation (3,): the world origin (ground below the camera) in the camera frame."""
-        return -self.height_m * self.up_cam
+        return _read_only(-self.height_m * self.up_cam)
 
     @property
     def center_world(self) -> np.ndarray:

@@ -144,12 +144,15 @@ def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_c
     pv, gv = pred.get("vertices"), gt.get("vertices")
     if pv is not None and gv is not None and pv.shape[1] != gv.shape[1]:
         raise InputError(f"{pred.source}: PVE needs equal vertex counts ({pv.shape[1]} vs {gv.shape[1]} in ground truth)")
-    verts = pv is not None and gv is not None and pv.shape[1] > 0
+    if pv is not None and gv is not None and pv.shape[1] > 0:
+        pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
+    else:
+        pv = gv = None
     rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
-    out.update(M.person_errors_mm(pj, gj, pv[pi] if verts else None, gv[gi] if verts else None, *rotations, PELVIS))
-    if gt_cam is not None and verts:
-        feet_p, heads_p = foot_head_points(pv[pi])
-        feet_g, heads_g = foot_head_points(gv[gi])
+    out.update(M.person_errors_mm(pj, gj, pv, gv, *rotations, PELVIS))
+    if gt_cam is not None and pv is not None:
+        feet_p, heads_p = foot_head_points(pv)
+        feet_g, heads_g = foot_head_points(gv)
         out["foot_height"] = np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0
         out["lean_deg"] = M.lean_deg(feet_p, heads_p, gt_cam.up_cam)
         out["stature_err"] = M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)
