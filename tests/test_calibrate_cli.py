@@ -147,3 +147,17 @@ def test_calibrate_box_points_with_distortion(tmp_path, runner):
                     "--out", tmp_path / "cam2.yaml", "--json")
     fit = json.loads(result.stdout)["fit"]
     assert fit["box_depth_m"] == 0.0 and "distortion" not in fit
+
+
+def test_box_depth_flag_overrides_the_config_and_bad_values_exit_2(tmp_path, runner):
+    seq, true = box_seq(tmp_path / "boxes")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("calibrate:\n  points: boxes\n  box_depth_m: 0.0\n")
+    result = invoke(runner, "calibrate", seq, "--config", cfg, "--box-depth", "0.15", "--focal", true["focal_px"],
+                    "--out", tmp_path / "cam.yaml", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["fit"]["box_depth_m"] == 0.15
+    result = invoke(runner, "calibrate", seq, "--points", "boxes", "--box-depth", "nan",
+                    "--out", tmp_path / "bad.yaml")
+    assert result.exit_code == 2 and "box_depth" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "bad.yaml").exists()

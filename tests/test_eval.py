@@ -156,3 +156,21 @@ def test_paper_point_on_synth(tmp_path, runner):
     assert after["foot_height"] < 5.0 < before["foot_height"]
     md = (tmp_path / "metrics.md").read_text()
     assert "Relative change" in md and "`" + str(s / "al") + "`" in md
+
+
+def test_frame_ranges_merge_into_the_whole_result(tmp_path):
+    """evaluate(frames=(a, b)) over consecutive ranges + merge_results == one evaluate call, exactly."""
+    from rotavat_cli.evaluate import merge_results
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=5, frames=5, people=3))
+    pred, gt = tmp_path / "s" / "pred", tmp_path / "s" / "gt"
+    (pred / "000004.npz").unlink()  # a frame on the ground-truth side only: counted in its range
+    whole = evaluate(pred, gt)
+    parts = [evaluate(pred, gt, frames=(0, 2)), evaluate(pred, gt, frames=(2, 5))]
+    assert [p.frames for p in parts] == [2, 2] and [p.frames_gt_only for p in parts] == [0, 1]
+    merged = merge_results(parts)
+    assert json.dumps(merged.as_dict(per_person=True)) == json.dumps(whole.as_dict(per_person=True))  # NaN-safe
+    assert whole.matched == 12 and whole.missed == 3
+    with pytest.raises(ValueError):
+        merge_results([])
