@@ -1,7 +1,7 @@
 """Throughput of rotavat's batched evaluation metrics vs a per-person Python loop.
 
 Usage: python benchmarks/bench_eval.py [--pairs 100000] [--chunk 2000] [--loop-pairs 2000]
-                                        [--seed 0]
+                                        [--seed 0] [--engines numpy,numba]
 
 Person-pairs (prediction + ground truth, SMPL-sized: 24 joints, 6,890 vertices, float32 as HPS
 tools dump them) go through the eight per-person metrics of ``rotavat_cli.metrics``: W-MPJPE,
@@ -9,7 +9,9 @@ MPJPE, PA-MPJPE, SPEC's W-MPJPE and the same four on vertices. The batched path 
 ``evaluate`` calls: one :func:`~rotavat_cli.metrics.person_errors_mm` per ``--chunk`` people,
 on the float32 arrays as loaded (it converts the joints once and the vertices block by block
 itself, so its time includes every conversion). It is timed three ways: joints only, vertices
-only, and all eight at once. The baseline is the straightforward per-person loop (per-person
+only, and all eight at once, once per vertex engine: ``numba`` (the compiled kernels of
+``rotavat[fast]``, what ``evaluate`` runs when numba is installed; its one-off JIT compile or
+cache load is done before timing and reported) and ``numpy``. The baseline is the straightforward per-person loop (per-person
 float64 conversion, per-person ``np.linalg.svd`` Procrustes in the style of SPIN's
 ``compute_similarity_transform``, ``np.linalg.norm(axis=1)`` errors), run in the same process
 on ``--loop-pairs`` pairs and extrapolated. For reference, the single-metric public functions
@@ -40,6 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from _reference_metrics import reference_pa_errors_mm  # noqa: E402
 from rotavat_cli.metrics import (  # noqa: E402
+    compiled_kernels,
     mpjpe,
     person_errors_mm,
     pve,
@@ -120,24 +123,26 @@ def batched_metrics(
     }
 
 
-def fused_call(part: str, pj, gj, pv, gv) -> dict[str, np.ndarray]:
+def fused_call(part: str, engine: str, pj, gj, pv, gv) -> dict[str, np.ndarray]:
     """``person_errors_mm`` on one chunk as evaluate calls it, for "joints", "vertices" or both."""
     joints = (pj, gj) if part != "vertices (4)" else (None, None)
     verts = (pv, gv) if part != "joints (4)" else (None, None)
     roots = (pj[:, 0], gj[:, 0]) if part == "vertices (4)" else (None, None)
     return person_errors_mm(
-        *joints, *verts, R_WORLD_FROM_CAM_PRED, R_WORLD_FROM_CAM_GT, 0, *roots
+        *joints, *verts, R_WORLD_FROM_CAM_PRED, R_WORLD_FROM_CAM_GT, 0, *roots, engine=engine
     )
 
 
-def time_fused(pool: tuple[np.ndarray, ...], n_pairs: int, chunk: int, part: str) -> float:
+def time_fused(
+    pool: tuple[np.ndarray, ...], n_pairs: int, chunk: int, part: str, engine: str
+) -> float:
     """Seconds for ``n_pairs`` pairs through :func:`fused_call`, ``chunk`` people per call."""
     n_pool, seconds, done, k = len(pool[0]), 0.0, 0, 0
     while done < n_pairs:
         size = min(chunk, n_pool - k, n_pairs - done)
         arrays = (x[k : k + size] for x in pool)
         t0 = time.perf_counter()
-        fused_call(part, *arrays)
+        fused_call(part, engine, *arrays)
         seconds += time.perf_counter() - t0
         done += size
         k = (k + size) % n_pool
@@ -213,43 +218,55 @@ def max_diff_mm(values: dict[str, np.ndarray], reference: dict[str, np.ndarray])
     return max(float(np.abs(values[n] - reference[n]).max()) for n in METRICS)
 
 
-def fused_values(subset: tuple[np.ndarray, ...], chunk: int) -> dict[str, np.ndarray]:
+def fused_values(subset: tuple[np.ndarray, ...], chunk: int, engine: str) -> dict[str, np.ndarray]:
     """The eight metrics of ``subset`` through the fused path, under the loop's names."""
-    parts = [fused_call("all 8", *(x[k : k + chunk] for x in subset))
+    parts = [fused_call("all 8", engine, *(x[k : k + chunk] for x in subset))
              for k in range(0, len(subset[0]), chunk)]
     return {n: np.concatenate([p[FUSED_KEY[n]] for p in parts]) for n in METRICS}
 
 
-def far_check_mm(seed: int, n_pairs: int = 200) -> float:
-    """Max |fused - loop| on far bodies: 25-30 m away, predictions ~1 m (up to ~3 m) off."""
+def far_check_mm(seed: int, engines: list[str], n_pairs: int = 200) -> dict[str, float]:
+    """Max |fused - loop| per engine on far bodies: 25-30 m away, predictions ~1 m (up to ~3 m) off."""
     far = make_pool(np.random.default_rng(seed + 1), n_pairs, near_far_m=(25.0, 30.0),
                     placement_sd_m=1.0)
-    return max_diff_mm(fused_values(far, n_pairs), loop_values(far)[1])
+    reference = loop_values(far)[1]
+    return {e: max_diff_mm(fused_values(far, n_pairs, e), reference) for e in engines}
 
 
-def run(n_pairs: int, chunk: int, n_loop: int, seed: int) -> dict:
+def warm_up_s(engine: str, pool: tuple[np.ndarray, ...]) -> float:
+    """Seconds of the engine's one-off start (numba: import + JIT compile or cache load)."""
+    t0 = time.perf_counter()
+    fused_call("all 8", engine, *(x[:2] for x in pool))
+    return time.perf_counter() - t0
+
+
+def run(n_pairs: int, chunk: int, n_loop: int, seed: int, engines: list[str]) -> dict:
     """Time every path; returns seconds per pair and the consistency checks."""
     n_loop = min(n_loop, n_pairs)
     pool = make_pool(np.random.default_rng(seed), min(n_pairs, max(n_loop, chunk)))
-    fused_s = {part: time_fused(pool, n_pairs, chunk, part) for part in PARTS}
+    warm = {e: warm_up_s(e, pool) for e in engines}
+    fused_s = {e: {part: time_fused(pool, n_pairs, chunk, part, e) for part in PARTS}
+               for e in engines}
     subset = tuple(x[:n_loop] for x in pool)
     loop_s, loop_vals = loop_values(subset)
     per_metric_s, per_metric_vals = per_metric_values(subset)
     return {
-        "fused": {part: t / n_pairs for part, t in fused_s.items()},
-        "fused_all_s": fused_s["all 8"],
+        "engines": engines,
+        "warm_up_s": warm,
+        "fused": {e: {part: t / n_pairs for part, t in fused_s[e].items()} for e in engines},
+        "fused_all_s": {e: fused_s[e]["all 8"] for e in engines},
         "loop": {n: loop_s[n] / n_loop for n in METRICS},
         "per_metric": {n: per_metric_s[n] / n_loop for n in METRICS},
         "n_loop": n_loop,
-        "max_diff_mm": max_diff_mm(fused_values(subset, chunk), loop_vals),
+        "max_diff_mm": {e: max_diff_mm(fused_values(subset, chunk, e), loop_vals) for e in engines},
         "per_metric_diff_mm": max_diff_mm(per_metric_vals, loop_vals),
-        "far_diff_mm": far_check_mm(seed),
+        "far_diff_mm": far_check_mm(seed, engines),
     }
 
 
 def print_report(res: dict, n_pairs: int, chunk: int) -> None:
-    """Print the per-metric table, the fused subtotals and the overall ratio."""
-    lp, pm, fused = res["loop"], res["per_metric"], res["fused"]
+    """Print the per-metric table, the fused subtotals per engine and the overall ratios."""
+    lp, pm = res["loop"], res["per_metric"]
     print(
         f"rotavat metrics: {n_pairs:,} person-pairs x ({N_JOINTS} joints + {N_VERTS:,} vertices),"
         f" float32 in; person_errors_mm on {chunk:,} people per call; loop baseline on"
@@ -258,23 +275,28 @@ def print_report(res: dict, n_pairs: int, chunk: int) -> None:
     print(f"{'metric':<14}{'loop us/pair':>14}{'single-metric fn us/pair':>26}{'speed-up':>10}")
     for name in METRICS:
         print(f"{name:<14}{lp[name] * 1e6:>14.1f}{pm[name] * 1e6:>26.1f}{lp[name] / pm[name]:>9.1f}x")
-    print()
-    print(f"{'fused':<14}{'loop us/pair':>14}{'batched us/pair':>17}{'speed-up':>10}"
-          f"{'batched pairs/s':>17}{'loop pairs/s':>14}")
-    for part, names in PARTS.items():
-        tb, tl = fused[part], sum(lp[n] for n in names)
-        print(f"{part:<14}{tl * 1e6:>14.1f}{tb * 1e6:>17.1f}{tl / tb:>9.1f}x{1 / tb:>17,.0f}"
-              f"{1 / tl:>14,.0f}")
     total_l = sum(lp.values())
+    for engine in res["engines"]:
+        fused = res["fused"][engine]
+        print()
+        print(f"engine {engine} (one-off start {res['warm_up_s'][engine]:.2f} s, not in the timings)")
+        print(f"{'fused':<14}{'loop us/pair':>14}{'batched us/pair':>17}{'speed-up':>10}"
+              f"{'batched pairs/s':>17}{'loop pairs/s':>14}")
+        for part, names in PARTS.items():
+            tb, tl = fused[part], sum(lp[n] for n in names)
+            print(f"{part:<14}{tl * 1e6:>14.1f}{tb * 1e6:>17.1f}{tl / tb:>9.1f}x{1 / tb:>17,.0f}"
+                  f"{1 / tl:>14,.0f}")
     print()
-    print(
-        f"all 8 metrics on {n_pairs:,} pairs: batched {res['fused_all_s']:.1f} s measured, "
-        f"loop {total_l * n_pairs:.1f} s extrapolated -> ratio {total_l / fused['all 8']:.1f}x"
-    )
-    print(f"max |batched - loop| over the subset: {res['max_diff_mm']:.2e} mm "
-          f"(single-metric functions: {res['per_metric_diff_mm']:.2e} mm)")
-    print(f"max |batched - loop| on 200 far pairs (25-30 m away, ~1 m off): "
-          f"{res['far_diff_mm']:.2e} mm")
+    for engine in res["engines"]:
+        print(
+            f"all 8 metrics on {n_pairs:,} pairs, engine {engine}: batched "
+            f"{res['fused_all_s'][engine]:.1f} s measured, loop {total_l * n_pairs:.1f} s "
+            f"extrapolated -> ratio {total_l / res['fused'][engine]['all 8']:.1f}x"
+        )
+    for engine in res["engines"]:
+        print(f"max |batched - loop|, engine {engine}: {res['max_diff_mm'][engine]:.2e} mm on the subset, "
+              f"{res['far_diff_mm'][engine]:.2e} mm on 200 far pairs (25-30 m away, ~1 m off)")
+    print(f"max |single-metric functions - loop|: {res['per_metric_diff_mm']:.2e} mm")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory: {peak_mb:,.0f} MB")
 
@@ -286,10 +308,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--chunk", type=int, default=2_000, help="people per batched call")
     parser.add_argument("--loop-pairs", type=int, default=2_000, help="pairs for the loop")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--engines", default="numba,numpy",
+                        help="vertex engines to time, comma-separated (numba needs rotavat[fast])")
     args = parser.parse_args(argv)
     if min(args.pairs, args.chunk, args.loop_pairs) < 1:
         parser.error("--pairs, --chunk and --loop-pairs must be >= 1")
-    res = run(args.pairs, args.chunk, args.loop_pairs, args.seed)
+    engines = [e.strip() for e in args.engines.split(",") if e.strip()]
+    if not engines or any(e not in ("numpy", "numba") for e in engines):
+        parser.error("--engines takes numpy and/or numba")
+    if "numba" in engines and compiled_kernels() is None:
+        print("numba is not installed (pip install 'rotavat[fast]'): timing the numpy engine only")
+        engines = [e for e in engines if e != "numba"] or ["numpy"]
+    res = run(args.pairs, args.chunk, args.loop_pairs, args.seed, engines)
     print_report(res, args.pairs, args.chunk)
 
 

@@ -49,6 +49,13 @@ class EvalOptions:
     threshold_px: float = 100.0
     iou_threshold: float = 0.1
     joints: tuple[int, ...] | None = None  # subset of joint indices (both sides)
+    engine: str = "auto"  # vertex metrics: auto | numpy | numba (see metrics.ENGINES)
+
+    @classmethod
+    def from_config(cls, section: dict, joints: tuple[int, ...] | None = None) -> EvalOptions:
+        """Options from the ``eval`` config section (match, thresholds, engine)."""
+        return cls(section["match"], float(section["threshold_px"]), float(section["iou_threshold"]), joints,
+                   str(section.get("engine", "auto")))
 
 
 @dataclass
@@ -149,7 +156,7 @@ def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_c
     else:
         pv = gv = None
     rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
-    out.update(M.person_errors_mm(pj, gj, pv, gv, *rotations, PELVIS))
+    out.update(M.person_errors_mm(pj, gj, pv, gv, *rotations, PELVIS, engine=opts.engine))
     if gt_cam is not None and pv is not None:
         feet_p, heads_p = foot_head_points(pv)
         feet_g, heads_g = foot_head_points(gv)
@@ -171,6 +178,14 @@ def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
+def _check_engine(engine: str) -> None:
+    """Raise InputError unless ``engine`` is known and, for "numba", installed."""
+    if engine not in M.ENGINES:
+        raise InputError(f"--engine must be one of {', '.join(M.ENGINES)}, got {engine!r}")
+    if engine == "numba" and M.compiled_kernels() is None:
+        raise InputError("--engine numba needs numba: pip install 'rotavat[fast]' (or use --engine auto)")
+
+
 def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | None = None,
              progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
     """Score one prediction sequence against the ground truth, frame by frame.
@@ -181,6 +196,7 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
     opts = options or EvalOptions()
     if opts.match not in ("auto", "ids", "hungarian", "agora"):
         raise InputError(f"--match must be auto, ids, hungarian or agora, got {opts.match!r}")
+    _check_engine(opts.engine)
     pred_seq, gt_seq = open_sequence(pred_dir), open_sequence(gt_dir)
     result = EvalResult(str(pred_dir), str(gt_dir))
     pred_cam, gt_cam = pred_seq.camera, gt_seq.camera

@@ -174,3 +174,31 @@ def test_frame_ranges_merge_into_the_whole_result(tmp_path):
     assert whole.matched == 12 and whole.missed == 3
     with pytest.raises(ValueError):
         merge_results([])
+
+
+def test_engine_option_over_config_and_its_errors(tmp_path, runner, monkeypatch):
+    """--engine numpy / numba score the same; a bad engine, or numba when missing, exits 2 in one line."""
+    from rotavat_cli.metrics import compiled_kernels
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=9, frames=2, people=3))
+    pred, gt = tmp_path / "s" / "pred", tmp_path / "s" / "gt"
+    engines = ["numpy"] + (["numba"] if compiled_kernels() is not None else [])
+    scores = {}
+    for engine in engines:
+        result = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / engine, "--engine", engine, "--json")
+        assert result.exit_code == 0, result.stderr
+        scores[engine] = json.loads(result.stdout)["predictions"][0]["metrics"]
+        assert json.loads((tmp_path / engine / "metrics.json").read_text())["options"]["engine"] == engine
+    assert scores["numpy"]["pve"] > 1.0
+    for key in ("w_pve", "pve", "pa_pve"):
+        assert scores[engines[-1]][key] == pytest.approx(scores["numpy"][key], abs=1e-5)
+    bad = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "bad", "--engine", "cuda")
+    assert bad.exit_code == 2 and "--engine" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "bad" / "metrics.json").exists()
+    monkeypatch.setattr("rotavat_cli.metrics.fused.compiled_kernels", lambda: None)
+    monkeypatch.setattr("rotavat_cli.metrics.compiled_kernels", lambda: None)
+    missing = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "bad", "--engine", "numba")
+    assert missing.exit_code == 2 and "rotavat[fast]" in missing.stderr
+    with pytest.raises(InputError, match="--engine"):
+        evaluate(pred, gt, EvalOptions(engine="gpu"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from rotavat_cli.metrics import (
     JOINT_ERROR_KEYS,
     VERTEX_ERROR_KEYS,
     camera_errors,
+    compiled_kernels,
     detection_scores,
     height_above_ground_m,
     lean_deg,
@@ -394,6 +397,14 @@ def test_to_gravity_frame_matches_contract_world_frame():
 FUSED_ATOL_MM = 1e-3
 
 
+@pytest.fixture(params=["numpy", "numba"])
+def fused(request):
+    """person_errors_mm with each vertex engine (the numba one skipped when numba is missing)."""
+    if request.param == "numba" and compiled_kernels() is None:
+        pytest.skip("numba is not installed (pip install 'rotavat[fast]')")
+    return functools.partial(person_errors_mm, engine=request.param)
+
+
 def _bodies(rng, n_people, n_points, depth_m=(4.0, 20.0), placement_sd_m=0.2):
     """Random float32 pred/gt bodies (P, N, 3), 0.3 m spread, placed ``depth_m`` away."""
     place = rng.uniform([-3.0, 0.5, depth_m[0]], [3.0, 2.0, depth_m[1]], (n_people, 1, 3))
@@ -417,13 +428,13 @@ def _loop_vertex_errors(pred_v, gt_v, pred_root, gt_root, r_pred, r_gt):
     return dict(zip(VERTEX_ERROR_KEYS, np.array(rows, ndmin=2).reshape(-1, 4).T))
 
 
-def test_person_errors_hand_computed():
+def test_person_errors_hand_computed(fused):
     # Joints and vertices moved by (0.3, 0.4, 1.2) m (|.| = 1.3 m) with equal cameras: W sees
     # 1300 mm, every aligned error is 0, and SPEC (pelvis-aligned) equals the root-aligned.
     gt = _skeleton()
     pred = gt + np.array([0.3, 0.4, 1.2])
     rot = _rot_x(20.0)
-    got = person_errors_mm(pred, gt, pred, gt, rot, rot)
+    got = fused(pred, gt, pred, gt, rot, rot)
     assert set(got) == set(JOINT_ERROR_KEYS + VERTEX_ERROR_KEYS)
     for key in ("w_mpjpe", "w_pve"):
         assert got[key] == pytest.approx([1300.0], abs=FUSED_ATOL_MM)
@@ -431,20 +442,20 @@ def test_person_errors_hand_computed():
         assert got[key] == pytest.approx([0.0], abs=FUSED_ATOL_MM), key
 
 
-def test_person_errors_pelvis_and_camera_errors():
+def test_person_errors_pelvis_and_camera_errors(fused):
     # Vertices = the gt joints on both sides (0.1/0.2/0.3 m from the pelvis): a 50 mm error of
     # the predicted pelvis *joint* moves every vertex by 50 mm after root alignment, and a 10 deg pitch error moves a vertex at distance r from the
     # pitch axis through the pelvis by 2 r sin(5 deg) in SPEC's gravity frame.
     gt_joints = _skeleton()
     pred_joints = gt_joints.copy()
     pred_joints[0, 0] += [0.0, 0.04, 0.03]
-    got = person_errors_mm(pred_joints, gt_joints, gt_joints, gt_joints, _rot_x(40.0),
+    got = fused(pred_joints, gt_joints, gt_joints, gt_joints, _rot_x(40.0),
                            _rot_x(30.0))
     chord = 2.0 * np.sin(np.radians(5.0))
     assert got["w_pve"] == pytest.approx([0.0], abs=FUSED_ATOL_MM)
     assert got["pve"] == pytest.approx([50.0], abs=FUSED_ATOL_MM)  # every vertex, pelvis too
     assert got["pa_pve"] == pytest.approx([0.0], abs=FUSED_ATOL_MM)
-    spec_pelvis_ok = person_errors_mm(
+    spec_pelvis_ok = fused(
         pred_verts=gt_joints, gt_verts=gt_joints, R_world_from_cam_pred=_rot_x(40.0),
         R_world_from_cam_gt=_rot_x(30.0), pred_verts_root=gt_joints[:, 0],
         gt_verts_root=gt_joints[:, 0],
@@ -453,14 +464,14 @@ def test_person_errors_pelvis_and_camera_errors():
 
 
 @pytest.mark.parametrize("n_people", [0, 1, 2, 3, 19])  # 19: two full blocks and a partial one
-def test_person_errors_match_per_person_reference(n_people):
+def test_person_errors_match_per_person_reference(fused, n_people):
     rng = np.random.default_rng(n_people)
     pred_j, gt_j = _bodies(rng, n_people, 24)
     pred_v, gt_v = _bodies(rng, n_people, 6890)
     if n_people:
         pred_v[0] = pred_v[0] @ np.diag([1.0, -1.0, 1.0]).astype(np.float32)  # reflected
     r_pred, r_gt = _random_rotations(rng, n_people), _rot_x(25.0)  # per person / shared
-    got = person_errors_mm(pred_j, gt_j, pred_v, gt_v, r_pred, r_gt)
+    got = fused(pred_j, gt_j, pred_v, gt_v, r_pred, r_gt)
     expected = _loop_vertex_errors(pred_v, gt_v, pred_j[:, 0], gt_j[:, 0], r_pred, r_gt)
     for key in VERTEX_ERROR_KEYS:
         assert got[key].shape == (n_people,) and got[key].dtype == np.float64
@@ -470,14 +481,14 @@ def test_person_errors_match_per_person_reference(n_people):
     np.testing.assert_array_equal(got["w_mpjpe_spec"], w_spec_mpjpe(pred_j, gt_j, r_pred, r_gt))
 
 
-def test_person_errors_far_bodies_stay_within_a_micrometre():
+def test_person_errors_far_bodies_stay_within_a_micrometre(fused):
     # Bodies 25-30 m from the camera, predictions placed ~1 m (up to 3 m) off: float32
     # per-vertex arithmetic still agrees with float64 to well under 1e-3 mm.
     rng = np.random.default_rng(7)
     pred_j, gt_j = _bodies(rng, 12, 24, depth_m=(25.0, 30.0), placement_sd_m=1.0)
     pred_v, gt_v = _bodies(rng, 12, 6890, depth_m=(25.0, 30.0), placement_sd_m=1.0)
     r_pred, r_gt = _rot_x(22.0), _rot_x(25.0)
-    got = person_errors_mm(pred_j, gt_j, pred_v, gt_v, r_pred, r_gt)
+    got = fused(pred_j, gt_j, pred_v, gt_v, r_pred, r_gt)
     roots = pred_j[:, 0].astype(np.float64), gt_j[:, 0].astype(np.float64)
     exact = {
         "w_pve": pve(pred_v, gt_v, "none"),
@@ -490,25 +501,25 @@ def test_person_errors_far_bodies_stay_within_a_micrometre():
         assert np.abs(got[key] - values).max() < 2e-4, key
 
 
-def test_person_errors_float64_input_far_from_origin():
+def test_person_errors_float64_input_far_from_origin(fused):
     # float64 input 1 km away: the points are centred in float64 before rounding to float32.
     rng = np.random.default_rng(3)
     gt = rng.normal(0.0, 0.3, (2, 500, 3)) + [0.0, 0.0, 1000.0]
     pred = gt + 0.02 * rng.normal(size=gt.shape)
-    got = person_errors_mm(pred_verts=pred, gt_verts=gt)
+    got = fused(pred_verts=pred, gt_verts=gt)
     np.testing.assert_allclose(got["pa_pve"], pve(pred, gt, "procrustes"), atol=FUSED_ATOL_MM)
     centroids = pred.mean(axis=1), gt.mean(axis=1)  # the default root without joints
     np.testing.assert_allclose(got["pve"], pve(pred, gt, "root", *centroids), atol=FUSED_ATOL_MM)
 
 
-def test_person_errors_inconsistent_root_keeps_procrustes_exact():
+def test_person_errors_inconsistent_root_keeps_procrustes_exact(fused):
     # A root 100 m from its vertices (bad joints): the float32 origin falls back to a vertex,
     # so PA stays at float64 accuracy; the root-aligned error is ~100 m, right to ~1e-7.
     rng = np.random.default_rng(4)
     pred_v, gt_v = _bodies(rng, 3, 300)
     pred_root = pred_v[:, 0].astype(np.float64) + [100.0, 0.0, 0.0]
     gt_root = gt_v[:, 0].astype(np.float64)
-    got = person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, pred_verts_root=pred_root,
+    got = fused(pred_verts=pred_v, gt_verts=gt_v, pred_verts_root=pred_root,
                            gt_verts_root=gt_root)
     np.testing.assert_allclose(got["pa_pve"], pve(pred_v, gt_v, "procrustes"),
                                atol=FUSED_ATOL_MM)
@@ -516,28 +527,28 @@ def test_person_errors_inconsistent_root_keeps_procrustes_exact():
                                rtol=1e-7)
 
 
-def test_person_errors_tiny_body_uses_centred_moments():
+def test_person_errors_tiny_body_uses_centred_moments(fused):
     # A 0.1 mm body 1.5 m from its root: moments about the root lose everything to
     # cancellation, so the block is centred first; PA still matches the reference.
     rng = np.random.default_rng(5)
     gt = 1e-4 * rng.normal(size=(2, 50, 3)) + [0.0, 0.0, 5.0]
     pred = gt + 1e-5 * rng.normal(size=gt.shape)
     roots = gt[:, 0] + [0.0, 1.5, 0.0]
-    got = person_errors_mm(pred_verts=pred, gt_verts=gt, pred_verts_root=roots,
+    got = fused(pred_verts=pred, gt_verts=gt, pred_verts_root=roots,
                            gt_verts_root=roots)
     expected = [reference_pa_errors_mm(p, g).mean() for p, g in zip(pred, gt)]
     np.testing.assert_allclose(got["pa_pve"], expected, atol=1e-4)
 
 
-def test_person_errors_collapsed_and_nan_people():
+def test_person_errors_collapsed_and_nan_people(fused):
     rng = np.random.default_rng(6)
     pred_v, gt_v = _bodies(rng, 3, 200)
     pred_v[1] = pred_v[1, :1]  # collapsed: every vertex at one point -> lands on gt centroid
-    clean = person_errors_mm(pred_verts=pred_v, gt_verts=gt_v)
+    clean = fused(pred_verts=pred_v, gt_verts=gt_v)
     spread = np.linalg.norm(gt_v[1] - gt_v[1].astype(np.float64).mean(axis=0), axis=1)
     assert clean["pa_pve"][1] == pytest.approx(spread.mean() * 1000.0, abs=FUSED_ATOL_MM)
     pred_v[2, 7] = np.nan
-    got = person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, R_world_from_cam_pred=np.eye(3),
+    got = fused(pred_verts=pred_v, gt_verts=gt_v, R_world_from_cam_pred=np.eye(3),
                            R_world_from_cam_gt=np.eye(3))
     for key in VERTEX_ERROR_KEYS:
         assert np.isnan(got[key][2]), key
@@ -546,29 +557,68 @@ def test_person_errors_collapsed_and_nan_people():
     np.testing.assert_allclose(got["w_pve_spec"][:2], clean["pve"][:2], atol=FUSED_ATOL_MM)
 
 
-def test_person_errors_keys_inputs_and_errors():
+def test_person_errors_keys_inputs_and_errors(fused):
     rng = np.random.default_rng(8)
     pred_j, gt_j = _bodies(rng, 2, 24)
     pred_v, gt_v = _bodies(rng, 2, 40)
     before = [x.copy() for x in (pred_j, gt_j, pred_v, gt_v)]
-    assert set(person_errors_mm(pred_j, gt_j)) == {"w_mpjpe", "mpjpe", "pa_mpjpe"}
-    assert set(person_errors_mm(pred_verts=pred_v, gt_verts=gt_v)) == {"w_pve", "pve", "pa_pve"}
-    assert person_errors_mm() == {}
+    assert set(fused(pred_j, gt_j)) == {"w_mpjpe", "mpjpe", "pa_mpjpe"}
+    assert set(fused(pred_verts=pred_v, gt_verts=gt_v)) == {"w_pve", "pve", "pa_pve"}
+    assert fused() == {}
     for x, x0 in zip((pred_j, gt_j, pred_v, gt_v), before):
         np.testing.assert_array_equal(x, x0)
     with pytest.raises(ValueError, match="both pred and gt"):
-        person_errors_mm(pred_j)
+        fused(pred_j)
     with pytest.raises(ValueError, match="both R_world_from_cam_pred"):
-        person_errors_mm(pred_j, gt_j, R_world_from_cam_pred=np.eye(3))
+        fused(pred_j, gt_j, R_world_from_cam_pred=np.eye(3))
     with pytest.raises(ValueError, match="differ in shape"):
-        person_errors_mm(pred_verts=pred_v, gt_verts=gt_v[:, :30])
+        fused(pred_verts=pred_v, gt_verts=gt_v[:, :30])
     with pytest.raises(ValueError, match="2 people have joints but 1"):
-        person_errors_mm(pred_j, gt_j, pred_v[:1], gt_v[:1])
+        fused(pred_j, gt_j, pred_v[:1], gt_v[:1])
     with pytest.raises(ValueError, match="N = 0"):
-        person_errors_mm(pred_verts=np.zeros((1, 0, 3)), gt_verts=np.zeros((1, 0, 3)))
+        fused(pred_verts=np.zeros((1, 0, 3)), gt_verts=np.zeros((1, 0, 3)))
     with pytest.raises(ValueError, match="rotation matrix"):
-        person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, R_world_from_cam_pred=2 * np.eye(3),
+        fused(pred_verts=pred_v, gt_verts=gt_v, R_world_from_cam_pred=2 * np.eye(3),
                          R_world_from_cam_gt=np.eye(3))
+
+
+def test_vertex_engines_agree_to_a_hundred_thousandth_of_a_mm():
+    # The compiled pass does the numpy pass's arithmetic (float32 per vertex, float64 moments and
+    # sums): same numbers up to summation order, for float32 and float64 input, one rotation
+    # pair or one per person, with and without SPEC.
+    if compiled_kernels() is None:
+        pytest.skip("numba is not installed (pip install 'rotavat[fast]')")
+    rng = np.random.default_rng(11)
+    pred_j, gt_j = _bodies(rng, 9, 24)
+    pred_v, gt_v = _bodies(rng, 9, 6890)
+    per_person = np.stack([_rot_x(a) for a in rng.uniform(10.0, 40.0, 9)])
+    cases = [
+        (pred_v, gt_v, None, None),
+        (pred_v, gt_v, _rot_x(22.0), _rot_x(25.0)),
+        (pred_v.astype(np.float64), gt_v.astype(np.float64), per_person, per_person[::-1]),
+    ]
+    for pv, gv, r_pred, r_gt in cases:
+        got = {e: person_errors_mm(pred_j, gt_j, pv, gv, r_pred, r_gt, engine=e) for e in ("numpy", "numba")}
+        assert got["numpy"].keys() == got["numba"].keys()
+        for key in VERTEX_ERROR_KEYS:
+            if key in got["numpy"]:
+                np.testing.assert_allclose(got["numba"][key], got["numpy"][key], rtol=0, atol=1e-5, err_msg=key)
+                assert got["numpy"][key].min() > 1.0, key  # real errors, not zeros agreeing
+
+
+def test_vertex_engine_choice(monkeypatch):
+    rng = np.random.default_rng(12)
+    pred_v, gt_v = _bodies(rng, 3, 100)
+    numpy_pass = person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, engine="numpy")
+    with pytest.raises(ValueError, match="engine must be one of"):
+        person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, engine="cuda")
+    # Without numba, "auto" is the numpy pass and "numba" says how to get it.
+    monkeypatch.setattr("rotavat_cli.metrics.fused.compiled_kernels", lambda: None)
+    auto = person_errors_mm(pred_verts=pred_v, gt_verts=gt_v)
+    for key in numpy_pass:
+        np.testing.assert_array_equal(auto[key], numpy_pass[key])
+    with pytest.raises(ValueError, match=r"rotavat\[fast\]"):
+        person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, engine="numba")
 
 
 # --------------------------------------------------------------------------- ground-aware

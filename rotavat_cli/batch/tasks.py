@@ -201,8 +201,7 @@ def _eval_options(plan: dict) -> Any:
     """EvalOptions from the eval config section."""
     from ..evaluate import EvalOptions
 
-    opts = plan["config"]["eval"]
-    return EvalOptions(opts["match"], float(opts["threshold_px"]), float(opts["iou_threshold"]), None)
+    return EvalOptions.from_config(plan["config"]["eval"])
 
 
 def _eval_pred_dir(job: dict, side: str) -> str:

@@ -13,7 +13,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
 from ..config import load_config
-from ..errors import InputError, RotavatError
+from ..errors import InputError
 from . import app
 from ._common import ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json, progress_enabled
 
@@ -54,11 +54,8 @@ def batch(
         _say("eval skipped: no --gt-root", quiet or as_json)
     out = out or root.with_name(root.name + "_batch")
     display = _Display(progress_enabled(quiet, as_json), quiet or as_json)
-    try:
-        with display.progress:
-            report = run_batch(root, out, options, display)
-    except RotavatError as exc:  # the shared handler prints with markup on: keep "rotavat[dask]" and paths intact
-        raise type(exc)(escape(str(exc))) from None
+    with display.progress:
+        report = run_batch(root, out, options, display)
     counts = report.aggregate["counts"]
     if as_json:
         print_json({"report_json": str(out / REPORT_JSON), "report_md": str(out / REPORT_MD), "counts": counts,

@@ -29,6 +29,7 @@ def eval_(
     threshold_px: Annotated[float | None, typer.Option(help="hungarian: max mean 2D joint distance of a match (px).")] = None,
     iou_threshold: Annotated[float | None, typer.Option(help="agora: min keypoint-box IoU of a match.")] = None,
     joints: Annotated[str | None, typer.Option(help="Joint subset used by both sides: '0-23', '0,1,2' or SMPL names.")] = None,
+    engine: Annotated[str | None, typer.Option(help="Vertex metrics: auto (numba if installed), numpy, numba ('rotavat[fast]').")] = None,
     from_: FromOpt = None,
     gt_from: Annotated[str | None, typer.Option("--gt-from", help="Read GT in a dataset's own format (agora, bedlam, ...), converted on the fly.")] = None,
     image_size: ImageSizeOpt = None,
@@ -38,9 +39,10 @@ def eval_(
     as_json: JsonOpt = False,
 ) -> None:
     """Score predictions against ground truth: MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera."""
-    opts = config_for(config, "eval", match=match, threshold_px=threshold_px, iou_threshold=iou_threshold)
+    opts = config_for(config, "eval", match=match, threshold_px=threshold_px, iou_threshold=iou_threshold,
+                      engine=engine)
     gates = [parse_gate(text) for text in fail_if or []]
-    options = EvalOptions(opts["match"], float(opts["threshold_px"]), float(opts["iou_threshold"]), parse_joints(joints))
+    options = EvalOptions.from_config(opts, parse_joints(joints))
     preds = pred or [Path(".")]
     with ExitStack() as stack:
         gt_seq = stack.enter_context(input_sequence(gt, gt_from, image_size, smpl_model))

@@ -16,7 +16,8 @@ SPEC's "W-MPJPE" is a different quantity (gravity frame + pelvis alignment); it 
 :func:`w_spec_errors_mm`, see the note there.
 
 Precision: the single-metric functions compute in float64; :func:`person_errors_mm` works in
-float32 per vertex, within 2e-4 mm of them on realistic scenes (see :mod:`.fused`).
+float32 per vertex, within 2e-4 mm of them on realistic scenes (see :mod:`.fused`). Its vertex
+pass runs compiled (numba, :mod:`._compiled`) when ``rotavat[fast]`` is installed, else numpy.
 
 Modules: :mod:`.points` (the single-metric functions, float64), :mod:`.fused`
 (:func:`person_errors_mm`, all of them at once for ``evaluate``; its precision note),
@@ -24,7 +25,13 @@ Modules: :mod:`.points` (the single-metric functions, float64), :mod:`.fused`
 """
 
 from ._common import ALIGNMENTS, CAMERA_KEYS, Alignment
-from .fused import JOINT_ERROR_KEYS, VERTEX_ERROR_KEYS, person_errors_mm
+from .fused import (
+    ENGINES,
+    JOINT_ERROR_KEYS,
+    VERTEX_ERROR_KEYS,
+    compiled_kernels,
+    person_errors_mm,
+)
 from .points import (
     mpjpe,
     point_errors_mm,
@@ -51,9 +58,11 @@ __all__ = [
     "ALIGNMENTS",
     "Alignment",
     "CAMERA_KEYS",
+    "ENGINES",
     "JOINT_ERROR_KEYS",
     "VERTEX_ERROR_KEYS",
     "camera_errors",
+    "compiled_kernels",
     "detection_scores",
     "height_above_ground_m",
     "lean_deg",
