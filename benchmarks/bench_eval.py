@@ -1,13 +1,14 @@
 """Throughput of rotavat's batched evaluation metrics vs a per-person Python loop.
 
-Usage: python benchmarks/bench_eval.py [--pairs 100000] [--chunk 2000] [--loop-pairs 2000]
+Usage: python benchmarks/bench_eval.py [--pairs 100000] [--chunk 128] [--loop-pairs 2000]
                                         [--seed 0] [--engines numpy,numba]
 
 Person-pairs (prediction + ground truth, SMPL-sized: 24 joints, 6,890 vertices, float32 as HPS
 tools dump them) go through the eight per-person metrics of ``rotavat_cli.metrics``: W-MPJPE,
 MPJPE, PA-MPJPE, SPEC's W-MPJPE and the same four on vertices. The batched path is what
-``evaluate`` calls: one :func:`~rotavat_cli.metrics.person_errors_mm` per ``--chunk`` people,
-on the float32 arrays as loaded (it converts the joints once and the vertices block by block
+``evaluate`` calls: one :func:`~rotavat_cli.metrics.person_errors_mm` per ``--chunk`` people
+(default: evaluate's own batch, ``SCORE_BATCH_PEOPLE`` matched people of consecutive frames), on
+the float32 arrays as loaded (it converts the joints once and the vertices block by block
 itself, so its time includes every conversion). It is timed three ways: joints only, vertices
 only, and all eight at once, once per vertex engine: ``numba`` (the compiled kernels of
 ``rotavat[fast]``, what ``evaluate`` runs when numba is installed; its one-off JIT compile or
@@ -41,6 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from _reference_metrics import reference_pa_errors_mm  # noqa: E402
+from rotavat_cli.evaluate import SCORE_BATCH_PEOPLE  # noqa: E402
 from rotavat_cli.metrics import (  # noqa: E402
     compiled_kernels,
     mpjpe,
@@ -305,7 +307,8 @@ def main(argv: list[str] | None = None) -> None:
     """Parse arguments, run the benchmark and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=100_000, help="person-pairs to evaluate")
-    parser.add_argument("--chunk", type=int, default=2_000, help="people per batched call")
+    parser.add_argument("--chunk", type=int, default=SCORE_BATCH_PEOPLE,
+                        help="people per batched call (default: what evaluate uses)")
     parser.add_argument("--loop-pairs", type=int, default=2_000, help="pairs for the loop")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--engines", default="numba,numpy",

@@ -132,10 +132,23 @@ def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, o
     return match_hungarian(pred_px, gt_px, opts.threshold_px)
 
 
-def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_cam: Camera | None,
-                  gt_cam: Camera | None, opts: EvalOptions) -> dict[str, np.ndarray]:
-    """Every per-person metric for matched pairs (M,) each; NaN where not computable."""
-    out = {name: np.full(len(pi), np.nan) for name in PERSON_METRICS}
+@dataclass(frozen=True)
+class _Pairs:
+    """The matched people of one or more frames, gathered: joints (M, J, 3) and vertices (M, V, 3) or None."""
+
+    pred_joints: np.ndarray | None
+    gt_joints: np.ndarray | None
+    pred_verts: np.ndarray | None
+    gt_verts: np.ndarray | None
+
+    def kind(self) -> tuple:
+        """What must agree for two gatherings to be scored in one call: which arrays, their point counts, dtypes."""
+        return tuple(None if a is None else (a.shape[1], a.dtype.str)
+                     for a in (self.pred_joints, self.gt_joints, self.pred_verts, self.gt_verts))
+
+
+def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> _Pairs:
+    """The matched people's joints (``--joints`` subset) and vertices, checked for equal point counts."""
     pj, gj = pred.get("joints"), gt.get("joints")
     if pj is not None and gj is not None:
         pj, gj = pj[pi], gj[gi]
@@ -144,8 +157,6 @@ def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_c
         if pj.shape[1] != gj.shape[1]:
             raise InputError(f"{pred.source}: prediction has {pj.shape[1]} joints, ground truth {gj.shape[1]}: "
                              "pass --joints to choose a common subset")
-        if gt_cam is not None:
-            out["root_err"] = M.root_err_mm(pj[:, PELVIS], gj[:, PELVIS])
     else:
         pj = gj = None
     pv, gv = pred.get("vertices"), gt.get("vertices")
@@ -155,6 +166,24 @@ def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_c
         pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
     else:
         pv = gv = None
+    return _Pairs(pj, gj, pv, gv)
+
+
+def _concat_pairs(parts: Seq[_Pairs]) -> _Pairs:
+    """One gathering from several of the same kind, in order."""
+    if len(parts) == 1:
+        return parts[0]
+    return _Pairs(*(None if getattr(parts[0], f) is None else np.concatenate([getattr(p, f) for p in parts])
+                    for f in ("pred_joints", "gt_joints", "pred_verts", "gt_verts")))
+
+
+def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
+                  opts: EvalOptions) -> dict[str, np.ndarray]:
+    """Every per-person metric for ``n_pairs`` gathered pairs, (M,) each; NaN where not computable."""
+    out = {name: np.full(n_pairs, np.nan) for name in PERSON_METRICS}
+    pj, gj, pv, gv = pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts
+    if pj is not None and gt_cam is not None:
+        out["root_err"] = M.root_err_mm(pj[:, PELVIS], gj[:, PELVIS])
     rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
     out.update(M.person_errors_mm(pj, gj, pv, gv, *rotations, PELVIS, engine=opts.engine))
     if gt_cam is not None and pv is not None:
@@ -164,6 +193,48 @@ def _pair_metrics(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pred_c
         out["lean_deg"] = M.lean_deg(feet_p, heads_p, gt_cam.up_cam)
         out["stature_err"] = M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)
     return out
+
+
+# Matched people scored per metrics call, across consecutive frames: a frame has ~10 people, and
+# per-call costs dominate at that size (docs/metrics.md, "Measured"). 128 SMPL people hold ~21 MB
+# of float32 vertices per side.
+SCORE_BATCH_PEOPLE = 128
+
+
+@dataclass
+class _ScoreBatch:
+    """Matched pairs of consecutive frames, scored together into ``columns`` in frame order."""
+
+    pred_cam: Camera | None
+    gt_cam: Camera | None
+    opts: EvalOptions
+    columns: dict[str, list]
+    rows: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    parts: list[_Pairs] = field(default_factory=list)
+
+    def add(self, frame: str, pi: np.ndarray, gi: np.ndarray, person_ids: np.ndarray, pairs: _Pairs) -> None:
+        """Queue one frame's matched pairs; score the queue when full or when the kind of arrays changes."""
+        if self.parts and self.parts[0].kind() != pairs.kind():
+            self.flush()
+        self.rows.append((frame, pi, gi, person_ids))
+        self.parts.append(pairs)
+        if sum(len(r[1]) for r in self.rows) >= SCORE_BATCH_PEOPLE:
+            self.flush()
+
+    def flush(self) -> None:
+        """Score the queued pairs in one call and append their rows to ``columns``."""
+        if not self.rows:
+            return
+        n_pairs = sum(len(r[1]) for r in self.rows)
+        values = _pair_metrics(_concat_pairs(self.parts), n_pairs, self.pred_cam, self.gt_cam, self.opts)
+        for frame, pi, gi, person_ids in self.rows:
+            self.columns["frame"].extend([frame] * len(pi))
+            self.columns["pred_index"].extend(pi.tolist())
+            self.columns["gt_index"].extend(gi.tolist())
+            self.columns["person_id"].extend(person_ids.tolist())
+        for key in PERSON_METRICS:
+            self.columns[key].extend(np.asarray(values[key], dtype=np.float64).tolist())
+        self.rows, self.parts = [], []
 
 
 def _camera_dict(cam: Camera) -> dict[str, float]:
@@ -204,11 +275,13 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
         result.camera = _camera_errors(pred_cam, gt_cam)
     pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
     columns: dict[str, list] = {k: [] for k in ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)}
+    batch = _ScoreBatch(pred_cam, gt_cam, opts, columns)
     names = sorted(pred_names | gt_names)
     for name in names if frames is None else names[frames[0]:frames[1]]:
-        _score_frame(name, pred_seq, gt_seq, pred_names, gt_names, pred_cam, gt_cam, opts, result, columns)
+        _score_frame(name, pred_seq, gt_seq, pred_names, gt_names, opts, result, batch)
         if progress:
             progress()
+    batch.flush()
     result.per_person = columns
     result.metrics = _aggregate(result, columns)
     return result
@@ -235,9 +308,8 @@ def merge_results(parts: Seq[EvalResult]) -> EvalResult:
 
 
 def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: set, gt_names: set,
-                 pred_cam: Camera | None, gt_cam: Camera | None, opts: EvalOptions,
-                 result: EvalResult, columns: dict[str, list]) -> None:
-    """Match and score one frame into ``result`` counts and ``columns``."""
+                 opts: EvalOptions, result: EvalResult, batch: _ScoreBatch) -> None:
+    """Match one frame into ``result`` counts and queue its matched pairs on ``batch`` for scoring."""
     if name not in gt_names or name not in pred_names:  # unpaired: all false positives or all missed
         side = "pred" if name in pred_names else "gt"
         n = (pred_seq if side == "pred" else gt_seq).read_frame(name).n_people
@@ -261,13 +333,7 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
     result.false_positives += pred.n_people - len(pi)
     if len(pi) == 0:
         return
-    values = _pair_metrics(pred, gt, pi, gi, pred_cam, gt_cam, opts)
-    columns["frame"].extend([name] * len(pi))
-    columns["pred_index"].extend(pi.tolist())
-    columns["gt_index"].extend(gi.tolist())
-    columns["person_id"].extend(gt.person_ids[gi].tolist())
-    for key in PERSON_METRICS:
-        columns[key].extend(np.asarray(values[key], dtype=np.float64).tolist())
+    batch.add(name, pi, gi, gt.person_ids[gi], _gather_pairs(pred, gt, pi, gi, opts))
 
 
 def _aggregate(result: EvalResult, columns: dict[str, list]) -> dict[str, float]:

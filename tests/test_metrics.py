@@ -596,6 +596,7 @@ def test_vertex_engines_agree_to_a_hundred_thousandth_of_a_mm():
         (pred_v, gt_v, None, None),
         (pred_v, gt_v, _rot_x(22.0), _rot_x(25.0)),
         (pred_v.astype(np.float64), gt_v.astype(np.float64), per_person, per_person[::-1]),
+        (pred_v.astype(np.float16), gt_v, None, None),  # half precision widens exactly
     ]
     for pv, gv, r_pred, r_gt in cases:
         got = {e: person_errors_mm(pred_j, gt_j, pv, gv, r_pred, r_gt, engine=e) for e in ("numpy", "numba")}
@@ -619,6 +620,23 @@ def test_vertex_engine_choice(monkeypatch):
         np.testing.assert_array_equal(auto[key], numpy_pass[key])
     with pytest.raises(ValueError, match=r"rotavat\[fast\]"):
         person_errors_mm(pred_verts=pred_v, gt_verts=gt_v, engine="numba")
+
+
+def test_broken_numba_falls_back_with_a_warning(monkeypatch):
+    # numba installed but unable to load the kernels (e.g. no writable cache): numpy, and a reason.
+    from rotavat_cli.metrics import fused
+
+    def fail(name, package=None):
+        raise RuntimeError("cannot cache function: no locator available")
+
+    monkeypatch.setattr(fused.importlib, "import_module", fail)
+    fused.compiled_kernels.cache_clear()
+    try:
+        with pytest.warns(UserWarning, match="no locator available"):
+            assert fused.compiled_kernels() is None
+    finally:
+        monkeypatch.undo()
+        fused.compiled_kernels.cache_clear()  # the next caller imports the real kernels again
 
 
 # --------------------------------------------------------------------------- ground-aware

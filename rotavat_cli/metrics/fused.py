@@ -21,6 +21,8 @@ do the same arithmetic reading each person once; the two agree to ~1e-5 mm (test
 from __future__ import annotations
 
 import functools
+import importlib
+import warnings
 from types import ModuleType
 
 import numpy as np
@@ -235,7 +237,7 @@ def _vertex_errors_compiled(
     n_metrics = 3 if spec_col is None else 4
     if n_people == 0:
         return np.empty((n_metrics, 0))
-    pred, gt = np.ascontiguousarray(pred), np.ascontiguousarray(gt)
+    pred, gt = _kernel_input(pred), _kernel_input(gt)
     refs, ref_minus_root = _reference_points(pred, gt, roots)
     offsets = _vertex_offsets(refs, ref_minus_root, spec_col)
     spec = np.eye(3) if spec_col is None else spec_col
@@ -260,14 +262,25 @@ def _vertex_errors_compiled(
     return out
 
 
+def _kernel_input(points: np.ndarray) -> np.ndarray:
+    """C-contiguous float32 or float64 points for the kernels (float16 widens exactly to float32)."""
+    return np.ascontiguousarray(points, dtype=np.float32 if points.dtype.itemsize <= 4 else np.float64)
+
+
 @functools.cache
 def compiled_kernels() -> ModuleType | None:
-    """The numba kernels (:mod:`._compiled`), imported on first use; None without numba."""
+    """The numba kernels (:mod:`._compiled`), imported on first use; None without numba.
+
+    A numba that is installed but cannot load them (an incompatible numpy, no writable cache
+    directory, ...) also gives None, with a warning saying why.
+    """
     try:
-        from . import _compiled
+        return importlib.import_module("._compiled", __package__)
     except ImportError:
         return None
-    return _compiled
+    except Exception as exc:  # noqa: BLE001 - any failure of the optional engine falls back to numpy
+        warnings.warn(f"numba kernels unavailable, using numpy for the vertex metrics: {exc}", stacklevel=2)
+        return None
 
 
 def _vertex_engine(engine: str) -> ModuleType | None:
