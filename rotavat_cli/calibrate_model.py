@@ -13,7 +13,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .calibrate_grid import GridSpec, order_invariant_subset, robust_grid_costs, seed_cells
 from .camera import up_vector_cam
@@ -234,6 +233,8 @@ def residual_and_jacobian(prob: Problem, x: np.ndarray, full0: np.ndarray, free:
 def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, scale: float, loss: str,
                    f_scale: float) -> np.ndarray:
     """Robust least squares from params0 (4,); returns the params (4,)."""
+    from scipy.optimize import least_squares  # imported when used: keeps `rotavat --help` fast
+
     cache: dict = {}
 
     def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -8,8 +8,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.stats import chi2 as chi2_dist
 
 from .calibrate_grid import order_invariant_subset
 from .camera import Camera, horizon_v_px
@@ -83,6 +81,7 @@ def _row_clusters(prob: Problem, clusters: np.ndarray | None, n_rows: int) -> tu
 
 def _cluster_sums(values: np.ndarray, row_cluster: np.ndarray, n_groups: int) -> np.ndarray:
     """(G, ...) sums of the rows of ``values`` (M, ...) per cluster; rows of cluster -1 are left out."""
+    from scipy.sparse import csr_matrix  # imported when used: keeps `rotavat --help` fast
     rows = np.flatnonzero(row_cluster >= 0)
     member = csr_matrix((np.ones(len(rows)), (row_cluster[rows], np.arange(len(rows)))), shape=(n_groups, len(rows)))
     flat = values[rows].reshape(len(rows), -1)
@@ -166,6 +165,7 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
     beyond their noise (:func:`_column_shift`, 99% chi-square), the total adds the disagreement:
     the head columns do not follow the model (box-derived heads, principal point, distortion).
     """
+    from scipy.stats import chi2 as chi2_dist  # imported when used: keeps `rotavat --help` fast
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
     total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
     warns = []

@@ -10,7 +10,6 @@ NaN, or whose confidence is <= 0, is ignored.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 __all__ = [
     "keypoint_boxes_px",
@@ -117,6 +116,7 @@ def match_hungarian(
     first and dropping afterwards could trade a good pair away for a gated one.
     Returns (pred_idx, gt_idx) int64, sorted by gt index.
     """
+    from scipy.optimize import linear_sum_assignment  # imported when used: keeps `rotavat --help` fast
     if not threshold_px >= 0.0:
         raise ValueError(f"threshold_px must be >= 0, got {threshold_px!r}")
     cost = mean_keypoint_distance_px(pred_px, gt_px)

@@ -597,6 +597,7 @@ def test_vertex_engines_agree_to_a_hundred_thousandth_of_a_mm():
         (pred_v, gt_v, _rot_x(22.0), _rot_x(25.0)),
         (pred_v.astype(np.float64), gt_v.astype(np.float64), per_person, per_person[::-1]),
         (pred_v.astype(np.float16), gt_v, None, None),  # half precision widens exactly
+        (pred_v[:, ::2], gt_v[:, ::2], None, None),  # strided views
     ]
     for pv, gv, r_pred, r_gt in cases:
         got = {e: person_errors_mm(pred_j, gt_j, pv, gv, r_pred, r_gt, engine=e) for e in ("numpy", "numba")}
