@@ -29,7 +29,7 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from typing import Any
 
@@ -176,6 +176,10 @@ class Camera:
             raise ValueError(f"focal_px must be > 0, got {self.focal_px}")
         if w <= 0 or h <= 0:
             raise ValueError(f"image_size must be positive, got {self.image_size}")
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle the parameters only: a worker derives its own read-only arrays (unpickled ones are writable)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     # ---- derived quantities ---------------------------------------------------------------
     # The arrays are derived once per camera (a frame-by-frame loop asks for them per frame) and

@@ -55,7 +55,7 @@ class EvalOptions:
     def from_config(cls, section: dict, joints: tuple[int, ...] | None = None) -> EvalOptions:
         """Options from the ``eval`` config section (match, thresholds, engine)."""
         return cls(section["match"], float(section["threshold_px"]), float(section["iou_threshold"]), joints,
-                   str(section.get("engine", "auto")))
+                   str(section["engine"]))
 
 
 @dataclass
@@ -209,32 +209,34 @@ class _ScoreBatch:
     gt_cam: Camera | None
     opts: EvalOptions
     columns: dict[str, list]
-    rows: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
-    parts: list[_Pairs] = field(default_factory=list)
+    queue: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, _Pairs]] = field(default_factory=list)  # frame, pi, gi, ids
 
     def add(self, frame: str, pi: np.ndarray, gi: np.ndarray, person_ids: np.ndarray, pairs: _Pairs) -> None:
         """Queue one frame's matched pairs; score the queue when full or when the kind of arrays changes."""
-        if self.parts and self.parts[0].kind() != pairs.kind():
+        if self.queue and self.queue[0][4].kind() != pairs.kind():
             self.flush()
-        self.rows.append((frame, pi, gi, person_ids))
-        self.parts.append(pairs)
-        if sum(len(r[1]) for r in self.rows) >= SCORE_BATCH_PEOPLE:
+        self.queue.append((frame, pi, gi, person_ids, pairs))
+        if self._queued_people() >= SCORE_BATCH_PEOPLE:
             self.flush()
+
+    def _queued_people(self) -> int:
+        """Matched pairs waiting in the queue."""
+        return sum(len(pi) for _, pi, _, _, _ in self.queue)
 
     def flush(self) -> None:
         """Score the queued pairs in one call and append their rows to ``columns``."""
-        if not self.rows:
+        if not self.queue:
             return
-        n_pairs = sum(len(r[1]) for r in self.rows)
-        values = _pair_metrics(_concat_pairs(self.parts), n_pairs, self.pred_cam, self.gt_cam, self.opts)
-        for frame, pi, gi, person_ids in self.rows:
+        pairs = _concat_pairs([item[4] for item in self.queue])
+        values = _pair_metrics(pairs, self._queued_people(), self.pred_cam, self.gt_cam, self.opts)
+        for frame, pi, gi, person_ids, _ in self.queue:
             self.columns["frame"].extend([frame] * len(pi))
             self.columns["pred_index"].extend(pi.tolist())
             self.columns["gt_index"].extend(gi.tolist())
             self.columns["person_id"].extend(person_ids.tolist())
         for key in PERSON_METRICS:
             self.columns[key].extend(np.asarray(values[key], dtype=np.float64).tolist())
-        self.rows, self.parts = [], []
+        self.queue = []
 
 
 def _camera_dict(cam: Camera) -> dict[str, float]:
@@ -249,14 +251,6 @@ def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
-def _check_engine(engine: str) -> None:
-    """Raise InputError unless ``engine`` is known and, for "numba", installed."""
-    if engine not in M.ENGINES:
-        raise InputError(f"--engine must be one of {', '.join(M.ENGINES)}, got {engine!r}")
-    if engine == "numba" and M.compiled_kernels() is None:
-        raise InputError("--engine numba needs numba: pip install 'rotavat[fast]' (or use --engine auto)")
-
-
 def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | None = None,
              progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
     """Score one prediction sequence against the ground truth, frame by frame.
@@ -267,7 +261,10 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
     opts = options or EvalOptions()
     if opts.match not in ("auto", "ids", "hungarian", "agora"):
         raise InputError(f"--match must be auto, ids, hungarian or agora, got {opts.match!r}")
-    _check_engine(opts.engine)
+    try:
+        M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
+    except ValueError as exc:
+        raise InputError(f"--engine: {exc}") from None
     pred_seq, gt_seq = open_sequence(pred_dir), open_sequence(gt_dir)
     result = EvalResult(str(pred_dir), str(gt_dir))
     pred_cam, gt_cam = pred_seq.camera, gt_seq.camera

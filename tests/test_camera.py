@@ -144,3 +144,20 @@ def test_realdata_camera_gt_is_self_consistent():
     cam = camera_from_yaml_dict(d)
     np.testing.assert_allclose(cam.R_cam_from_world, d["R_world_to_cam"], atol=1e-9)
     np.testing.assert_allclose(cam.t_cam_from_world, d["t_world_to_cam"], atol=1e-9)
+
+
+def test_derived_arrays_are_cached_read_only_also_in_a_worker():
+    """K, up, R, t are derived once and shared read-only; a pickled camera (a worker's copy) re-derives them."""
+    import pickle
+
+    cam = Camera((640, 480), 500.0, None, 0.3, 0.1, 5.0)
+    for name in ("K", "up_cam", "R_cam_from_world", "t_cam_from_world"):
+        first = getattr(cam, name)
+        assert getattr(cam, name) is first and not first.flags.writeable, name
+        with pytest.raises(ValueError):
+            first[0] = 0.0
+    copy = pickle.loads(pickle.dumps(cam))
+    assert copy == cam and "K" not in vars(copy)
+    for name in ("K", "up_cam", "R_cam_from_world", "t_cam_from_world"):
+        assert not getattr(copy, name).flags.writeable, name
+        np.testing.assert_array_equal(getattr(copy, name), getattr(cam, name))

@@ -12,10 +12,10 @@ import pytest
 
 import _format_fixtures as F
 from conftest import invoke, tree_hash
+from rotavat_cli import safe_pickle
 from rotavat_cli.camera import horizon_v_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
-from rotavat_cli import safe_pickle
 from rotavat_cli.formats.agora import focal_mm
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml

@@ -31,6 +31,7 @@ from .fused import (
     VERTEX_ERROR_KEYS,
     compiled_kernels,
     person_errors_mm,
+    resolve_engine,
 )
 from .points import (
     mpjpe,
@@ -72,6 +73,7 @@ __all__ = [
     "point_errors_mm",
     "procrustes_align",
     "pve",
+    "resolve_engine",
     "root_err_mm",
     "stature_err_mm",
     "stature_m",

@@ -31,7 +31,7 @@ from ._common import MM_PER_M, _check_root_index, _pair, _roots, _rotation
 from ._kernels import _centred_moments, _far_from_origin, _scale_rotation
 from .points import mpjpe, w_spec_mpjpe
 
-__all__ = ["ENGINES", "JOINT_ERROR_KEYS", "VERTEX_ERROR_KEYS", "compiled_kernels", "person_errors_mm"]
+__all__ = ["ENGINES", "JOINT_ERROR_KEYS", "VERTEX_ERROR_KEYS", "compiled_kernels", "person_errors_mm", "resolve_engine"]
 
 
 JOINT_ERROR_KEYS: tuple[str, ...] = ("w_mpjpe", "mpjpe", "pa_mpjpe", "w_mpjpe_spec")
@@ -283,8 +283,8 @@ def compiled_kernels() -> ModuleType | None:
         return None
 
 
-def _vertex_engine(engine: str) -> ModuleType | None:
-    """The kernels ``engine`` asks for: the compiled module, or None for the numpy pass."""
+def resolve_engine(engine: str) -> ModuleType | None:
+    """The kernels ``engine`` asks for: the compiled module, or None for the numpy pass; ValueError if unavailable."""
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
     kernels = None if engine == "numpy" else compiled_kernels()
@@ -305,7 +305,7 @@ def _vertex_errors_mm(
     roots: (P, 2, 3) float64 (pred, gt). Rows: W-PVE, PVE, PA-PVE and, when spec_col
     ((3, 3) or (P, 3, 3) float64, R_gt^T R_pred) is given, SPEC's W-PVE.
     """
-    kernels = _vertex_engine(engine)
+    kernels = resolve_engine(engine)
     if kernels is None:
         return _vertex_errors_numpy(pred, gt, roots, spec_col)
     return _vertex_errors_compiled(kernels, pred, gt, roots, spec_col)
