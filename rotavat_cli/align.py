@@ -2,6 +2,12 @@
 
 The output mirrors the input's form and keys (npz -> npz, obj -> obj); ``vertices`` and ``joints``
 are transformed, every other key is copied through, float32 stays float32.
+
+The meshes of the input were made with the focal its HPS method assumed (per frame or per
+person); the output lives in the camera (the calibrated or given one) and says so: its frames'
+``focal_length``/``K``/``principal_point`` and its meta.yaml are the camera's, with
+``focal_kind: camera``. Each person keeps the foot and crown pixels the method drew
+(:func:`rotavat_cli.rotavat.method_rays_cam`).
 """
 
 from __future__ import annotations
@@ -18,22 +24,46 @@ import numpy as np
 
 from .atomic import atomic_open, staged_directory
 from .parallel import ordered_map
-from .camera import Camera
+from .camera import Camera, project_cam_to_px
 from .errors import InputError
 from .landmarks import foot_head_points
-from .rotavat import FLAGS, AlignTransform, apply_transforms, points_from_coords, rotavat_transforms, transformed_blocks
-from .sequence import Frame, Sequence, write_camera_yaml, write_frame, write_meta
+from .rotavat import FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords, rotavat_transforms, transformed_blocks
+from .focal import CAMERA
+from .sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 
-__all__ = ["PEOPLE_COLUMNS", "AlignSummary", "align_frame", "track_statures", "align_sequence"]
+__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "STATURE_RANGE_M", "MeshIntrinsics", "AlignSummary",
+           "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]
 
 PEOPLE_COLUMNS = (
     "frame", "person_id", "x_world_m", "z_world_m", "stature_m", "depth_scale", "rotation_deg",
-    "final_scale", "drift_mean_px", "drift_max_px", "head_drift_px", "flag",
+    "final_scale", "mesh_focal_px", "drift_mean_px", "drift_max_px", "head_drift_px", "flag",
 )
+IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outside the plausible range
+STATURE_RANGE_M = (1.0, 2.3)  # plausible aligned statures (config align.stature_range_m)
 
 
-def _frame_transform(frame: Frame, camera: Camera, upright: str,
-                     stature_by_id: dict[int, float] | None) -> tuple[AlignTransform, np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class MeshIntrinsics:
+    """The intrinsics a frame's meshes were made with: focal per person (P,) px and principal point px."""
+
+    focal_px: np.ndarray  # (P,)
+    principal_point: tuple[float, float]
+
+    @classmethod
+    def of_frame(cls, frame: Frame, intrinsics: Intrinsics | None, camera: Camera) -> "MeshIntrinsics":
+        """From a frame's stated intrinsics; what is not stated is the camera's (meshes assumed made in it)."""
+        focals = None if intrinsics is None else intrinsics.focals_px(frame.n_people)
+        pp = None if intrinsics is None else intrinsics.principal_point
+        return cls(np.full(frame.n_people, camera.focal_px) if focals is None else focals,
+                   camera.principal_point if pp is None else pp)
+
+    def same_as(self, camera: Camera) -> bool:
+        """True when every person's mesh was made in the camera's own intrinsics."""
+        return bool(np.all(self.focal_px == camera.focal_px)) and tuple(self.principal_point) == tuple(camera.principal_point)
+
+
+def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: dict[int, float] | None,
+                     mesh: MeshIntrinsics) -> tuple[AlignTransform, np.ndarray, np.ndarray]:
     """Transforms for a frame's people plus their original feet/heads (P, 3)."""
     verts = frame.get("vertices")
     if verts is None:
@@ -42,19 +72,31 @@ def _frame_transform(frame: Frame, camera: Camera, upright: str,
     stature = None
     if stature_by_id is not None:
         stature = np.array([stature_by_id.get(int(i), np.nan) for i in frame.person_ids])
-    transform = rotavat_transforms(feet_cam, heads_cam, camera.up_cam, camera.ground_offset_m, upright, stature)
+    rays = (None, None)
+    if not mesh.same_as(camera):
+        rays = tuple(method_rays_cam(points, mesh.focal_px, mesh.principal_point, camera.focal_px,
+                                     camera.principal_point) for points in (feet_cam, heads_cam))
+    transform = rotavat_transforms(feet_cam, heads_cam, camera.up_cam, camera.ground_offset_m, upright, stature, *rays)
     return transform, feet_cam, heads_cam
 
 
-def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, focal_px: float) -> np.ndarray:
-    """Image motion (p, N) in px of points that moved, given coordinates first (p, 3, N); float32 suffices."""
+def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, mesh_focal_px: np.ndarray, focal_px: float,
+                    pp_shift_px: np.ndarray) -> np.ndarray:
+    """Image motion (p, N) in px of points that moved, given coordinates first (p, 3, N); float32 suffices.
+
+    Before: the pixels the method drew (its focal per person, (p,)); after: the camera's pixels
+    (``focal_px``); pp_shift_px (2,): the camera's principal point minus the method's.
+    """
     a = np.asarray(before_cam, dtype=np.float32)
     b = np.asarray(after_cam, dtype=np.float32)
+    fa = np.asarray(mesh_focal_px, dtype=np.float32)[:, None]
+    fb = np.float32(focal_px)
+    shift = np.asarray(pp_shift_px, dtype=np.float32)
     with np.errstate(divide="ignore", invalid="ignore"):
-        inv_a, inv_b = 1.0 / a[:, 2], 1.0 / b[:, 2]
-        du = b[:, 0] * inv_b - a[:, 0] * inv_a
-        dv = b[:, 1] * inv_b - a[:, 1] * inv_a
-    return np.float32(focal_px) * _hypot_f32(du, dv)
+        inv_a, inv_b = fa / a[:, 2], fb / b[:, 2]
+        du = b[:, 0] * inv_b - a[:, 0] * inv_a + shift[0]
+        dv = b[:, 1] * inv_b - a[:, 1] * inv_a + shift[1]
+    return _hypot_f32(du, dv)
 
 
 def _hypot_f32(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -84,8 +126,8 @@ def _nan_mean_max(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, values.max(axis=1)
 
 
-def _align_points(verts_cam: np.ndarray, transform: AlignTransform,
-                  focal_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _align_points(verts_cam: np.ndarray, transform: AlignTransform, mesh: MeshIntrinsics,
+                  camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Transformed vertices (P, V, 3) in their dtype, and each person's mean and max drift (P,) in px.
 
     A block of people's drift is measured on the values written, right after they are computed,
@@ -95,8 +137,12 @@ def _align_points(verts_cam: np.ndarray, transform: AlignTransform,
     if V == 0:
         return verts_cam.copy(), np.zeros(P), np.zeros(P)
     moved, means, peaks = [], [], []
+    shift = np.subtract(camera.principal_point, mesh.principal_point)
+    start = 0
     for before, after in transformed_blocks(verts_cam, transform, verts_cam.dtype):  # (p, 3, V) each
-        mean, peak = _nan_mean_max(_pixel_drift_px(before, after, focal_px))
+        focal = mesh.focal_px[start:start + len(before)]
+        start += len(before)
+        mean, peak = _nan_mean_max(_pixel_drift_px(before, after, focal, camera.focal_px, shift))
         moved.append(after)
         means.append(mean)
         peaks.append(peak)
@@ -104,20 +150,33 @@ def _align_points(verts_cam: np.ndarray, transform: AlignTransform,
 
 
 def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
-                stature_by_id: dict[int, float] | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
-    """Align one frame: the new frame and per-person columns (see ``PEOPLE_COLUMNS``)."""
+                stature_by_id: dict[int, float] | None = None, intrinsics: Intrinsics | None = None,
+                stature_range_m: tuple[float, float] = STATURE_RANGE_M) -> tuple[Frame, dict[str, np.ndarray]]:
+    """Align one frame into ``camera``: the new frame and per-person columns (see ``PEOPLE_COLUMNS``).
+
+    intrinsics: what the frame's meshes were made with (``Sequence.frame_intrinsics``; None: the
+    frame's own keys); what is not stated is the camera's own. People aligned to a stature outside
+    ``stature_range_m`` are flagged ``implausible_stature`` (still aligned).
+    """
+    intrinsics = frame.intrinsics if intrinsics is None else intrinsics
     P = frame.n_people
     if P == 0:
-        return frame, {c: np.zeros(0) for c in PEOPLE_COLUMNS}
-    transform, feet_cam, heads_cam = _frame_transform(frame, camera, upright, stature_by_id)
+        return _in_camera(frame, camera), {c: np.zeros(0) for c in PEOPLE_COLUMNS}
+    mesh = MeshIntrinsics.of_frame(frame, intrinsics, camera)
+    transform, feet_cam, heads_cam = _frame_transform(frame, camera, upright, stature_by_id, mesh)
     verts = frame.data["vertices"]
-    new_verts, drift_mean, drift_max = _align_points(verts, transform, camera.focal_px)
+    new_verts, drift_mean, drift_max = _align_points(verts, transform, mesh, camera)
     arrays = {"vertices": new_verts}
     if frame.get("joints") is not None:
         arrays["joints"] = apply_transforms(frame.data["joints"], transform, frame.data["joints"].dtype)
     new_heads = apply_transforms(heads_cam[:, None], transform)[:, 0]
+    heads_drawn_px = project_cam_to_px(heads_cam, mesh.focal_px, mesh.principal_point)
     foot_world = camera.world_from_cam(transform.pivot_cam)
     ok = transform.ok
+    flags = np.array([FLAGS[int(c)] for c in transform.flag], dtype=object)
+    with np.errstate(invalid="ignore"):
+        implausible = ok & ((transform.stature_m < stature_range_m[0]) | (transform.stature_m > stature_range_m[1]))
+    flags[implausible] = IMPLAUSIBLE_STATURE
     columns = {
         "frame": np.full(P, frame.name, dtype=object),
         "person_id": frame.person_ids,
@@ -127,12 +186,35 @@ def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
         "depth_scale": transform.depth_scale,
         "rotation_deg": transform.rotation_deg,
         "final_scale": transform.final_scale,
+        "mesh_focal_px": mesh.focal_px,
         "drift_mean_px": drift_mean,
         "drift_max_px": drift_max,
-        "head_drift_px": np.linalg.norm(camera.project(new_heads) - camera.project(heads_cam), axis=-1),
-        "flag": np.array([FLAGS[int(c)] for c in transform.flag], dtype=object),
+        "head_drift_px": np.linalg.norm(camera.project(new_heads) - heads_drawn_px, axis=-1),
+        "flag": flags,
     }
-    return frame.replace(**arrays), columns
+    return _in_camera(frame.replace(**arrays), camera), columns
+
+
+_INTRINSIC_KEYS = ("focal_length", "K", "principal_point")
+
+
+def _in_camera(frame: Frame, camera: Camera) -> Frame:
+    """The frame's own intrinsics keys (if any) replaced by the camera's: its meshes now live in it."""
+    stated = {key: frame.data[key] for key in _INTRINSIC_KEYS if key in frame.data}
+    if not stated:
+        return frame
+    values = {"focal_length": np.float64(camera.focal_px), "K": np.asarray(camera.K, dtype=np.float64),
+              "principal_point": np.asarray(camera.principal_point, dtype=np.float64)}
+    return frame.replace(**{key: values[key] for key in stated})
+
+
+def aligned_meta(meta: dict, camera: Camera) -> dict:
+    """meta.yaml of an aligned sequence: the camera's intrinsics, ``focal_kind: camera``, the input's in ``aligned_from``."""
+    out = {k: v for k, v in meta.items() if k not in ("focal_length", "K", "principal_point", "focal_kind", "focal_rule")}
+    out.update({"image_size": [int(v) for v in camera.image_size], "focal_length": float(camera.focal_px),
+                "principal_point": [float(v) for v in camera.principal_point], "focal_kind": CAMERA})
+    out["aligned_from"] = {k: meta.get(k) for k in ("focal_length", "focal_kind", "focal_rule") if meta.get(k) is not None}
+    return out
 
 
 def track_statures(seq: Sequence, camera: Camera, upright: str = "paper") -> dict[int, float]:
@@ -143,7 +225,8 @@ def track_statures(seq: Sequence, camera: Camera, upright: str = "paper") -> dic
             continue
         if frame.get("person_ids") is None:
             raise InputError(f"{frame.source}: --height-from track needs 'person_ids' (track ids) in every frame")
-        transform, _, _ = _frame_transform(frame, camera, upright, None)
+        mesh = MeshIntrinsics.of_frame(frame, seq.frame_intrinsics(frame), camera)
+        transform, _, _ = _frame_transform(frame, camera, upright, None, mesh)
         for pid, stature in zip(frame.person_ids, transform.stature_m):
             if np.isfinite(stature):
                 samples[int(pid)].append(float(stature))
@@ -155,11 +238,11 @@ _CHUNK_FRAMES = 8  # frames per worker task: amortises task overhead, keeps memo
 
 def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray], str]]:
     """Read, align and write a few frames; per frame its people count, columns and people.csv rows."""
-    seq, names, camera, out, upright, stature_by_id = task
+    seq, names, camera, out, upright, stature_by_id, stature_range_m = task
     results = []
     for name in names:
         frame = seq.read_frame(name)
-        new_frame, cols = align_frame(frame, camera, upright, stature_by_id)
+        new_frame, cols = align_frame(frame, camera, upright, stature_by_id, seq.frame_intrinsics(frame), stature_range_m)
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols)))
     return results
@@ -167,12 +250,17 @@ def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray], str]]:
 
 @dataclass
 class AlignSummary:
-    """What ``align_sequence`` did (``add`` per frame, then ``finish``)."""
+    """What ``align_sequence`` did (``add`` per frame, then ``finish``).
+
+    ``aligned`` counts the people that were transformed (``implausible`` of them with a stature
+    outside the plausible range); ``flagged`` counts every flag, including ``implausible_stature``.
+    """
 
     out: Path
     frames: int = 0
     people: int = 0
     aligned: int = 0
+    implausible: int = 0
     flagged: dict[str, int] = field(default_factory=dict)
     median_depth_scale: float = float("nan")
     median_abs_depth_change_pct: float = float("nan")
@@ -183,13 +271,16 @@ class AlignSummary:
 
     def add(self, n_people: int, cols: dict[str, np.ndarray]) -> None:
         """Count one frame's people and keep the aligned people's factors."""
-        ok = cols["flag"] == ""
+        flag = np.asarray(cols["flag"], dtype=object)
+        ok = (flag == "") | (flag == IMPLAUSIBLE_STATURE)
         self.frames += 1
         self.people += n_people
         self.aligned += int(ok.sum())
-        for name in cols["flag"][~ok]:
+        self.implausible += int((flag == IMPLAUSIBLE_STATURE).sum())
+        for name in flag[flag != ""]:
             self.flagged[str(name)] = self.flagged.get(str(name), 0) + 1
-        self._aligned_columns.append({k: cols[k][ok] for k in ("depth_scale", "rotation_deg", "stature_m", "head_drift_px")})
+        self._aligned_columns.append({k: np.asarray(cols[k], dtype=np.float64)[ok]
+                                      for k in ("depth_scale", "rotation_deg", "stature_m", "head_drift_px")})
 
     def finish(self) -> None:
         """Medians over every aligned person (small: four floats per person)."""
@@ -200,13 +291,38 @@ class AlignSummary:
         self.median_abs_depth_change_pct = float(np.median(np.abs(col["depth_scale"] - 1.0)) * 100.0)
         self.median_rotation_deg = float(np.median(np.abs(col["rotation_deg"])))
         self.median_stature_m = float(np.median(col["stature_m"]))
-        self.max_head_drift_px = float(np.max(col["head_drift_px"]))
+        self.max_head_drift_px = float(np.nanmax(col["head_drift_px"]))
         self._aligned_columns.clear()
+
+
+def summarize_people_csv(people_csv: str | Path) -> AlignSummary:
+    """The :class:`AlignSummary` of a written people.csv (same numbers as the run that wrote it)."""
+    people_csv = Path(people_csv)
+    summary = AlignSummary(people_csv.parent)
+    with open(people_csv, encoding="utf-8", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    for frame, group in _group_rows(rows):
+        cols = {"flag": np.array([r["flag"] for r in group], dtype=object)}
+        for key in ("depth_scale", "rotation_deg", "stature_m", "head_drift_px"):
+            cols[key] = np.array([float(r[key]) if r[key] else np.nan for r in group])
+        summary.add(len(group), cols)
+    summary.finish()
+    return summary
+
+
+def _group_rows(rows: list[dict]) -> list[tuple[str, list[dict]]]:
+    """people.csv rows grouped by consecutive frame name."""
+    groups: list[tuple[str, list[dict]]] = []
+    for row in rows:
+        if not groups or groups[-1][0] != row["frame"]:
+            groups.append((row["frame"], []))
+        groups[-1][1].append(row)
+    return groups
 
 
 def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str = "paper", height_from: str = "frame",
                    camera_fit: dict | None = None, progress: Callable[[], None] | None = None,
-                   workers: int = 2) -> AlignSummary:
+                   workers: int = 2, stature_range_m: tuple[float, float] = STATURE_RANGE_M) -> AlignSummary:
     """Align every frame of ``seq`` into ``out`` (mirrored form) with camera.yaml and people.csv.
 
     Frames stream through ``workers`` processes, a bounded window ahead of the in-order writer of
@@ -219,12 +335,15 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
         raise InputError(f"height_from must be 'frame' or 'track', got {height_from!r}")
     if upright not in ("paper", "full"):
         raise InputError(f"upright must be 'paper' or 'full', got {upright!r}")
+    lo, hi = (float(v) for v in stature_range_m)
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise InputError(f"stature_range_m must be [low, high] metres with 0 <= low < high, got {list(stature_range_m)}")
     stature_by_id = track_statures(seq, camera, upright) if height_from == "track" else None
     summary = AlignSummary(out)
     names = seq.frame_names
     chunks = [names[i:i + _CHUNK_FRAMES] for i in range(0, len(names), _CHUNK_FRAMES)]
     with staged_directory(out) as stage:
-        tasks = ((seq, chunk, camera, stage, upright, stature_by_id) for chunk in chunks)
+        tasks = ((seq, chunk, camera, stage, upright, stature_by_id, (lo, hi)) for chunk in chunks)
         with atomic_open(stage / "people.csv", "w") as handle:
             csv.writer(handle, lineterminator="\n").writerow(PEOPLE_COLUMNS)
             for results in ordered_map(_align_chunk, tasks, workers, processes=True):
@@ -234,8 +353,7 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
                     if progress:
                         progress()
         write_camera_yaml(stage / "camera.yaml", camera, camera_fit)
-        if seq.meta:
-            write_meta(stage, seq.meta)
+        write_meta(stage, aligned_meta(seq.meta, camera))
     summary.finish()
     return summary
 

@@ -57,7 +57,13 @@ __all__ = ["CalibrationResult", "PerFrameSummary", "GridSpec", "fit_camera", "ca
 
 METHODS = ("grid", "refine")
 RESIDUALS = ("full", "vertical")
-POINTS = ("landmarks", "boxes")
+POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
+# Box-derived points: a box's top- and bottom-centre share one column exactly; landmark points
+# (mid-sole, crown) of real people never do all at once (verticals converge, people sway).
+BOX_COLUMN_TOL_PX = 0.5
+# A refined parameter closer than this to its start (internal units: log f, rad, rad, log h, ...)
+# did not move: the pairs did not constrain the refinement.
+_UNMOVED_TOL = 1e-4
 # Box depth, m, and its sd (why: a box's bottom is the walker's lowest image point, the nearest
 # foot's toe or heel: half a foot length, 0.13 m, plus on average ~0.1 m of stride toward the
 # camera; its top is the head's silhouette, ~0.03 m beyond the crown for a camera looking down;
@@ -86,6 +92,10 @@ class CalibrationResult:
     points: str = "landmarks"  # "landmarks" (mid-sole, crown) | "boxes" (box bottom- and top-centre)
     distortion: float = math.nan  # fitted division-model coefficient (NaN: not fitted)
     box_depth_m: float = 0.0  # assumed box depth, m (boxes only; 0 for landmarks)
+    fixed: dict[str, str] = field(default_factory=dict)  # parameter -> why it was not estimated
+    notes: tuple[str, ...] = ()  # what rotavat decided on its own (e.g. box-derived points detected)
+    person_height_estimated: bool = False  # the mean stature was estimated (camera height given), not assumed
+    person_height_std_m: float = math.nan  # its std when estimated
 
     @property
     def horizon_v_px(self) -> float:
@@ -103,10 +113,14 @@ class CalibrationResult:
             "inliers": int(self.inliers),
             "frames": int(self.frames),
             "rmse_px": _plain(self.rmse_px),
-            "std": {k: _plain(self.std.get(k, math.nan)) for k in MODEL_NAMES if k in PARAM_NAMES or k in self.std},
+            "std": {**{k: _plain(self.std.get(k, math.nan)) for k in MODEL_NAMES if k in PARAM_NAMES or k in self.std},
+                    **({"person_height_m": _plain(self.person_height_std_m)} if self.person_height_estimated else {})},
+            "fixed": dict(self.fixed),
+            "person_height": "estimated" if self.person_height_estimated else "assumed",
             "corr_focal_pitch": _plain(self.corr_focal_pitch),
             "horizon_v_px": _plain(self.horizon_v_px),
             "warnings": list(self.warnings),
+            "notes": list(self.notes),
             "points": self.points,
             **({"distortion": float(self.distortion)} if math.isfinite(self.distortion) else {}),
             **({"box_depth_m": float(self.box_depth_m)} if self.points == "boxes" else {}),
@@ -173,10 +187,10 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
                frame_index: np.ndarray | None = None, track_id: np.ndarray | None = None,
                focal_px: float | None = None, estimate_roll: bool = True,
                principal_point: tuple[float, float] | None = None, person_height_m: float = 1.70,
-               person_height_sd_m: float = 0.07, residual: str = "full", points: str = "landmarks",
-               distortion: bool = False, box_depth_m: float = BOX_DEPTH_M, box_depth_sd_m: float = BOX_DEPTH_SD_M,
-               fov_prior_deg: float | None = None, fov_prior_sd_deg: float = 10.0, noise_px: float = 2.0,
-               grid: GridSpec = GridSpec(),
+               person_height_sd_m: float = 0.07, camera_height_m: float | None = None, residual: str = "full",
+               points: str = "auto", distortion: bool = False, box_depth_m: float = BOX_DEPTH_M,
+               box_depth_sd_m: float = BOX_DEPTH_SD_M, fov_prior_deg: float | None = None,
+               fov_prior_sd_deg: float = 10.0, noise_px: float = 2.0, grid: GridSpec = GridSpec(),
                principal_point_sd_px: float | None = None, distortion_sd: float = 0.01,
                person_height_mean_sd_m: float = 0.04, max_rounds: int = 6,
                workers: int | None = None) -> CalibrationResult:
@@ -185,25 +199,37 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     feet_px, heads_px: (N, 2) px, mid-sole and crown; image_size: (W, H) px.
     frame_index, track_id: (N,) int, optional (frame count; clusters for the uncertainty).
     focal_px: fix the focal length (else estimated). principal_point: (cx, cy), default the centre.
+    camera_height_m: the camera's known height above the ground (m): it fixes the metric scale,
+    and the people's mean stature is estimated instead of assumed (``person_height_m`` of the
+    result, with ``person_height_std_m``). The model sees stature and height only through their
+    ratio, so the fit is the same and only the scale moves to the stature.
     method: "grid" (the paper: roll 0, no robustness) or "refine". points: "landmarks" (mid-sole
-    and crown) or "boxes" (bottom- and top-centre of person boxes, refine only: the box top lies
+    and crown), "boxes" (bottom- and top-centre of person boxes, refine only: the box top lies
     box_depth_m farther from the camera along the ground than the box bottom; a box's two
-    centres share a column by construction, so boxes always use the head row). residual: "full"
-    (head u and v) or "vertical" (head row only). distortion: also fit a one-parameter division
-    model of radial lens distortion (refine only; ``CalibrationResult.distortion`` is about the
-    relative displacement at the image corner, negative for barrel). fov_prior_deg: mean of a
-    weak prior on the vertical field of view (sd fov_prior_sd_deg), used when the focal is
-    estimated (refine only). noise_px: pixel noise of the points (refine weights). workers: grid
-    threads (None = auto).
+    centres share a column by construction, so boxes always use the head row) or "auto" (boxes
+    when every pair's head is within BOX_COLUMN_TOL_PX of its foot's column, said in ``notes``).
+    residual: "full" (head u and v) or "vertical" (head row only). distortion: also fit a
+    one-parameter division model of radial lens distortion (refine only;
+    ``CalibrationResult.distortion`` is about the relative displacement at the image corner,
+    negative for barrel). fov_prior_deg: mean of a weak prior on the vertical field of view (sd
+    fov_prior_sd_deg), used when the focal is estimated (refine only). noise_px: pixel noise of
+    the points (refine weights). workers: grid threads (None = auto).
     The reported std adds, to the fit's own uncertainty, what the model assumes but cannot know:
     the principal point (sd principal_point_sd_px per axis; None = 2% of the larger image side,
     or 0 when principal_point is given), radial lens distortion unless fitted (sd of the corner
     displacement over the half-diagonal, distortion_sd), the people's mean stature
-    (person_height_mean_sd_m) and, for boxes, the box depth (box_depth_sd_m); with the full
-    residual, the disagreement of the head rows with the joint fit when a test rejects it.
+    (person_height_mean_sd_m; not when camera_height_m is given) and, for boxes, the box depth
+    (box_depth_sd_m); with the full residual, the disagreement of the head rows with the joint
+    fit when a test rejects it. A refinement that ends where it started (the pairs did not move
+    it) falls back to the paper grid's best cell, with a warning.
     Raises ValueError for malformed input and DegenerateSceneError when the pairs cannot
     determine a camera (fewer than 3 usable pairs, or no candidate camera is valid).
     """
+    notes: list[str] = []
+    if points == "auto":
+        points, notes = _resolve_points(feet_px, heads_px, method)
+    if camera_height_m is not None and not (math.isfinite(camera_height_m) and camera_height_m > 0):
+        raise ValueError(f"camera_height_m must be a positive number of metres, got {camera_height_m}")
     size, feet, heads, usable, frames, tracks, pp, fov, residual = _check_inputs(
         feet_px, heads_px, image_size, method, residual, points, distortion, box_depth_m, box_depth_sd_m, frame_index,
         track_id, focal_px, estimate_roll, principal_point, person_height_m, person_height_sd_m, noise_px,
@@ -215,15 +241,20 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
                          float(noise_px), residual == "vertical", size, fov,
                          None if tracks is None or method == "grid" else tracks[idx])
     extra: list[str] = []
-    if method == "grid":
-        params, mask_u, free, scale, extra, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
-                                                             person_height_m, residual, grid, workers, prob)
-    else:
+    if method == "refine":
         free = np.array([focal_px is None, True, estimate_roll, True, distortion, False])
         box = float(box_depth_m) if points == "boxes" else 0.0
-        params, mask_u, scale = refine_fit(prob, feet[idx], heads[idx], pp, size, focal_px, free, box, grid,
-                                        max_rounds)
+        params, mask_u, scale, start = refine_fit(prob, feet[idx], heads[idx], pp, size, focal_px, free, box, grid,
+                                                  max_rounds)
         extra = _bound_warnings(params, free, size[1])
+        if _unmoved(params, start, free):
+            method = "grid"
+            extra = [f"the refinement ended where it started (pitch {math.degrees(params[1]):.5f} deg, height "
+                     f"{params[3]:.5f} m): the pairs do not constrain it; falling back to the paper grid's best cell"]
+    if method == "grid":
+        params, mask_u, free, scale, grid_warns, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
+                                                                  person_height_m, residual, grid, workers, prob)
+        extra += grid_warns
     if focal_px is not None:
         params[0] = float(focal_px)  # exactly as given (no log/exp round trip)
     camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])  # params[4:]: the point model
@@ -233,7 +264,8 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     inl = prob.subset(np.flatnonzero(mask_u))
     pp_sd = (0.02 * max(size) if principal_point is None else 0.0) if principal_point_sd_px is None \
         else float(principal_point_sd_px)
-    assumed = Systematics(pp_sd, 0.0 if distortion else float(distortion_sd), float(person_height_mean_sd_m),
+    stature_mean_sd = 0.0 if camera_height_m is not None else float(person_height_mean_sd_m)
+    assumed = Systematics(pp_sd, 0.0 if distortion else float(distortion_sd), stature_mean_sd,
                            float(box_depth_sd_m) if points == "boxes" else 0.0)
     cov, cov_stat, cov_warns = covariances(inl, params, free, scale,
                                             None if clusters is None else clusters[idx[mask_u]], assumed,
@@ -247,10 +279,46 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     if method == "refine" and tracks is None and n_frames > 1:
         warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
                      "is too small when people persist (give the person ids)")
-    return CalibrationResult(camera, method, float(person_height_m), len(feet), int(mask_u.sum()), n_frames, rmse,
+    fixed = {name: reason for name, reason, free_ in (
+        ("focal_px", "given", free[0]), ("roll_deg", "0 (not estimated)", free[2]),
+        ("distortion", "none", free[4] or not distortion)) if not free_}
+    stature, stature_sd = float(person_height_m), math.nan
+    if camera_height_m is not None:  # the same fit at the known scale: the stature carries it
+        ratio = float(camera_height_m) / camera.height_m
+        stature, stature_sd = stature * ratio, stature * ratio * std["height_m"] / camera.height_m
+        camera = camera.replace(height_m=float(camera_height_m))
+        std = {**std, "height_m": math.nan}
+        std_stat = {**std_stat, "height_m": math.nan}
+        fixed["height_m"] = "given"
+    return CalibrationResult(camera, method, stature, len(feet), int(mask_u.sum()), n_frames, rmse,
                              std, corr, inlier_mask, tuple(warns), residual, std_stat, points,
                              float(params[4]) if distortion else math.nan,
-                             float(params[5]))
+                             float(params[5]), fixed, tuple(notes), camera_height_m is not None, stature_sd)
+
+
+def box_derived(feet_px: np.ndarray, heads_px: np.ndarray, tol_px: float = BOX_COLUMN_TOL_PX) -> bool:
+    """True when every finite pair (N, 2) px has its head in its foot's column (boxes' centres), N >= 3."""
+    feet, heads = np.asarray(feet_px, np.float64), np.asarray(heads_px, np.float64)
+    finite = np.all(np.isfinite(feet), axis=1) & np.all(np.isfinite(heads), axis=1) if feet.ndim == 2 else []
+    du = np.abs(feet[finite, 0] - heads[finite, 0]) if len(finite) else np.zeros(0)
+    return len(du) >= 3 and bool(np.all(du <= tol_px))
+
+
+def _resolve_points(feet_px: np.ndarray, heads_px: np.ndarray, method: str) -> tuple[str, list[str]]:
+    """The point model for ``points="auto"`` and a note saying what was decided, if anything."""
+    if not box_derived(feet_px, heads_px):
+        return "landmarks", []
+    if method == "grid":
+        return "landmarks", ["every pair's head is in its foot's column (box-derived points?), but the paper grid "
+                             "knows only mid-sole and crown points: use --method refine for the box model"]
+    return "boxes", ["every pair's head is in its foot's column: box-derived points (bottom- and top-centre of "
+                     "person boxes); using the box model (--points landmarks to override)"]
+
+
+def _unmoved(params: np.ndarray, start: np.ndarray, free: np.ndarray) -> bool:
+    """True when every refined parameter is still at its start (internal units)."""
+    moved = np.abs(to_internal(params) - to_internal(start))[free]
+    return bool(moved.size) and bool(np.all(moved < _UNMOVED_TOL))
 
 
 def _check_inputs(feet_px, heads_px, image_size, method: str, residual: str, points: str, distortion: bool,
@@ -265,7 +333,7 @@ def _check_inputs(feet_px, heads_px, image_size, method: str, residual: str, poi
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if residual not in RESIDUALS:
         raise ValueError(f"residual must be one of {RESIDUALS}, got {residual!r}")
-    if points not in POINTS:
+    if points not in POINTS[1:]:
         raise ValueError(f"points must be one of {POINTS}, got {points!r}")
     if not (math.isfinite(box_depth_m) and math.isfinite(box_depth_sd_m) and box_depth_sd_m >= 0):
         raise ValueError(f"box_depth_m must be finite and box_depth_sd_m >= 0, got {box_depth_m}, {box_depth_sd_m}")

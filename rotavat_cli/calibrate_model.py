@@ -303,8 +303,9 @@ def _fit_with_rejection(prob: Problem, params0: np.ndarray, free: np.ndarray, ma
 
 def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_size: tuple[int, int],
             focal_px: float | None, free: np.ndarray, box_depth_m: float, grid: GridSpec, max_rounds: int
-            ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Grid seeds, multi-start on a subsample, then the full fit; returns (params (6,), mask, scale)."""
+            ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Grid seeds, multi-start on a subsample, then the full fit; returns (params (6,), mask, scale, the
+    seed (6,) the best start came from)."""
     sub_idx = order_invariant_subset(feet, heads, _INIT_PAIRS)
     lo, hi = (v * image_size[1] for v in grid.focal_range_h)
     focal = np.geomspace(lo, hi, _INIT_STEPS[0]) if focal_px is None else np.array([float(focal_px)])
@@ -322,7 +323,7 @@ def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarra
         if mask0.sum() < 3:
             continue
         params, mask, scale = _fit_with_rejection(sub, seed, free, mask0, max_rounds=3)
-        best = _better(sub, best, (params, mask, scale))
+        best = _better(sub, best, (params, mask, scale, seed))
     if best is None:
         raise DegenerateSceneError("no camera explains the pairs: every start put the feet above the horizon "
                                    "or the heads behind the camera (are these pixels of this image?)")
@@ -332,11 +333,11 @@ def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarra
     if mask0.sum() < 3:
         mask0 = np.isfinite(chi2)
     params, mask, scale = _fit_with_rejection(prob, start, free, mask0, max_rounds)
-    return params, mask, scale
+    return params, mask, scale, best[3]
 
 
 def _better(prob: Problem, a, b):
-    """The better of two (params, mask, scale) fits by a common truncated chi-square cost."""
+    """The better of two (params, mask, scale, seed) fits by a common truncated chi-square cost."""
     if a is None:
         return b
     ref = min(a[2], b[2])

@@ -46,6 +46,7 @@ __all__ = [
     "height_above_ground",
     "R_cam_from_world_from_up",
     "horizon_v_px",
+    "reexpress_cam",
 ]
 
 _EPS = 1e-12  # denominators below this are treated as "ray parallel to the plane"
@@ -144,6 +145,27 @@ def horizon_v_px(u_px: np.ndarray | float, focal_px: float, principal_point: tup
     u = np.asarray(u_px, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         return cy - (n[0] * (u - cx) + n[2] * focal_px) / n[1]
+
+
+def reexpress_cam(points_cam: np.ndarray, roots_cam: np.ndarray, focal_from_px: np.ndarray | float,
+                  pp_from: np.ndarray | tuple, focal_to_px: np.ndarray | float, pp_to: np.ndarray | tuple) -> np.ndarray:
+    """Bodies made in one camera (``focal_from_px``, ``pp_from``) re-expressed in another, rigidly.
+
+    points_cam: (P, N, 3) per person; roots_cam: (P, 3) each body's root; focals scalar or (P,).
+    Each body is translated (never deformed) so its root keeps its pixel and its depth scales by
+    ``focal_to / focal_from``, so the body keeps its size in pixels. Returns (P, N, 3) float64.
+
+    >>> body = np.array([[[0.5, 0.2, 10.0], [0.5, -1.5, 10.0]]])
+    >>> moved = reexpress_cam(body, body[:, 0], 1000.0, (640.0, 360.0), 2000.0, (640.0, 360.0))
+    >>> moved[0].tolist()   # the root's pixel is kept at twice the depth; the body is only moved
+    [[0.5, 0.2, 20.0], [0.5, -1.5, 20.0]]
+    """
+    roots = np.asarray(roots_cam, dtype=np.float64)
+    f_from = np.broadcast_to(np.asarray(focal_from_px, dtype=np.float64), roots.shape[:-1])
+    f_to = np.broadcast_to(np.asarray(focal_to_px, dtype=np.float64), roots.shape[:-1])
+    rays = pixel_rays_cam(project_cam_to_px(roots, f_from, pp_from), f_to, pp_to)
+    new_roots = rays * (roots[..., 2] * f_to / f_from)[..., None]
+    return np.asarray(points_cam, dtype=np.float64) + (new_roots - roots)[..., None, :]
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

@@ -54,9 +54,15 @@ def merge_config(base: dict, override: dict, source: str, prefix: str = "") -> d
     return merged
 
 
+# Keys whose value is a name or a number (the default is a name).
+_NAME_OR_NUMBER = {"synth.hps_focal"}
+
+
 def _check_type(default: Any, value: Any, key: str, source: str) -> Any:
     """Accept ``value`` if it fits the default's type (null defaults accept anything plain)."""
     if value is None or default is None:
+        return value
+    if key in _NAME_OR_NUMBER and isinstance(value, (int, float)) and not isinstance(value, bool):
         return value
     if isinstance(default, bool):
         ok = isinstance(value, bool)

@@ -106,9 +106,10 @@ def parse_joints(spec: str | None, n_joints: int | None = None) -> tuple[int, ..
 
 def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | None) -> np.ndarray | None:
     """2D points per person used for matching: projected joints, else 2D keypoints, else foot/head."""
-    if frame.get("joints") is not None and intrinsics.focal_px is not None:
+    focals = intrinsics.focals_px(frame.n_people)
+    if frame.get("joints") is not None and focals is not None:
         j = frame.data["joints"]
-        return project_cam_to_px(j[:, list(joints)] if joints else j, intrinsics.focal_px, intrinsics.principal_point)
+        return project_cam_to_px(j[:, list(joints)] if joints else j, focals[:, None], intrinsics.principal_point)
     if frame.get("keypoints_2d") is not None:
         return frame.data["keypoints_2d"].astype(np.float64)
     if frame.get("feet_2d") is not None and frame.get("heads_2d") is not None:

@@ -2,7 +2,8 @@
 
 2D points: explicit ``feet_2d``/``heads_2d`` in a frame take precedence; otherwise they are the
 projections of the mesh landmarks (:mod:`rotavat_cli.landmarks`) through the intrinsics the HPS
-method used (the frame's ``focal_length``/``K`` or meta.yaml's).
+method used (the frame's ``focal_length``/``K``, one per person or one per frame, or meta.yaml's):
+the pixels the method drew, whatever the camera's real focal.
 """
 
 from __future__ import annotations
@@ -42,12 +43,13 @@ def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray
         if frame.n_people == 0:
             return np.zeros((0, 2)), np.zeros((0, 2)), "2d"
         raise InputError(f"{frame.source}: needs 'feet_2d' and 'heads_2d', or 'vertices' to find them")
-    if intrinsics.focal_px is None or intrinsics.principal_point is None:
+    focals = intrinsics.focals_px(frame.n_people)
+    if focals is None or intrinsics.principal_point is None:
         raise InputError(f"{frame.source}: projecting the meshes needs the focal length they were made with "
                          "(meta.yaml 'focal_length' or 'K', or a frame key)")
     feet_cam, heads_cam = foot_head_points(verts)
-    return (project_cam_to_px(feet_cam, intrinsics.focal_px, intrinsics.principal_point),
-            project_cam_to_px(heads_cam, intrinsics.focal_px, intrinsics.principal_point), "mesh")
+    return (project_cam_to_px(feet_cam, focals, intrinsics.principal_point),
+            project_cam_to_px(heads_cam, focals, intrinsics.principal_point), "mesh")
 
 
 def gather_pairs(seq: Sequence) -> FootHeadPairs:

@@ -12,6 +12,14 @@ Per person (vectorised over people; the same transform for vertices and joints):
 Every point maps as ``X' = F1 + s3 R (s1 X - F1)``. Since ``F1`` is on the foot's ray and the
 new crown on the crown's ray, both pixels are unchanged exactly (``upright="paper"``).
 
+When the mesh was made with another focal than the camera's (an HPS method's guess), the rays
+are those of the pixels the method drew, read in the real camera (``foot_rays_cam``,
+``head_rays_cam``; :func:`method_rays_cam`). The person is first re-expressed in the camera: the
+body, rigid and undistorted, moves so its foot lies on the foot pixel's ray (scale ``s1`` about
+the camera centre plus the small shift that closes the gap between the two cameras' rays); then
+(ii) and (iii) as above with the crown ray. The map is ``X' = F1 + s3 s1 R (X - F)``: which point
+of the body is kept on its ray while re-expressing (root, foot) does not change the result.
+
 Options beyond the paper: ``upright="full"`` rotates the axis to the true vertical ``n`` and
 picks ``s3`` so the crown comes as close as possible to its ray (its pixel moves a little; the
 change is reported); a per-person ``stature_m`` (e.g. one per track) replaces step (iii).
@@ -24,11 +32,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera import pixel_rays_cam, project_cam_to_px
 from .rotations import axis_angle_to_matrix
 
 __all__ = [
     "FLAGS", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",
-    "coords_first", "points_from_coords", "closest_scale_on_line", "person_blocks",
+    "coords_first", "points_from_coords", "closest_scale_on_line", "person_blocks", "method_rays_cam",
 ]
 
 # Flag codes of people that are left unchanged (0 = aligned).
@@ -44,15 +53,20 @@ _EPS = 1e-9  # relative tolerance for parallel rays and zero-length axes
 
 @dataclass(frozen=True)
 class AlignTransform:
-    """Per-person RotAvat transforms: ``X' = pivot + s3 R (s1 X - pivot)`` where flag == 0."""
+    """Per-person RotAvat transforms: ``X' = pivot + s3 s1 R (X - foot)`` where flag == 0.
 
-    depth_scale: np.ndarray  # (P,) s1
+    ``foot_cam`` is the mid-sole before, ``pivot_cam`` after (on the ground); when the foot lies on
+    its own ray (same focal) ``pivot = s1 foot`` and this is the paper's ``pivot + s3 R (s1 X - pivot)``.
+    """
+
+    depth_scale: np.ndarray  # (P,) s1: the foot's depth after over before
     rotation: np.ndarray  # (P, 3, 3) R
     rotation_deg: np.ndarray  # (P,) angle of R
     pivot_cam: np.ndarray  # (P, 3) F1, the foot on the ground
     final_scale: np.ndarray  # (P,) s3
     stature_m: np.ndarray  # (P,) |crown - foot| after the transform
     flag: np.ndarray  # (P,) int, see FLAGS
+    foot_cam: np.ndarray  # (P, 3) F, the mid-sole before the transform
 
     @property
     def ok(self) -> np.ndarray:
@@ -85,6 +99,18 @@ def closest_scale_on_line(origin: np.ndarray, direction: np.ndarray, ray: np.nda
         return -np.sum(o_perp * d_perp, axis=-1) / denom
 
 
+def method_rays_cam(points_cam: np.ndarray, mesh_focal_px: np.ndarray | float, mesh_principal_point: tuple | np.ndarray,
+                    focal_px: float, principal_point: tuple | np.ndarray) -> np.ndarray:
+    """Rays (P, 3) (z = 1) of the camera through the pixels that points (P, 3) have in the method's camera.
+
+    mesh_focal_px: scalar or (P,), the focal the meshes were made with; focal_px, principal_point:
+    the real camera's. With equal intrinsics the rays point at the points themselves.
+    """
+    focal = np.broadcast_to(np.asarray(mesh_focal_px, dtype=np.float64), np.shape(points_cam)[:-1])
+    pixels = project_cam_to_px(points_cam, focal, mesh_principal_point)
+    return pixel_rays_cam(pixels, focal_px, principal_point)
+
+
 def rotavat_transforms(
     feet_cam: np.ndarray,
     heads_cam: np.ndarray,
@@ -92,38 +118,44 @@ def rotavat_transforms(
     ground_offset_m: float,
     upright: str = "paper",
     stature_m: np.ndarray | None = None,
+    foot_rays_cam: np.ndarray | None = None,
+    head_rays_cam: np.ndarray | None = None,
 ) -> AlignTransform:
     """RotAvat transforms from mid-sole and crown points (P, 3), camera frame; see the module doc.
 
     ``stature_m`` (P,) fixes the final foot->crown length instead of putting the crown back on
-    its ray (NaN entries keep the ray rule).
+    its ray (NaN entries keep the ray rule). ``foot_rays_cam``/``head_rays_cam`` (P, 3): the rays
+    the foot and crown must end on (default: through the points themselves).
     """
     if upright not in ("paper", "full"):
         raise ValueError(f"upright must be 'paper' or 'full', got {upright!r}")
     F = np.asarray(feet_cam, dtype=np.float64)
     H = np.asarray(heads_cam, dtype=np.float64)
+    rF = F if foot_rays_cam is None else np.asarray(foot_rays_cam, dtype=np.float64)
+    rH = H if head_rays_cam is None else np.asarray(head_rays_cam, dtype=np.float64)
     n = np.asarray(up_cam, dtype=np.float64)
     n = n / np.linalg.norm(n)
     P = F.shape[0]
     flag = np.zeros(P, dtype=np.int64)
-    finite = np.all(np.isfinite(F), axis=-1) & np.all(np.isfinite(H), axis=-1)
-    F = np.where(finite[:, None], F, 0.0)
-    H = np.where(finite[:, None], H, 0.0)
+    finite = np.all(np.isfinite(np.concatenate([F, H, rF, rH], axis=-1)), axis=-1)
+    F, H = (np.where(finite[:, None], a, 0.0) for a in (F, H))
+    rF, rH = (np.where(finite[:, None], a, (0.0, 0.0, 1.0)) for a in (rF, rH))
     scale_ref = np.maximum(np.linalg.norm(F, axis=-1), 1e-12)
 
-    # (i) scale about the camera centre: n . (s1 F) + h = 0
-    nF = F @ n
+    # (i) onto the ground along the foot's ray: F1 = t rF with n . F1 + h = 0
+    nr = rF @ n
+    ray_len = np.linalg.norm(rF, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        s1 = -ground_offset_m / nF
-    foot_ok = (nF < -_EPS * scale_ref) & (F[:, 2] > 0)
-    s1 = np.where(foot_ok, s1, 1.0)
-    F1, H1 = s1[:, None] * F, s1[:, None] * H
+        t = -ground_offset_m / nr
+    foot_ok = (nr < -_EPS * ray_len) & (rF[:, 2] > 0) & (F[:, 2] > 0)
+    F1 = np.where(foot_ok[:, None], t[:, None] * rF, F)
+    s1 = np.where(foot_ok, F1[:, 2] / np.where(F[:, 2] > 0, F[:, 2], 1.0), 1.0)
 
-    # (ii) rotate about F1 in the plane (O, F1, H1) so the axis follows n projected on it
-    axis, length = _unit(H1 - F1)
-    m, m_norm = _unit(_cross(F1, H1))
-    degenerate = ~finite | (length <= _EPS * s1 * scale_ref)
-    same_ray = m_norm <= _EPS * np.linalg.norm(F1, axis=-1) * np.maximum(np.linalg.norm(H1, axis=-1), 1e-12)
+    # (ii) rotate about F1 in the plane (O, F1, crown ray) so the axis follows n projected on it
+    axis, length = _unit(H - F)
+    m, m_norm = _unit(_cross(F1, rH))
+    degenerate = ~finite | (length <= _EPS * scale_ref)
+    same_ray = m_norm <= _EPS * np.linalg.norm(F1, axis=-1) * np.maximum(np.linalg.norm(rH, axis=-1), 1e-12)
     if upright == "paper":
         target, _ = _unit(n - (m @ n)[:, None] * m)
     else:
@@ -133,13 +165,13 @@ def rotavat_transforms(
     R = axis_angle_to_matrix(rot_axis, angle)
 
     # (iii) scale about F1 so the crown is back on its ray (or has the given stature)
-    k = closest_scale_on_line(F1, target, H)  # F1 + k target meets (or nears) the crown ray
-    s3 = k / np.where(length > 0, length, 1.0)
+    k = closest_scale_on_line(F1, target, rH)  # F1 + k target meets (or nears) the crown ray
     if stature_m is not None:
         fixed = np.isfinite(np.asarray(stature_m, dtype=np.float64))
-        s3 = np.where(fixed, np.asarray(stature_m, dtype=np.float64) / np.where(length > 0, length, 1.0), s3)
-    new_head = F1 + (s3 * length)[:, None] * target
-    misses = ~np.isfinite(s3) | (s3 <= 0) | (np.sum(new_head * H, axis=-1) <= 0)
+        k = np.where(fixed, np.asarray(stature_m, dtype=np.float64), k)
+    scale = k / np.where(length > 0, length, 1.0)  # s3 s1: the body's overall scale
+    new_head = F1 + k[:, None] * target
+    misses = ~np.isfinite(k) | (k <= 0) | (np.sum(new_head * rH, axis=-1) <= 0)
 
     flag[misses] = 4
     flag[same_ray & ~degenerate] = 3
@@ -151,10 +183,11 @@ def rotavat_transforms(
         depth_scale=np.where(ok, s1, 1.0),
         rotation=np.where(ok[:, None, None], R, eye),
         rotation_deg=np.where(ok, np.rad2deg(angle), 0.0),
-        pivot_cam=np.where(ok[:, None], F1, 0.0),
-        final_scale=np.where(ok, s3, 1.0),
-        stature_m=np.where(ok, s3 * length, np.nan),
+        pivot_cam=np.where(ok[:, None], F1, F),
+        final_scale=np.where(ok, scale / np.where(s1 != 0, s1, 1.0), 1.0),
+        stature_m=np.where(ok, k, np.nan),
         flag=flag,
+        foot_cam=F,
     )
 
 
@@ -174,7 +207,7 @@ def affine_maps(transform: AlignTransform) -> tuple[np.ndarray, np.ndarray]:
     """Each person's transform as one affine map ``X' = A X + b``: A (P, 3, 3), b (P, 3), float64."""
     t = transform
     A = (t.depth_scale * t.final_scale)[:, None, None] * t.rotation
-    b = t.pivot_cam - t.final_scale[:, None] * np.einsum("pij,pj->pi", t.rotation, t.pivot_cam)
+    b = t.pivot_cam - np.einsum("pij,pj->pi", A, t.foot_cam)
     return A, b
 
 

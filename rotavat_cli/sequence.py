@@ -12,7 +12,7 @@ import io
 import re
 import zipfile
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +22,7 @@ import yaml
 from .atomic import atomic_open, atomic_write_text
 from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .errors import InputError
+from .focal import focal_kind_or_default
 
 __all__ = [
     "Frame",
@@ -57,25 +58,40 @@ CAMERA_FILE = "camera.yaml"
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """What is known of the camera the HPS method used: image size, focal, principal point."""
+    """What is known of the camera the HPS method used: image size, focal, principal point.
+
+    ``focal_px`` is one focal for the whole frame; ``person_focal_px`` one per person (P,) where
+    the method used one per person (HybrIK); at most one of the two is set.
+    """
 
     image_size: tuple[int, int] | None = None
     focal_px: float | None = None
     principal_point: tuple[float, float] | None = None
+    person_focal_px: tuple[float, ...] | None = None
 
     def with_defaults(self) -> "Intrinsics":
         """Principal point defaulted to the image centre when the image size is known."""
         if self.principal_point is None and self.image_size is not None:
-            return Intrinsics(self.image_size, self.focal_px, (self.image_size[0] / 2.0, self.image_size[1] / 2.0))
+            return replace(self, principal_point=(self.image_size[0] / 2.0, self.image_size[1] / 2.0))
         return self
 
     def override(self, other: "Intrinsics") -> "Intrinsics":
-        """Fields of ``other`` that are set take precedence over ours."""
+        """Fields of ``other`` that are set take precedence over ours (a focal of either form replaces both)."""
+        focal_set = other.focal_px is not None or other.person_focal_px is not None
         return Intrinsics(
             other.image_size if other.image_size is not None else self.image_size,
-            other.focal_px if other.focal_px is not None else self.focal_px,
+            other.focal_px if focal_set else self.focal_px,
             other.principal_point if other.principal_point is not None else self.principal_point,
+            other.person_focal_px if focal_set else self.person_focal_px,
         )
+
+    def focals_px(self, n_people: int) -> np.ndarray | None:
+        """(P,) float64 focal of each person's mesh, or None when no focal is stated."""
+        if self.person_focal_px is not None:
+            return np.asarray(self.person_focal_px, dtype=np.float64)
+        if self.focal_px is None:
+            return None
+        return np.full(n_people, float(self.focal_px))
 
 
 @dataclass(frozen=True)
@@ -107,7 +123,7 @@ class Frame:
     @property
     def intrinsics(self) -> Intrinsics:
         """Intrinsics stated by the frame itself (``image_size``, ``focal_length`` or ``K``)."""
-        return _intrinsics_from_mapping(self.data, self.source)
+        return _intrinsics_from_mapping(self.data, self.source, self.n_people)
 
     def replace(self, **arrays: np.ndarray) -> "Frame":
         """Copy with some arrays replaced or added."""
@@ -147,6 +163,7 @@ def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
     if len(set(counts.values())) > 1:
         detail = ", ".join(f"{k}={v}" for k, v in counts.items())
         raise _fail(source, f"inconsistent people counts between keys ({detail})")
+    n_people = next(iter(counts.values()), 0)
     if "faces" in data:
         faces = data["faces"]
         if faces.dtype.kind not in "iu" or faces.ndim != 2 or faces.shape[1] != 3:
@@ -154,12 +171,16 @@ def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
         verts = data.get("vertices")
         if verts is not None and faces.size and verts.shape[0] and (faces.min() < 0 or faces.max() >= verts.shape[1]):
             raise _fail(source, f"key 'faces' indexes vertices outside 0..{verts.shape[1] - 1}")
-    _intrinsics_from_mapping(data, source)
+    _intrinsics_from_mapping(data, source, n_people)
 
 
-def _intrinsics_from_mapping(data: Mapping[str, Any], source: str) -> Intrinsics:
-    """Parse ``image_size``, ``focal_length``/``K`` and ``principal_point`` from a frame or meta."""
-    size = focal = pp = None
+def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int | None = None) -> Intrinsics:
+    """Parse ``image_size``, ``focal_length``/``K`` and ``principal_point`` from a frame or meta.
+
+    In meta.yaml (``n_people`` None) ``focal_length`` is one number (or ``[fx, fy]``, averaged);
+    in a frame it is one number, or one per person (P,) as HybrIK uses.
+    """
+    size = focal = pp = person_focal = None
     if data.get("image_size") is not None:
         arr = np.asarray(data["image_size"])
         if arr.shape != (2,) or arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
@@ -176,15 +197,21 @@ def _intrinsics_from_mapping(data: Mapping[str, Any], source: str) -> Intrinsics
             arr = np.asarray(data["focal_length"], dtype=np.float64).reshape(-1)
         except (TypeError, ValueError):
             raise _fail(source, f"key 'focal_length' must be a number, got {data['focal_length']!r}") from None
-        if arr.size not in (1, 2) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-            raise _fail(source, f"key 'focal_length' must be a positive number, got {data['focal_length']!r}")
-        focal = float(arr.mean())
+        if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+            raise _fail(source, f"key 'focal_length' must hold positive numbers, got {data['focal_length']!r}")
+        if arr.size == 1 or (n_people is None and arr.size == 2):
+            focal = float(arr.mean())
+        elif n_people is not None and arr.size == n_people and np.ndim(data["focal_length"]) == 1:
+            person_focal = tuple(float(v) for v in arr)
+        else:
+            expected = "one number" if n_people is None else f"one number or one per person ({n_people},)"
+            raise _fail(source, f"key 'focal_length' must be {expected}, got shape {list(np.shape(data['focal_length']))}")
     if data.get("principal_point") is not None:
         arr = np.asarray(data["principal_point"], dtype=np.float64)
         if arr.shape != (2,) or not np.all(np.isfinite(arr)):
             raise _fail(source, "key 'principal_point' must be [cx, cy]")
         pp = (float(arr[0]), float(arr[1]))
-    return Intrinsics(size, focal, pp)
+    return Intrinsics(size, focal, pp, person_focal)
 
 
 # ---- frame readers ------------------------------------------------------------------------------
@@ -356,6 +383,15 @@ class Sequence:
         return len(self.frame_names)
 
     @property
+    def focal_kind(self) -> str:
+        """Whether the focal its meshes were made with is the camera's own ('camera') or a method's
+        guess ('assumed'): meta.yaml ``focal_kind``, absent = 'assumed' (rotavat.focal)."""
+        try:
+            return focal_kind_or_default(self.meta.get("focal_kind"), str(self.path / META_FILE))
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+
+    @property
     def intrinsics(self) -> Intrinsics:
         """Sequence-level intrinsics from meta.yaml (frames may override)."""
         return _intrinsics_from_mapping(self.meta, str(self.path / META_FILE))
@@ -415,7 +451,7 @@ def open_sequence(path: str | Path, read_camera: bool = True) -> Sequence:
     form, names = ("npz", npz) if npz else ("obj", folders)
     meta = read_yaml(path / META_FILE) if (path / META_FILE).exists() else {}
     seq = Sequence(path, form, tuple(names), meta)
-    seq.intrinsics  # validates meta.yaml's intrinsics keys early
+    seq.intrinsics, seq.focal_kind  # validates meta.yaml's intrinsics keys early
     if read_camera and (path / CAMERA_FILE).exists():
         camera, fit = read_camera_yaml(path / CAMERA_FILE, seq.intrinsics.image_size)
         seq = Sequence(path, form, tuple(names), meta, camera, fit)
@@ -464,6 +500,8 @@ def summarize_sequence(seq: Sequence) -> dict:
         "keypoint_counts": sorted(kps),
         "image_size": list(image_size) if image_size else None,
         "focal_px": intr.focal_px,
+        "focal_kind": seq.focal_kind,
+        "focal_rule": seq.meta.get("focal_rule"),
         "principal_point": list(intr.principal_point) if intr.principal_point else None,
         "source": seq.meta.get("source"),
         "camera": camera_to_yaml_dict(seq.camera, seq.camera_fit or None) if seq.camera else None,

@@ -1,12 +1,14 @@
 """Synthetic static-camera scenes: ground truth plus an "HPS prediction" with the paper's failures.
 
 Ground truth: upright people of varied stature (mean 1.70 m, sd 0.07 m) walking on the ground
-of a random surveillance camera. Prediction: the same people as an HPS method returns them,
-right from the camera's view but wrong in the world: each body leans toward the image plane
-(keeping its foot and crown pixels), has a near-average size and lives in the method's own
-assumed camera (focal ``hps_focal``, mapped by ``diag(r, r, r F / f)`` so its image is unchanged),
-plus a per-person depth error, small 3D noise, and noisy 2D detections with gross outliers.
-Deterministic for a given seed.
+of a random surveillance camera (horizontal field of view 45-100 deg). Prediction: the same
+people as an HPS method returns them, right from the camera's view but wrong in the world: each
+body leans toward the image plane (keeping its foot and crown pixels), has a near-average size,
+a per-person depth error, and lives in the method's own assumed camera: a real method's focal
+rule (``hps_focal``: ``cliff``, ``bev``, ``romp``, ``4dhumans``, ``true`` or a number of pixels)
+puts the rigid, undistorted body with its root on the root pixel's ray at the depth scaled by
+``F / f`` (:func:`rotavat_cli.camera.reexpress_cam`), so its image is nearly unchanged. Plus small
+3D noise and noisy 2D detections with gross outliers. Deterministic for a given seed.
 """
 
 from __future__ import annotations
@@ -18,17 +20,21 @@ from pathlib import Path
 import numpy as np
 
 from .bodies import BodyLibrary, load_bodies
-from .camera import Camera
+from .camera import Camera, reexpress_cam
+from .focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from .landmarks import foot_head_points
 from .rotations import axis_angle_to_matrix
 from .rotavat import closest_scale_on_line
 from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 
-__all__ = ["SynthOptions", "random_camera", "sample_walks", "synth_frames", "write_synth_scene"]
+__all__ = ["SynthOptions", "HPS_FOCAL_CHOICES", "random_camera", "hps_focal_px", "sample_walks", "synth_frames",
+           "write_synth_scene"]
 
 FPS = 5.0  # frames per second of the synthetic video
 WALK_SPEED_MPS = (0.8, 1.6)  # walking speeds
 MAX_GROUND_DISTANCE_M = 45.0  # people farther than this are too small to matter
+HFOV_RANGE_DEG = (45.0, 100.0)  # horizontal fields of view of real surveillance lenses
+HPS_FOCAL_CHOICES = (*FOCAL_RULES, "true")  # or a number of pixels
 
 
 @dataclass(frozen=True)
@@ -42,7 +48,7 @@ class SynthOptions:
     roll_deg: float | None = None  # None: random in [-3, 3]
     noise_px: float = 2.0
     outliers: float = 0.0
-    hps_focal: float | None = None  # None: the true focal
+    hps_focal: str | float = "cliff"  # a focal rule (HPS_FOCAL_CHOICES), "true", or a number of pixels
     depth_sd: float = 0.1
     lean: float = 0.7
     stature_sd_m: float = 0.07
@@ -52,11 +58,33 @@ class SynthOptions:
 
 def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None,
                   roll_max_deg: float = 3.0) -> Camera:
-    """Realistic surveillance camera: focal 0.6-2.5 H, pitch 10-60 deg, height 2.5-15 m; roll given or +-max."""
-    H = image_size[1]
+    """Realistic surveillance camera: horizontal field of view 45-100 deg, pitch 10-60 deg, height
+    2.5-15 m; roll given or +-max."""
+    W = image_size[0]
     roll = rng.uniform(-roll_max_deg, roll_max_deg) if roll_deg is None else roll_deg
-    return Camera(image_size, rng.uniform(0.6, 2.5) * H, None, np.deg2rad(rng.uniform(10.0, 60.0)),
+    hfov = np.deg2rad(rng.uniform(*HFOV_RANGE_DEG))
+    return Camera(image_size, W / (2.0 * np.tan(hfov / 2.0)), None, np.deg2rad(rng.uniform(10.0, 60.0)),
                   np.deg2rad(roll), rng.uniform(2.5, 15.0))
+
+
+def hps_focal_px(spec: str | float, camera: Camera) -> tuple[float, str]:
+    """The focal (px) an HPS method assumes for this camera's images, and the rule's name.
+
+    spec: a rule of :data:`rotavat_cli.focal.FOCAL_RULES`, ``"true"`` (the camera's own focal),
+    or a number of pixels (given as a number or a numeric string). Raises ValueError otherwise.
+    """
+    if isinstance(spec, str) and spec in FOCAL_RULES:
+        return focal_from_rule(spec, camera.image_size), spec
+    if spec == "true":
+        return float(camera.focal_px), "true"
+    try:
+        value = float(spec)
+    except (TypeError, ValueError):
+        raise ValueError(f"hps_focal must be one of {', '.join(HPS_FOCAL_CHOICES)} or a number of pixels, "
+                         f"got {spec!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"hps_focal must be a positive number of pixels, got {spec!r}")
+    return value, "number"
 
 
 def _in_view(camera: Camera, ground_world: np.ndarray, stature_m: float = 1.9) -> np.ndarray:
@@ -135,10 +163,14 @@ def _lean_toward_image_plane(points: list[np.ndarray], feet: np.ndarray, heads: 
     return [new_feet[:, None] + np.einsum("pij,pnj->pni", R, p - feet[:, None]) for p in points]
 
 
-def _hps_distort(points: np.ndarray, size_ratio: np.ndarray, depth_scale: np.ndarray, hps_focal: float, focal: float) -> np.ndarray:
-    """Map into the HPS camera: diag(r, r, r F/f) then a depth scale about the camera centre."""
-    diag = np.array([1.0, 1.0, hps_focal / focal])
-    return points * (size_ratio * depth_scale)[:, None, None] * diag
+def _into_hps_camera(points: list[np.ndarray], roots: np.ndarray, size_ratio: np.ndarray, depth_scale: np.ndarray,
+                     camera: Camera, hps_focal: float) -> list[np.ndarray]:
+    """Bodies as the HPS method places them: scaled about the camera centre by size x depth error
+    (pixels kept), then rigidly re-expressed in the method's camera (focal ``hps_focal``)."""
+    scale = (size_ratio * depth_scale)[:, None, None]
+    scaled_roots = roots * scale[:, 0]
+    return [reexpress_cam(p * scale, scaled_roots, camera.focal_px, camera.principal_point, hps_focal,
+                          camera.principal_point) for p in points]
 
 
 def _detections(rng: np.random.Generator, feet_px: np.ndarray, heads_px: np.ndarray, opts: SynthOptions) -> tuple[np.ndarray, np.ndarray]:
@@ -161,7 +193,7 @@ def synth_frames(opts: SynthOptions, library: BodyLibrary | None = None) -> tupl
     library = library or load_bodies()
     rng = np.random.default_rng(opts.seed)
     camera = random_camera(rng, opts.image_size, opts.roll_deg)
-    hps_focal = float(opts.hps_focal or camera.focal_px)
+    hps_focal, _ = hps_focal_px(opts.hps_focal, camera)
     P = opts.people
     pos, heading = sample_walks(rng, camera, P, opts.frames)
     body_index = rng.integers(0, len(library), P)
@@ -186,8 +218,7 @@ def synth_frames(opts: SynthOptions, library: BodyLibrary | None = None) -> tupl
                 "focal_length": np.float64(camera.focal_px), **common})
             v_pred, j_pred = _lean_toward_image_plane([verts, joints], feet, heads, lean)
             depth = np.exp(rng.normal(0.0, opts.depth_sd, P))
-            v_pred = _hps_distort(v_pred, pred_size, depth, hps_focal, camera.focal_px)
-            j_pred = _hps_distort(j_pred, pred_size, depth, hps_focal, camera.focal_px)
+            v_pred, j_pred = _into_hps_camera([v_pred, j_pred], j_pred[:, 0], pred_size, depth, camera, hps_focal)
             v_pred = v_pred + rng.normal(0.0, opts.noise_3d_m, v_pred.shape)
             j_pred = j_pred + rng.normal(0.0, opts.noise_3d_m, j_pred.shape)
             det_feet, det_heads = _detections(rng, feet_px, heads_px, opts)
@@ -212,12 +243,17 @@ def write_synth_scene(out: str | Path, opts: SynthOptions, progress: Callable[[]
         if progress:
             progress()
     size = [int(v) for v in camera.image_size]
-    write_meta(out / "gt", {"image_size": size, "focal_length": float(camera.focal_px), "source": "rotavat-synth", "fps": FPS})
-    write_meta(out / "pred", {"image_size": size, "focal_length": hps_focal, "source": "rotavat-synth", "fps": FPS})
+    _, rule = hps_focal_px(opts.hps_focal, camera)
+    write_meta(out / "gt", {"image_size": size, "focal_length": float(camera.focal_px), "focal_kind": CAMERA,
+                            "source": "rotavat-synth", "fps": FPS})
+    pred_meta = {"image_size": size, "focal_length": hps_focal, "focal_kind": CAMERA if rule == "true" else ASSUMED}
+    if rule in FOCAL_RULES:
+        pred_meta["focal_rule"] = rule
+    write_meta(out / "pred", {**pred_meta, "source": "rotavat-synth", "fps": FPS})
     write_camera_yaml(out / "gt" / "camera.yaml", camera)
     params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(opts).items()}
     write_yaml(out / "synth.yaml", params)
     return {"out": str(out), "gt": str(out / "gt"), "pred": str(out / "pred"), "frames": opts.frames,
             "people": opts.people, "camera": {"focal_px": camera.focal_px, "pitch_deg": float(np.rad2deg(camera.pitch_rad)),
                                                "roll_deg": float(np.rad2deg(camera.roll_rad)), "height_m": camera.height_m},
-            "hps_focal_px": hps_focal}
+            "hps_focal_px": hps_focal, "hps_focal_rule": rule}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import invoke, tree_hash
-from rotavat_cli.align import align_frame, align_sequence
+from rotavat_cli.align import align_frame, align_sequence, aligned_meta
 from rotavat_cli.camera import Camera
 from rotavat_cli.sequence import Frame, open_sequence, write_frame
 
@@ -47,12 +47,16 @@ def test_output_mirrors_input(scene, tmp_path):
     summary = align_sequence(seq, cam, tmp_path / "out")
     out = open_sequence(tmp_path / "out")
     assert out.frame_names == seq.frame_names and out.camera is not None
-    assert out.meta == seq.meta
+    assert out.meta == aligned_meta(seq.meta, cam)  # the input's, in the camera's intrinsics
+    assert out.meta["focal_length"] == cam.focal_px and out.focal_kind == "camera"
+    assert out.meta["aligned_from"] == {"focal_length": seq.intrinsics.focal_px, "focal_kind": "assumed", "focal_rule": "cliff"}
     f_in, f_out = seq.read_frame("000002"), out.read_frame("000002")
     assert set(f_in.data) == set(f_out.data)
     for key in f_in.data:
         assert f_out.data[key].dtype == f_in.data[key].dtype, key
-        if key not in ("vertices", "joints"):
+        if key == "focal_length":  # the frame now says its meshes are in the camera
+            assert float(f_out.data[key]) == cam.focal_px != float(f_in.data[key])
+        elif key not in ("vertices", "joints"):
             np.testing.assert_array_equal(f_out.data[key], f_in.data[key])
     assert summary.aligned == summary.people == 48
     rows = list(csv.DictReader(open(tmp_path / "out" / "people.csv")))
@@ -72,9 +76,10 @@ def test_pixels_unchanged_and_feet_on_ground(scene):
 
     f0, h0 = foot_head_points(frame.data["vertices"])
     f1, h1 = foot_head_points(new.data["vertices"])
+    drawn = cam.replace(focal_px=seq.intrinsics.focal_px)  # the method's camera: its focal, not the camera's
     assert np.all(np.abs(cam.height_above_ground(f1)) < 1e-4)  # float32 output
-    np.testing.assert_allclose(cam.project(f1), cam.project(f0), atol=0.05)
-    np.testing.assert_allclose(cam.project(h1), cam.project(h0), atol=0.05)
+    np.testing.assert_allclose(cam.project(f1), drawn.project(f0), atol=0.05)
+    np.testing.assert_allclose(cam.project(h1), drawn.project(h0), atol=0.05)
     assert np.all(cols["head_drift_px"] < 1e-6)
 
 
@@ -100,7 +105,8 @@ def test_obj_sequence_round_trip(scene, tmp_path, runner):
     assert result.exit_code == 0, result.stderr
     out = open_sequence(tmp_path / "objseq_aligned")
     assert out.form == "obj" and len(out) == 2
-    npz_aligned, _ = align_frame(seq.read_frame("000001"), open_sequence(scene / "gt").camera)
+    frame = seq.read_frame("000001")
+    npz_aligned, _ = align_frame(frame, open_sequence(scene / "gt").camera, intrinsics=seq.frame_intrinsics(frame))
     np.testing.assert_allclose(out.read_frame("000001").data["vertices"], npz_aligned.data["vertices"], atol=1e-5)
 
 
@@ -161,25 +167,30 @@ def test_failed_align_leaves_no_partial_output(scene, tmp_path, runner):
     assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]  # previous output untouched
 
 
-def _reference_drift_px(before: np.ndarray, after: np.ndarray, focal_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-person mean and max drift (P,), the plain way: float32 projections, np.hypot, nanmean/nanmax."""
+def _reference_drift_px(before: np.ndarray, after: np.ndarray, mesh_focal_px: float,
+                        focal_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-person mean and max drift (P,), the plain way: float32 projections (the method's focal before,
+    the camera's after; same principal point), np.hypot, nanmean/nanmax."""
     a, b = before.astype(np.float32), after.astype(np.float32)
     with np.errstate(divide="ignore", invalid="ignore"):
-        du = b[..., 0] * (1.0 / b[..., 2]) - a[..., 0] * (1.0 / a[..., 2])
-        dv = b[..., 1] * (1.0 / b[..., 2]) - a[..., 1] * (1.0 / a[..., 2])
-    drift = np.float32(focal_px) * np.hypot(du, dv)
+        du = np.float32(focal_px) * b[..., 0] / b[..., 2] - np.float32(mesh_focal_px) * a[..., 0] / a[..., 2]
+        dv = np.float32(focal_px) * b[..., 1] / b[..., 2] - np.float32(mesh_focal_px) * a[..., 1] / a[..., 2]
+    drift = np.hypot(du, dv)
     return np.nanmean(drift, axis=1), np.nanmax(drift, axis=1)
 
 
 @pytest.mark.parametrize("upright", ["paper", "full"])
 def test_drift_columns_equal_the_plain_computation(scene, upright):
-    frame = open_sequence(scene / "pred").read_frame("000003")
+    seq = open_sequence(scene / "pred")
+    frame = seq.read_frame("000003")
     cam = open_sequence(scene / "gt").camera
+    assert seq.intrinsics.focal_px != pytest.approx(cam.focal_px, rel=0.05)  # the method's focal is not the camera's
     new, cols = align_frame(frame, cam, upright)
-    mean, peak = _reference_drift_px(frame.data["vertices"], new.data["vertices"], cam.focal_px)
-    np.testing.assert_array_equal(cols["drift_mean_px"], mean)
-    np.testing.assert_array_equal(cols["drift_max_px"], peak)
+    mean, peak = _reference_drift_px(frame.data["vertices"], new.data["vertices"], seq.intrinsics.focal_px, cam.focal_px)
+    np.testing.assert_allclose(cols["drift_mean_px"], mean, rtol=2e-5)
+    np.testing.assert_allclose(cols["drift_max_px"], peak, rtol=2e-5)
     assert np.all(cols["drift_max_px"] > 0.1)  # a real per-vertex measurement, not the foot/crown's zero
+    assert np.all(cols["head_drift_px"] < (1e-6 if upright == "paper" else 50.0))  # the crown stays on its pixel
 
 
 def test_hypot_f32_is_np_hypot():
@@ -216,6 +227,6 @@ def test_people_csv_cells():
     cols.update(frame=np.array(["a,b", "000001"], dtype=object), person_id=np.array([7, 8]),
                 drift_mean_px=np.array([2.5, np.inf], dtype=np.float32), flag=np.array(["", "degenerate_mesh"], dtype=object))
     rows = list(csv.reader(_csv_rows(cols).splitlines()))
-    assert rows[0] == ["a,b", "7", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "2.5",
-                       "0.333333", "0.333333", ""]
-    assert rows[1] == ["000001", "8"] + [""] * 9 + ["degenerate_mesh"]
+    assert rows[0] == ["a,b", "7", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333",
+                       "0.333333", "2.5", "0.333333", "0.333333", ""]
+    assert rows[1] == ["000001", "8"] + [""] * 10 + ["degenerate_mesh"]

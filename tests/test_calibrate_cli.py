@@ -35,17 +35,31 @@ def test_calibrate_recovers_the_true_camera(scene, tmp_path, runner):
     assert tree_hash(scene / "pred") == before
     est = json.loads(result.stdout)
     true = yaml.safe_load((scene / "gt" / "camera.yaml").read_text())
-    assert est["fit"]["focal_policy"] == "declared" and est["focal_px"] == pytest.approx(true["focal_px"])
+    # the prediction's focal is CLIFF's guess (the image diagonal), not the camera's: it is estimated
+    assert est["fit"]["focal_policy"] == "estimated" and est["fit"]["mesh_focal_kind"] == "assumed"
+    assert est["fit"]["mesh_focal_px"] == pytest.approx(np.hypot(1280, 720)) != pytest.approx(true["focal_px"], rel=0.5)
+    assert "focal_px" not in est["fit"]["fixed"]
     # 8 people: each one's crown sits a few cm off the vertical through the mid-sole (real posture),
     # so the error is statistical; the reported std must cover it and stay small (with 8 people the
     # cluster jackknife, not the optimistic Gauss-Newton, sets the pitch std: ~1 deg, error ~1.5 deg)
     std = est["fit"]["std"]
-    for key, limit in (("pitch_deg", 1.5), ("roll_deg", 1.0), ("height_m", 0.3)):
+    for key, limit in (("focal_px", 0.1 * true["focal_px"]), ("pitch_deg", 1.5), ("roll_deg", 1.8), ("height_m", 0.4)):
         assert std[key] < limit
         assert abs(est[key] - true[key]) < 3.0 * std[key], key
     assert est["fit"]["inliers"] < est["fit"]["pairs"]  # the 10% gross outliers were rejected
     written = yaml.safe_load((tmp_path / "cam.yaml").read_text())
     assert written["fit"]["pairs"] == 96 and written["fit"]["frames"] == 12
+
+
+def test_a_sequence_whose_focal_is_the_cameras_keeps_it(scene, tmp_path, runner):
+    result = invoke(runner, "calibrate", scene / "gt", "--out", tmp_path / "cam.yaml", "--json")
+    est = json.loads(result.stdout)
+    true = yaml.safe_load((scene / "gt" / "camera.yaml").read_text())
+    assert est["fit"]["focal_policy"] == "declared" and est["focal_px"] == true["focal_px"]
+    assert est["fit"]["fixed"]["focal_px"] == "declared" and est["fit"]["std"]["focal_px"] is None
+    forced = json.loads(invoke(runner, "calibrate", scene / "gt", "--estimate-focal", "--out", tmp_path / "c2.yaml",
+                               "--json").stdout)
+    assert forced["fit"]["focal_policy"] == "estimated" and forced["focal_px"] != true["focal_px"]
 
 
 def test_paper_grid_mode(scene, tmp_path, runner):

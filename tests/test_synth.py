@@ -29,16 +29,42 @@ def test_synth_layout_and_contract(tmp_path, runner):
     frame = pred.read_frame("000001")
     assert frame.data["vertices"].dtype == np.float32 and frame.data["joints"].shape == (4, 24, 3)
     np.testing.assert_array_equal(frame.person_ids, np.arange(4))
-    assert pred.intrinsics.focal_px == pytest.approx(gt.camera.focal_px)
+    # the prediction is made with CLIFF's focal guess (the default), and says it is a guess
+    assert pred.intrinsics.focal_px == pytest.approx(800.0) and pred.focal_kind == "assumed"
+    assert pred.meta["focal_rule"] == "cliff"
+    assert gt.intrinsics.focal_px == gt.camera.focal_px and gt.focal_kind == "camera"
+    hfov = np.degrees(2 * np.arctan(320 / gt.camera.focal_px))
+    assert 45.0 <= hfov <= 100.0
 
 
-def test_hps_focal_keeps_the_image(tmp_path):
-    opts = SynthOptions(seed=1, frames=1, people=5, hps_focal=2000.0, depth_sd=0.0, lean=0.0, noise_3d_m=0.0)
+@pytest.mark.parametrize("rule,focal", [("cliff", np.hypot(1280, 720)), ("bev", 443.4 / 512 * 1280),
+                                        ("romp", 640 / np.tan(np.radians(30))), ("4dhumans", 5000 / 256 * 1280),
+                                        ("2000", 2000.0), ("true", None)])
+def test_hps_focal_rules_place_a_rigid_body_at_the_root_pixel(rule, focal):
+    opts = SynthOptions(seed=1, frames=1, people=5, hps_focal=rule, depth_sd=0.0, lean=0.0, noise_3d_m=0.0)
     camera, hps_focal, frames = synth_frames(opts)
+    assert hps_focal == pytest.approx(camera.focal_px if focal is None else focal)
     gt, pred = next(frames)
-    px_true = camera.project(gt.data["joints"].astype(np.float64))
-    px_hps = camera.replace(focal_px=hps_focal).project(pred.data["joints"].astype(np.float64))
-    np.testing.assert_allclose(px_hps, px_true, atol=1e-3)
+    joints_gt, joints_pred = (f.data["joints"].astype(np.float64) for f in (gt, pred))
+    hps_camera = camera.replace(focal_px=hps_focal)
+    # the root keeps its pixel in the method's camera, at F/f times the (size-scaled) depth
+    np.testing.assert_allclose(hps_camera.project(joints_pred[:, 0]), camera.project(joints_gt[:, 0]), atol=1e-3)
+    size = np.linalg.norm(joints_pred[:, 15] - joints_pred[:, 0], axis=-1) / np.linalg.norm(joints_gt[:, 15] - joints_gt[:, 0], axis=-1)
+    np.testing.assert_allclose(joints_pred[:, 0, 2] / joints_gt[:, 0, 2], size * hps_focal / camera.focal_px, rtol=1e-4)
+    # rigid and undistorted: the body about its root is the true one scaled (no squash in depth)
+    rel_gt, rel_pred = joints_gt - joints_gt[:, :1], joints_pred - joints_pred[:, :1]
+    float32_m = 2.0 * np.finfo(np.float32).eps * (joints_pred[:, 0, 2] + joints_gt[:, 0, 2])  # storage rounding
+    assert np.all(np.abs(rel_pred - size[:, None, None] * rel_gt) < float32_m[:, None, None])
+    # its picture is the true one up to the perspective of a body at another depth
+    body_px = np.ptp(camera.project(joints_gt)[..., 1], axis=1)
+    shift = np.linalg.norm(hps_camera.project(joints_pred) - camera.project(joints_gt), axis=-1)
+    assert np.all(shift.max(axis=1) < 0.25 * body_px)
+
+
+def test_hps_focal_bad_values_exit_2(tmp_path, runner):
+    for bad in ("-5", "nosuchrule", "0"):
+        result = invoke(runner, "synth", tmp_path / "s", "--hps-focal", bad)
+        assert result.exit_code == 2 and "hps-focal" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
 def test_ground_truth_people_stand_on_the_ground():
@@ -52,7 +78,7 @@ def test_ground_truth_people_stand_on_the_ground():
 
 
 def test_prediction_leans_and_errs_in_depth():
-    opts = SynthOptions(seed=5, frames=1, people=20, depth_sd=0.1)
+    opts = SynthOptions(seed=5, frames=1, people=20, depth_sd=0.1, hps_focal="true")
     camera, _, frames = synth_frames(opts)
     gt, pred = next(frames)
     feet_gt, heads_gt = foot_head_points(gt.data["vertices"].astype(np.float64))
@@ -89,8 +115,3 @@ def test_landmarks_match_generator_truth(geometry):
     tol = 0.02 if geometry else 0.01
     np.testing.assert_array_less(np.linalg.norm(feet - truth_feet, axis=-1), tol)
     np.testing.assert_array_less(np.linalg.norm(heads - truth_heads, axis=-1), tol)
-
-
-def test_bad_synth_options_exit_2(tmp_path, runner):
-    result = invoke(runner, "synth", tmp_path / "s", "--hps-focal", "-5")
-    assert result.exit_code == 2 and "hps-focal" in result.stderr

@@ -8,7 +8,6 @@ task per chunk and side, and ``finish`` (metrics merged, reports, render, the ma
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -116,7 +115,7 @@ def task_prepare(job: dict, plan: dict) -> dict:
         start = time.perf_counter()
         calib = calibrate_sequence(seq, plan["config"]["calibrate"])
         camera_file, origin = out / "camera.yaml", "calibrated"
-        write_camera_yaml(camera_file, calib.result.camera, {**calib.result.fit_dict(), "focal_policy": calib.focal_policy})
+        write_camera_yaml(camera_file, calib.result.camera, calib.fit_dict())
         result["warnings"] += list(calib.result.warnings)
         result["seconds"]["calibrate"] = time.perf_counter() - start
         result["frame_passes"] = len(seq)
@@ -147,7 +146,8 @@ def task_align_chunk(job: dict, plan: dict, camera_file: str, index: int, start:
     camera, fit = read_camera_yaml(camera_file, seq.intrinsics.image_size)
     part = replace(seq, frame_names=seq.frame_names[start:stop])
     opts = plan["config"]["align"]  # workers=1: the batch's own workers are the parallelism (no nested pools)
-    align_sequence(part, camera, _chunk_dir(job, index), opts["upright"], opts["height_from"], fit or None, workers=1)
+    align_sequence(part, camera, _chunk_dir(job, index), opts["upright"], opts["height_from"], fit or None, workers=1,
+                   stature_range_m=tuple(opts["stature_range_m"]))
     return {"frames": stop - start}
 
 
@@ -176,25 +176,10 @@ def task_align_merge(job: dict, plan: dict, n_chunks: int) -> dict:
 
 def _people_summary(people_csv: Path) -> dict:
     """What align did, from its people.csv (the same numbers whatever the chunking)."""
-    people = aligned = 0
-    flagged: dict[str, int] = {}
-    depth, rotation, stature, drift = [], [], [], []
-    with open(people_csv, encoding="utf-8", newline="") as handle:
-        for row in csv.DictReader(handle):
-            people += 1
-            if row["flag"]:
-                flagged[row["flag"]] = flagged.get(row["flag"], 0) + 1
-                continue
-            aligned += 1
-            depth.append(float(row["depth_scale"]))
-            rotation.append(abs(float(row["rotation_deg"])))
-            stature.append(float(row["stature_m"]))
-            drift.append(float(row["head_drift_px"] or 0.0))
-    med = (lambda v: float(np.median(v)) if v else float("nan"))
-    return {"people": people, "aligned": aligned, "flagged": flagged, "median_depth_scale": med(depth),
-            "median_abs_depth_change_pct": med([abs(d - 1.0) * 100.0 for d in depth]),
-            "median_rotation_deg": med(rotation), "median_stature_m": med(stature),
-            "max_head_drift_px": max(drift, default=0.0)}
+    from ..align import summarize_people_csv
+
+    summary = summarize_people_csv(people_csv)
+    return {k: v for k, v in vars(summary).items() if k not in ("out", "frames") and not k.startswith("_")}
 
 
 def _eval_options(plan: dict) -> Any:

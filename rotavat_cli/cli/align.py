@@ -43,10 +43,11 @@ def align(
             origin = str(seq / "camera.yaml") if from_ is None else f"the camera imported with {seq}"
         else:
             calib = run_calibration(sequence, config, quiet or as_json)
-            cam, fit, origin = calib.result.camera, calib.result.fit_dict(), "calibrated from the people"
+            cam, fit, origin = calib.result.camera, calib.fit_dict(), "calibrated from the people"
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
             summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance,
-                                     workers=opts["jobs"] or os.cpu_count() or 1)
+                                     workers=opts["jobs"] or os.cpu_count() or 1,
+                                     stature_range_m=tuple(opts["stature_range_m"]))
     result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
     if as_json:
         print_json(result)
@@ -54,6 +55,10 @@ def align(
     flagged = sum(summary.flagged.values())
     info(f"aligned {summary.aligned} of {summary.people} people in {summary.frames} frames ({flagged} flagged"
          + (": " + ", ".join(f"{k} {v}" for k, v in summary.flagged.items()) if flagged else "") + ")", quiet)
+    if summary.implausible:
+        lo, hi = opts["stature_range_m"]
+        info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
+             "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
     info(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
          f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m", quiet)
     info(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import numpy as np
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..autocalib import SequenceCalibration, calibrate_sequence
@@ -20,8 +21,10 @@ from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplM
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
     """Calibrate with defaults < config file < flags, printing warnings unless quiet."""
     calib = calibrate_sequence(seq, config_for(config, "calibrate", **flags))
+    for note in calib.result.notes:
+        info(f"note: {escape(note)}", quiet)
     for warning in calib.result.warnings:
-        info(f"[yellow]warning:[/] {warning}", quiet)
+        info(f"[yellow]warning:[/] {escape(warning)}", quiet)
     return calib
 
 
@@ -30,14 +33,15 @@ def calibrate(
     seq: Annotated[Path, typer.Argument(help="Sequence directory (2D feet_2d/heads_2d, or meshes with their focal).")],
     out: Annotated[Path | None, typer.Option(help="Where to write camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
     method: Annotated[str | None, typer.Option(help="grid: the paper's 50^3 search exactly; refine: grid + robust refinement.")] = None,
-    focal: Annotated[float | None, typer.Option("--focal", help="Fix the focal length (px).")] = None,
-    estimate_focal: Annotated[bool | None, typer.Option("--estimate-focal/--keep-focal", help="Estimate f even when the sequence declares it.")] = None,
+    focal: Annotated[float | None, typer.Option("--focal", help="The camera's known focal length (px). Otherwise it is estimated from the people, unless the sequence says its focal is the camera's own (focal_kind: camera).")] = None,
+    estimate_focal: Annotated[bool | None, typer.Option("--estimate-focal", help="Estimate f even when the sequence's focal is the camera's own.")] = None,
+    camera_height: Annotated[float | None, typer.Option(help="The camera's known height above the ground (m): fixes the scale; the people's mean stature is estimated and reported.")] = None,
     roll: Annotated[bool | None, typer.Option("--roll/--no-roll", help="Estimate roll (refine) or fix it at 0.")] = None,
     principal_point: Annotated[tuple[float, float] | None, typer.Option(help="Known principal point cx cy (px).")] = None,
     person_height: Annotated[float | None, typer.Option(help="Mean stature sole->crown (m).")] = None,
     height_sd: Annotated[float | None, typer.Option(help="Spread of the stature prior (m).")] = None,
     residual: Annotated[str | None, typer.Option(help="full (head u and v) or vertical (head row only).")] = None,
-    points: Annotated[str | None, typer.Option(help="landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
+    points: Annotated[str | None, typer.Option(help="auto (boxes when every head is in its foot's column), landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
     box_depth: Annotated[float | None, typer.Option(help="With --points boxes: box top's extra distance from the camera over the box bottom (m).")] = None,
     distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
     fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Weak prior on the vertical field of view (deg).")] = None,
@@ -55,15 +59,17 @@ def calibrate(
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False) as sequence:
         calib = run_calibration(
             sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
+            camera_height_m=camera_height,
             estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
             person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, points=points,
             box_depth_m=box_depth, distortion=distortion, fov_prior_deg=fov_prior, per_frame=per_frame)
     target = out or seq / "camera.yaml"
-    fit = {**calib.result.fit_dict(), "focal_policy": calib.focal_policy}
+    fit = calib.fit_dict()
     write_camera_yaml(target, calib.result.camera, fit)
     cam = calib.result.camera
     summary = {"camera_yaml": str(target), "focal_px": cam.focal_px, "pitch_deg": float(np.rad2deg(cam.pitch_rad)),
-               "roll_deg": float(np.rad2deg(cam.roll_rad)), "height_m": cam.height_m, "fit": fit, "per_frame": calib.per_frame}
+               "roll_deg": float(np.rad2deg(cam.roll_rad)), "height_m": cam.height_m,
+               "person_height_m": calib.result.person_height_m, "fit": fit, "per_frame": calib.per_frame}
     if as_json:
         print_json(summary)
         return
@@ -73,17 +79,32 @@ def calibrate(
 
 
 def _table(summary: dict) -> Table:
-    """Rich table of the estimate with its standard deviations."""
+    """Rich table of the estimate: each parameter's std, "given"/"declared"/... when it was not
+    estimated, "undetermined" when the people could not determine it."""
     fit = summary["fit"]
-    std = fit.get("std", {})
+    std, fixed = fit.get("std", {}), fit.get("fixed", {})
     table = Table(title=f"camera ({fit.get('method')}, focal {fit.get('focal_policy')})")
     for col in ("parameter", "value", "± std"):
         table.add_column(col)
-    for key, unit in (("focal_px", "px"), ("pitch_deg", "°"), ("roll_deg", "°"), ("height_m", "m")):
-        sd = std.get(key)
-        table.add_row(key, f"{summary[key]:.3f} {unit}", "fixed" if sd is None or not np.isfinite(sd) else f"{sd:.3f}")
+    rows = [("focal_px", "px"), ("pitch_deg", "°"), ("roll_deg", "°"), ("height_m", "m")]
+    if fit.get("person_height") == "estimated":
+        rows.append(("person_height_m", "m"))
+    for key, unit in rows:
+        table.add_row(key, f"{summary[key]:.3f} {unit}", _std_cell(std.get(key), fixed.get(key)))
     if "distortion" in fit:
-        table.add_row("distortion", f"{fit['distortion']:+.4f}", f"{std.get('distortion', float('nan')):.4f}")
+        table.add_row("distortion", f"{fit['distortion']:+.4f}", _std_cell(std.get("distortion"), None))
+    mesh = (f"; meshes made with f {fit['mesh_focal_px']:.0f} px ({fit['mesh_focal_kind']})"
+            if fit.get("mesh_focal_px") is not None else "")
     table.caption = (f"{fit.get('inliers')}/{fit.get('pairs')} pairs inliers over {fit.get('frames')} frames, "
-                     f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}")
+                     f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}"
+                     f"{mesh}")
     return table
+
+
+def _std_cell(sd: float | None, fixed: str | None) -> str:
+    """The ± column: why a parameter was not estimated, or its std ("undetermined" when infinite)."""
+    if fixed is not None:
+        return f"fixed: {fixed}"
+    if sd is None or np.isnan(sd):
+        return "n/a"
+    return "undetermined" if np.isinf(sd) else f"{sd:.3f}"

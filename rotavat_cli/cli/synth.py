@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from ..errors import InputError
-from ..synth import SynthOptions, write_synth_scene
+from ..synth import SynthOptions, hps_focal_px, random_camera, write_synth_scene
 from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
 
@@ -23,7 +24,7 @@ def synth(
     roll: Annotated[float | None, typer.Option("--roll", help="Camera roll (deg); default random in [-3, 3].")] = None,
     noise_px: Annotated[float | None, typer.Option(help="Noise of the 2D detections (px).", min=0)] = None,
     outliers: Annotated[float | None, typer.Option(help="Fraction of gross 2D outliers.", min=0, max=1)] = None,
-    hps_focal: Annotated[float | None, typer.Option(help="Focal (px) the HPS prediction assumes; default the true one.")] = None,
+    hps_focal: Annotated[str | None, typer.Option(help="Focal the HPS prediction assumes: a method's rule (cliff: sqrt(W^2+H^2); bev, romp: 60 deg; 4dhumans: 5000/256 max(W,H)), true (the camera's), or a number of px. Default: cliff.")] = None,
     depth_sd: Annotated[float | None, typer.Option(help="Per-person log-normal depth error of the prediction.", min=0)] = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
@@ -33,9 +34,11 @@ def synth(
     opts = config_for(config, "synth", seed=seed, frames=frames, people=people,
                       image_size=list(image_size) if image_size else None, roll_deg=roll, noise_px=noise_px,
                       outliers=outliers, hps_focal=hps_focal, depth_sd=depth_sd)
-    if opts["hps_focal"] is not None and opts["hps_focal"] <= 0:
-        raise InputError(f"--hps-focal must be > 0, got {opts['hps_focal']}")
     options = SynthOptions(**{**opts, "image_size": tuple(opts["image_size"])})
+    try:
+        hps_focal_px(options.hps_focal, random_camera(np.random.default_rng(0), options.image_size))
+    except ValueError as exc:
+        raise InputError(f"--hps-focal: {exc}") from None
     try:
         with progress_bar("synthesising", options.frames, progress_enabled(quiet, as_json)) as advance:
             summary = write_synth_scene(out, options, advance)
@@ -46,4 +49,5 @@ def synth(
     cam = summary["camera"]
     info(f"wrote {summary['frames']} frames x {summary['people']} people to {out}/gt and {out}/pred "
          f"(camera: f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, roll {cam['roll_deg']:.1f}°, "
-         f"height {cam['height_m']:.2f} m; HPS focal {summary['hps_focal_px']:.0f} px)", quiet or as_json)
+         f"height {cam['height_m']:.2f} m; HPS focal {summary['hps_focal_px']:.0f} px, rule "
+         f"{summary['hps_focal_rule']})", quiet or as_json)
