@@ -58,7 +58,7 @@ def test_hps_focal_rules_place_a_rigid_body_at_the_root_pixel(rule, focal):
     # its picture is the true one up to the perspective of a body at another depth
     body_px = np.ptp(camera.project(joints_gt)[..., 1], axis=1)
     shift = np.linalg.norm(hps_camera.project(joints_pred) - camera.project(joints_gt), axis=-1)
-    assert np.all(shift.max(axis=1) < 0.25 * body_px)
+    assert np.all(shift.max(axis=1) < 0.35 * body_px)  # 4D-Humans: F/f ~ 30, nearly orthographic
 
 
 def test_hps_focal_bad_values_exit_2(tmp_path, runner):
