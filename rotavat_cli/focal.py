@@ -29,14 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FOCAL_KINDS", "CAMERA", "ASSUMED", "FocalRule", "FOCAL_RULES", "focal_from_rule", "hybrik_focal_px",
+__all__ = ["FOCAL_KINDS", "CAMERA", "ASSUMED", "BEV_FOCAL_ON_512", "FocalRule", "FOCAL_RULES", "focal_from_rule", "hybrik_focal_px",
            "focal_kind_or_default"]
 
 CAMERA = "camera"  # the focal is the camera's own: ground truth, a calibrated camera, rotavat's aligned output
 ASSUMED = "assumed"  # the focal is an HPS method's guess
 FOCAL_KINDS = (CAMERA, ASSUMED)
 
-_BEV_FOCAL_ON_512 = 443.4  # ROMP simple_romp/bev/post_parser.py: perspective_projection(focal_length=443.4), 512 px input
+BEV_FOCAL_ON_512 = 443.4  # ROMP simple_romp/bev/post_parser.py: perspective_projection(focal_length=443.4), 512 px input
 _PHALP_FOCAL_ON_256 = 5000.0  # 4D-Humans hmr2/configs: EXTRA.FOCAL_LENGTH 5000 at MODEL.IMAGE_SIZE 256
 _HYBRIK_FOCAL_ON_256 = 1000.0  # HybrIK scripts/demo_video.py: focal 1000 for a 256 px box
 
@@ -56,7 +56,7 @@ def _diagonal(width: int, height: int) -> float:
 
 
 def _bev(width: int, height: int) -> float:
-    return _BEV_FOCAL_ON_512 / 512.0 * max(width, height)
+    return BEV_FOCAL_ON_512 / 512.0 * max(width, height)
 
 
 def _fov60_square(width: int, height: int) -> float:

@@ -111,6 +111,9 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
     focal, pp, size = _expected(fmt, camera)
     intr = seq.intrinsics.with_defaults()
     assert seq.meta["source"] == fmt
+    # ground truth knows the camera; every HPS tool guessed its focal (by its documented rule)
+    assert seq.focal_kind == ("camera" if fmt in ("agora", "bedlam") else "assumed")
+    assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans"}.get(fmt)
     assert intr.image_size == size
     assert intr.focal_px == pytest.approx(focal, rel=1e-9)
     assert intr.principal_point == pytest.approx(pp, abs=1e-9)

@@ -230,9 +230,16 @@ def natural_key(name: str) -> tuple:
 
 
 def base_meta(fmt: str, src: Path, opts: ImportOptions, image_size: tuple[int, int] | None,
-              focal_px: float | None, principal_point: tuple[float, float] | None) -> dict:
-    """meta.yaml content common to all formats (plain types only)."""
-    meta: dict[str, Any] = {"source": fmt}
+              focal_px: float | None, principal_point: tuple[float, float] | None, *, focal_kind: str,
+              focal_rule: str | None = None) -> dict:
+    """meta.yaml content common to all formats (plain types only).
+
+    focal_kind: ``camera`` when the tool's focal is the camera's own (ground truth), ``assumed``
+    when the tool guessed it (its documented rule, ``focal_rule``; rotavat.focal).
+    """
+    meta: dict[str, Any] = {"source": fmt, "focal_kind": focal_kind}
+    if focal_rule is not None:
+        meta["focal_rule"] = focal_rule
     if image_size is not None:
         meta["image_size"] = [int(image_size[0]), int(image_size[1])]
     if focal_px is not None:

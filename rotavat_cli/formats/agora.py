@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import CAMERA
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
 from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces, natural_key,
@@ -152,7 +153,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
         meta["import"]["joints_layout"] = layout["value"]
 
     meta = base_meta("agora", src, opts, image_size, next(iter(focals.values())) if constant_focal else None,
-                     principal_point)
+                     principal_point, focal_kind=CAMERA)
     meta["import"].update({
         "source_frames": [image for image, _ in groups],
         "image_size_from": "--image-size" if opts.image_size else "AGORA default 3840x2160",

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import CAMERA
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
 from . import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
@@ -103,7 +104,8 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
                                joints=None if joints is None else joints[rows], keypoints_2d=kp, person_ids=ids,
                                faces=model_faces(model, None if vertices is None else vertices.shape[1]), extra=extra)
 
-    meta = base_meta("bedlam", path, opts, image_size, float(fx[0]) if n_rows and constant_focal else None, principal_point)
+    meta = base_meta("bedlam", path, opts, image_size, float(fx[0]) if n_rows and constant_focal else None, principal_point,
+                     focal_kind=CAMERA)
     meta["import"].update({
         "source_frames": images,
         "image_size_from": "--image-size" if opts.image_size else "cam_int principal point",

@@ -37,14 +37,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
 from ..smpl import lbs
 from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
                natural_key, people_frame)
 
-_BEV_FOCAL_ON_512 = 443.4  # post_parser.py perspective_projection(focal_length=443.4), input 512 px
 _NET_INPUT = 512
-_ROMP_FOV_DEG = 60.0  # vis_human/pyrenderer.py Py3DR(FOV=60)
 
 
 def _is_results_npz(path: Path) -> bool:
@@ -143,7 +142,7 @@ def _normalized_xy(people: dict, fmt: str) -> np.ndarray | None:
     """Joint positions in the network's normalized [-1, 1] square, as the tool computed pj2d."""
     if fmt == "bev" and people.get("_joints_all_cam") is not None:
         joints = people["_joints_all_cam"]
-        return _BEV_FOCAL_ON_512 / (_NET_INPUT / 2) * joints[..., :2] / joints[..., 2:3]
+        return BEV_FOCAL_ON_512 / (_NET_INPUT / 2) * joints[..., :2] / joints[..., 2:3]
     if fmt == "romp" and people.get("_joints_rel") is not None and people.get("_cam") is not None:
         cam = people["_cam"]
         return people["_joints_rel"][..., :2] * cam[:, None, :1] + cam[:, None, 1:]
@@ -195,10 +194,8 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
         size_origin = "inferred from pj2d_org"
         warnings.append(f"{src}: image size {image_size[0]}x{image_size[1]} inferred from the 2D keypoints "
                         "(+-1 px when the padding is odd); pass --image-size W H to be exact")
-    if fmt == "bev":
-        focal = _BEV_FOCAL_ON_512 / _NET_INPUT * side
-    else:
-        focal = side / (2.0 * np.tan(np.radians(_ROMP_FOV_DEG) / 2.0))
+    focal = focal_from_rule(fmt, image_size)
+    if fmt == "romp":
         warnings.append("romp is weak-perspective: cam_trans is its rough depth (2/s), meshes reproject only "
                         "approximately in the 60-degree camera")
     principal_point = (side / 2.0 - left, side / 2.0 - top)
@@ -214,7 +211,7 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
                                keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
                                faces=model_faces(model, None if verts is None else verts.shape[1]))
 
-    meta = base_meta(fmt, src, opts, image_size, focal, principal_point)
+    meta = base_meta(fmt, src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule=fmt)
     meta["import"].update({
         "source_frames": [name for name, _ in sources],
         "image_size_from": size_origin,

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import ASSUMED
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
 from . import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
@@ -128,7 +129,7 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
                 person_ids=track_col[rows] if use_ids else None,
                 faces=faces, n_verts=None if vertices is None else vertices.shape[1])
 
-    meta = base_meta("cliff", path, opts, image_size, focal, principal_point)
+    meta = base_meta("cliff", path, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="cliff")
     meta["import"].update({
         "source_frames": [Path(str(n)).name for n in imgnames],
         "image_size_from": size_origin,

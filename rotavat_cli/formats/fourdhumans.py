@@ -30,13 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ..smpl import lbs
 from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
                no_model_warning, padded_square, people_frame)
 
-FOCAL_LENGTH = 5000.0  # phalp/configs/base.py ExtraConfig.FOCAL_LENGTH
-RENDER_RES = 256  # phalp/configs/base.py RenderConfig.res (the padded square is resized to this)
 
 
 def sniff(path: Path) -> str | None:
@@ -87,7 +86,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
     warnings: list[str] = []
     image_size = _image_size(data, order, opts, src, warnings)
     side, left, top = padded_square(image_size)
-    focal = FOCAL_LENGTH * side / RENDER_RES
+    focal = focal_from_rule("4dhumans", image_size)  # 5000 px on the 256 px square = 5000 / 256 * S
     principal_point = (side / 2.0 - left, side / 2.0 - top)
     model = opts.body_model
     if model is None:
@@ -132,7 +131,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
                                faces=model_faces(model, None if verts is None else verts.shape[1]),
                                n_verts=None if model is None else model.n_verts)
 
-    meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point)
+    meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="4dhumans")
     meta["import"].update({
         "source_frames": [Path(str(k)).name for k in order],
         "image_size_from": "--image-size" if opts.image_size else "PHALP 'size'",

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import ASSUMED
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24
 from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
@@ -141,7 +142,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                             "no joints (MPJPE unavailable)")
         meta["import"]["joints_layout"] = layout["value"]
 
-    meta = base_meta("multihmr", src, opts, image_size, focal, principal_point)
+    meta = base_meta("multihmr", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED)
     meta["import"].update({
         "source_frames": [p.name for p in files],
         "fov_deg": float(fov),

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..focal import ASSUMED
 from ..camera import Camera, pitch_roll_from_up
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
@@ -177,7 +178,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
                                n_verts=n_verts, extra=extra)
         imported.camera, imported.camera_fit = _camera(image_size, principal_point, focals, ups, ground, warnings, src)
 
-    meta = base_meta("spec", src, opts, image_size, float(np.median(focals)), principal_point)
+    meta = base_meta("spec", src, opts, image_size, float(np.median(focals)), principal_point, focal_kind=ASSUMED)
     meta["import"].update({
         "source_frames": stems,
         "image_size_from": size_origin,
