@@ -131,8 +131,8 @@ CAUSES = {  # generator options (tests/_synthetic_pairs.py); "pp" moves the prin
     "all of the above": dict(points="boxes", distortion=-0.03, pp=True, sway_sd_m=0.03, noise_corr=0.95),
 }
 CAUSE_FITS = {  # fit_camera options
-    "landmarks, full": {},
-    "landmarks, vertical": dict(residual="vertical"),
+    "landmarks, full": dict(points="landmarks"),
+    "landmarks, vertical": dict(points="landmarks", residual="vertical"),
     "boxes": dict(points="boxes"),
     "boxes + distortion": dict(points="boxes", distortion=True),
 }
@@ -226,16 +226,19 @@ def real_table(quick: bool) -> None:
         true = d["truth"]
         W, H = d["size"]
         rows = [("grid (paper)", dict(method="grid")),
-                ("refine, f estimated, full", dict()),
-                ("refine, f estimated, vertical", dict(residual="vertical")),
+                ("refine, f estimated, default (points auto)", dict()),
+                ("refine, f estimated, full", dict(points="landmarks")),
+                ("refine, f estimated, vertical", dict(points="landmarks", residual="vertical")),
                 ("refine, f estimated, boxes", dict(points="boxes")),
                 ("refine, f estimated, boxes + distortion", dict(points="boxes", distortion=True)),
-                ("refine, true f, full", dict(focal_px=true.focal_px)),
-                ("refine, true f, vertical", dict(focal_px=true.focal_px, residual="vertical")),
+                ("refine, true f, default (points auto)", dict(focal_px=true.focal_px)),
+                ("refine, true f, full", dict(focal_px=true.focal_px, points="landmarks")),
+                ("refine, true f, vertical", dict(focal_px=true.focal_px, points="landmarks", residual="vertical")),
                 ("refine, true f, boxes", dict(focal_px=true.focal_px, points="boxes")),
                 ("refine, true f, boxes + distortion", dict(focal_px=true.focal_px, points="boxes", distortion=True)),
                 ("(extra) refine, true f + pp, vertical",
-                 dict(focal_px=true.focal_px, principal_point=true.principal_point, residual="vertical")),
+                 dict(focal_px=true.focal_px, principal_point=true.principal_point, points="landmarks",
+                      residual="vertical")),
                 ("(extra) refine, true f + pp, boxes + distortion",
                  dict(focal_px=true.focal_px, principal_point=true.principal_point, points="boxes", distortion=True))]
         for name, kw in rows:

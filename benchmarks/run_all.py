@@ -21,6 +21,7 @@ BENCHMARKS = {
     "bench_eval.py": ([], ["--pairs", "10000", "--loop-pairs", "500"]),
     "bench_render.py": ([], ["--repeats", "1"]),
     "bench_batch.py": ([], ["--quick"]),
+    "bench_focal.py": ([], ["--quick"]),
 }
 
 

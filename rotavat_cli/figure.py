@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_open
-from .camera import Camera
+from .camera import Camera, reexpress_cam
 from .errors import InputError
 from .render import VIEWS, RenderStyle, RowFrame, render_grid, scene_extents
 from .sequence import Sequence, open_sequence, read_camera_yaml
@@ -160,11 +160,15 @@ def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_
         raise InputError(f"{frame.source}: no 'faces': rendering needs the triangle list")
     intr = seq.frame_intrinsics(frame)
     size = intr.image_size or (camera.image_size if camera else None)
-    focal = intr.focal_px or (camera.focal_px if camera else None)
+    focals = intr.focals_px(frame.n_people)
+    focal = float(np.median(focals)) if focals is not None and len(focals) else (intr.focal_px or (camera.focal_px if camera else None))
     if size is None or focal is None:
         raise InputError(f"{frame.source}: unknown {'image size' if size is None else 'focal length'} for the front view: "
                          "add image_size and focal_length to meta.yaml or pass --camera")
     pp = intr.principal_point or (camera.principal_point if camera and camera.image_size == size else (size[0] / 2, size[1] / 2))
+    if verts is not None and focals is not None and frame.n_people and np.any(focals != focal):
+        # one focal per person (HybrIK): the front view shows each body re-expressed in one camera
+        verts = reexpress_cam(verts, verts.mean(axis=1), focals, pp, focal, pp).astype(verts.dtype)
     image = _frame_image(image_dir, name) if image_dir is not None else None
     return RowFrame(label, np.zeros((0, 0, 3)) if verts is None else verts,
                     np.zeros((0, 3), np.int64) if faces is None else faces, frame.person_ids,
