@@ -32,7 +32,7 @@ bench-quick: install
 # Regenerate the committed sample scene (deterministic).
 sample: install
 	rm -rf $(SAMPLE)/scene
-	$(BIN)/rotavat synth $(SAMPLE)/scene --seed 7 --frames 4 --people 5 --image-size 1280 720 --hps-focal 1468.6 --quiet
+	$(BIN)/rotavat synth $(SAMPLE)/scene --seed 7 --frames 4 --people 5 --image-size 1280 720 --hps-focal cliff --quiet
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

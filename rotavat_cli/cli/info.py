@@ -33,7 +33,7 @@ def info(
         ("keys", ", ".join(summary["keys"])),
         ("vertices / joints / 2D keypoints", " / ".join(",".join(map(str, summary[k])) or "-" for k in ("vertex_counts", "joint_counts", "keypoint_counts"))),
         ("image size", "x".join(map(str, summary["image_size"])) if summary["image_size"] else "[red]unknown[/]"),
-        ("focal (px)", f"{summary['focal_px']:.1f}" if summary["focal_px"] else "not stated"),
+        ("mesh focal (px)", _focal_cell(summary)),
         ("principal point", ", ".join(f"{v:.1f}" for v in summary["principal_point"]) if summary["principal_point"] else "image centre"),
         ("source", summary["source"] or "-"),
     ]
@@ -43,3 +43,13 @@ def info(
     for key, value in rows:
         table.add_row(key, value)
     console.print(table)
+
+
+def _focal_cell(summary: dict) -> str:
+    """The focal the meshes were made with, and whether it is the camera's own or a method's guess."""
+    if not summary["focal_px"]:
+        return "not stated"
+    if summary["focal_kind"] == "camera":
+        return f"{summary['focal_px']:.1f} (the camera's own)"
+    rule = f", rule {summary['focal_rule']}" if summary.get("focal_rule") else ""
+    return f"{summary['focal_px']:.1f} (assumed by the method{rule}: not the camera's; calibrate estimates it)"
