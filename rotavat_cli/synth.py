@@ -7,8 +7,9 @@ body leans toward the image plane (keeping its foot and crown pixels), has a nea
 a per-person depth error, and lives in the method's own assumed camera: a real method's focal
 rule (``hps_focal``: ``cliff``, ``bev``, ``romp``, ``4dhumans``, ``true`` or a number of pixels)
 puts the rigid, undistorted body with its root on the root pixel's ray at the depth scaled by
-``F / f`` (:func:`rotavat_cli.camera.reexpress_cam`), so its image is nearly unchanged. Plus small
-3D noise and noisy 2D detections with gross outliers. Deterministic for a given seed.
+``F / f`` (:func:`rotavat_cli.camera.reexpress_cam`), turned so its foot and crown fall on their
+pixels, as a method fitted to the image draws them. Plus small 3D noise and noisy 2D detections
+with gross outliers. Deterministic for a given seed.
 """
 
 from __future__ import annotations
@@ -20,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from .bodies import BodyLibrary, load_bodies
-from .camera import Camera, reexpress_cam
+from .camera import Camera, pixel_rays_cam, reexpress_cam
 from .focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from .landmarks import foot_head_points
-from .rotations import axis_angle_to_matrix
+from .rotations import axis_angle_to_matrix, rotation_between
 from .rotavat import closest_scale_on_line
 from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 
@@ -163,14 +164,48 @@ def _lean_toward_image_plane(points: list[np.ndarray], feet: np.ndarray, heads: 
     return [new_feet[:, None] + np.einsum("pij,pnj->pni", R, p - feet[:, None]) for p in points]
 
 
-def _into_hps_camera(points: list[np.ndarray], roots: np.ndarray, size_ratio: np.ndarray, depth_scale: np.ndarray,
-                     camera: Camera, hps_focal: float) -> list[np.ndarray]:
-    """Bodies as the HPS method places them: scaled about the camera centre by size x depth error
-    (pixels kept), then rigidly re-expressed in the method's camera (focal ``hps_focal``)."""
+def _into_hps_camera(points: list[np.ndarray], roots: np.ndarray, feet_px: np.ndarray, heads_px: np.ndarray,
+                     size_ratio: np.ndarray, depth_scale: np.ndarray, camera: Camera,
+                     hps_focal: float) -> list[np.ndarray]:
+    """Bodies as the HPS method places them in its own camera (focal ``hps_focal``).
+
+    Scaled about the camera centre by size x depth error (pixels kept), rigidly re-expressed in
+    the method's camera (root pixel kept, depth x F / f), then turned and slid, rigidly, so the
+    foot and crown fall on the pixels ``feet_px``/``heads_px`` (P, 2) again, as a method fitted to
+    the image puts them: at F / f of 20 or more a body re-expressed alone is seen nearly
+    orthographically, and its foot and crown would move by 10 % of its height in the picture.
+    """
     scale = (size_ratio * depth_scale)[:, None, None]
     scaled_roots = roots * scale[:, 0]
-    return [reexpress_cam(p * scale, scaled_roots, camera.focal_px, camera.principal_point, hps_focal,
-                          camera.principal_point) for p in points]
+    moved = [reexpress_cam(p * scale, scaled_roots, camera.focal_px, camera.principal_point, hps_focal,
+                           camera.principal_point) for p in points]
+    feet, heads = foot_head_points(moved[0])
+    rays = [pixel_rays_cam(px, hps_focal, camera.principal_point) for px in (feet_px, heads_px)]
+    return _onto_rays(moved, feet, heads, *rays)
+
+
+def _onto_rays(points: list[np.ndarray], feet: np.ndarray, heads: np.ndarray, foot_rays: np.ndarray,
+               head_rays: np.ndarray) -> list[np.ndarray]:
+    """Rigid bodies (P, N, 3) turned and slid so foot and crown (P, 3) lie on their rays (P, 3), z = 1.
+
+    The new foot ``a rF`` and crown ``b rH`` keep the body's length and its foot-crown midpoint
+    depth (``a + b = 2 z_mid``: a quadratic in ``a``, the root nearer the old foot depth); the
+    body turns by the shortest rotation taking its old axis to the new one. A person for whom no
+    such placement exists keeps its place.
+    """
+    length = np.linalg.norm(heads - feet, axis=-1)
+    z_mid = 0.5 * (feet[:, 2] + heads[:, 2])
+    d, e = 2.0 * z_mid[:, None] * head_rays, -(head_rays + foot_rays)  # crown - foot = d + a e
+    qa, qb, qc = np.sum(e * e, -1), np.sum(d * e, -1), np.sum(d * d, -1) - length**2
+    disc = qb * qb - qa * qc
+    ok = disc >= 0
+    roots = (-qb[:, None] + np.array([-1.0, 1.0]) * np.sqrt(np.maximum(disc, 0.0))[:, None]) / qa[:, None]
+    a = roots[np.arange(len(roots)), np.argmin(np.abs(roots - feet[:, 2:3]), axis=1)]
+    new_feet = np.where(ok[:, None], a[:, None] * foot_rays, feet)
+    new_heads = np.where(ok[:, None], (2.0 * z_mid - a)[:, None] * head_rays, heads)
+    axis, angle = rotation_between(heads - feet, new_heads - new_feet)
+    R = axis_angle_to_matrix(axis, angle)
+    return [new_feet[:, None] + np.einsum("pij,pnj->pni", R, p - feet[:, None]) for p in points]
 
 
 def _detections(rng: np.random.Generator, feet_px: np.ndarray, heads_px: np.ndarray, opts: SynthOptions) -> tuple[np.ndarray, np.ndarray]:
@@ -218,7 +253,8 @@ def synth_frames(opts: SynthOptions, library: BodyLibrary | None = None) -> tupl
                 "focal_length": np.float64(camera.focal_px), **common})
             v_pred, j_pred = _lean_toward_image_plane([verts, joints], feet, heads, lean)
             depth = np.exp(rng.normal(0.0, opts.depth_sd, P))
-            v_pred, j_pred = _into_hps_camera([v_pred, j_pred], j_pred[:, 0], pred_size, depth, camera, hps_focal)
+            v_pred, j_pred = _into_hps_camera([v_pred, j_pred], j_pred[:, 0], feet_px, heads_px, pred_size, depth,
+                                              camera, hps_focal)
             v_pred = v_pred + rng.normal(0.0, opts.noise_3d_m, v_pred.shape)
             j_pred = j_pred + rng.normal(0.0, opts.noise_3d_m, j_pred.shape)
             det_feet, det_heads = _detections(rng, feet_px, heads_px, opts)
