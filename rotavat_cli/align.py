@@ -94,8 +94,13 @@ def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, mesh_focal_px
     shift = np.asarray(pp_shift_px, dtype=np.float32)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_a, inv_b = fa / a[:, 2], fb / b[:, 2]
-        du = b[:, 0] * inv_b - a[:, 0] * inv_a + shift[0]
-        dv = b[:, 1] * inv_b - a[:, 1] * inv_a + shift[1]
+        du = b[:, 0] * inv_b
+        du -= a[:, 0] * inv_a
+        dv = b[:, 1] * inv_b
+        dv -= a[:, 1] * inv_a
+    if shift.any():  # the camera's principal point is not the method's
+        du += shift[0]
+        dv += shift[1]
     return _hypot_f32(du, dv)
 
 

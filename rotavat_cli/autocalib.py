@@ -49,11 +49,13 @@ def declared_focal(seq: Sequence) -> float | None:
     when the method used one per person)."""
     if seq.intrinsics.focal_px is not None:
         return seq.intrinsics.focal_px
-    for frame in seq.frames():
-        focals = frame.intrinsics.focals_px(frame.n_people)
-        if focals is not None and len(focals):
-            return float(np.median(focals))
-        if focals is None:
+    for frame in seq.frames():  # the first frame with people, or the first that states a focal
+        intrinsics = frame.intrinsics
+        if intrinsics.focal_px is not None:
+            return intrinsics.focal_px
+        if intrinsics.person_focal_px:
+            return float(np.median(intrinsics.person_focal_px))
+        if frame.n_people:
             return None
     return None
 

@@ -1,6 +1,6 @@
 """Calibrate a static camera from the people it sees: foot (mid-sole) and head (crown) pixels only.
 
-Two methods (conventions: CONVENTIONS.md; the model and the fast grid: :mod:`.calibrate_grid`):
+Two methods (conventions: docs/conventions.md; the model and the fast grid: :mod:`.calibrate_grid`):
 
 - ``"grid"``: the seed paper exactly. Focal, pitch and camera height on a 50^3 grid, roll 0,
   principal point at the image centre, stature 1.70 m, least squares on the head pixels; the
@@ -104,7 +104,7 @@ class CalibrationResult:
         return float(horizon_v_px(cam.image_size[0] / 2.0, cam.focal_px, cam.principal_point, cam.up_cam))
 
     def fit_dict(self) -> dict:
-        """Plain-typed ``fit:`` block of camera.yaml (CONVENTIONS.md); NaN becomes None."""
+        """Plain-typed ``fit:`` block of camera.yaml (docs/conventions.md); NaN becomes None."""
         return {
             "method": self.method,
             "residual": self.residual,

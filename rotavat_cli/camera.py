@@ -302,7 +302,7 @@ _ANGLE_KEYS = ("pitch_deg", "roll_deg")
 
 
 def camera_to_yaml_dict(camera: Camera, fit: dict | None = None) -> dict:
-    """Plain-typed dict in the CONVENTIONS.md ``camera.yaml`` schema (degrees, metres, lists)."""
+    """Plain-typed dict in the ``camera.yaml`` schema of docs/conventions.md (degrees, metres, lists)."""
     d: dict[str, Any] = {
         "image_size": [int(v) for v in camera.image_size],
         "focal_px": float(camera.focal_px),

@@ -1,6 +1,6 @@
 """A frame as a glTF 2.0 binary scene (``.glb``): people, a ground quad, the camera frustum and a glTF camera.
 
-World frame = CONVENTIONS' world (origin on the ground below the camera, ``Y`` up, right-handed),
+World frame = the contract's world (docs/conventions.md) (origin on the ground below the camera, ``Y`` up, right-handed),
 which is glTF's own convention (``+Y`` up, metres), so vertices go in untouched. The glTF camera
 looks along its local ``-Z`` with ``+Y`` up, while the OpenCV camera looks along ``+z`` with
 ``y`` down: the camera node's transform is ``world_from_cv @ R_CV_FROM_GL``.

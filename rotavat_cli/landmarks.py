@@ -1,6 +1,6 @@
 """Foot point (mid-sole) and head point (crown) of each person's mesh, in the mesh's frame.
 
-The contract (CONVENTIONS.md, "Person model for calibration") defines the **foot point** as the
+The contract (docs/conventions.md, "People") defines the **foot point** as the
 midpoint of the two feet's sole points and the **head point** as the top of the head. Meshes are
 in the OpenCV camera frame (x right, y down, z forward, metres); so are the results.
 

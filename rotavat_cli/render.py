@@ -54,7 +54,7 @@ __all__ = [
 
 VIEWS = ("front", "side", "top")
 VIEW_TITLES = {"front": "front (camera view)", "side": "side (orthographic)", "top": "top (orthographic)"}
-UP_WORLD = np.array([0.0, 1.0, 0.0])  # CONVENTIONS: world Y is up
+UP_WORLD = np.array([0.0, 1.0, 0.0])  # docs/conventions.md: world Y is up
 _AMBIENT = 0.35  # shading: light that reaches every surface
 _LIGHT_RAISE = 0.4  # the light sits this much above the eye (fraction of the viewing direction)
 _NEAR_M, _MIN_FAR_M = 0.05, 10.0  # front view clip planes (far grows with the scene)

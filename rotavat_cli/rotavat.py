@@ -289,7 +289,7 @@ def transformed_blocks(points_cam: np.ndarray, transform: AlignTransform,
 def apply_transforms(points_cam: np.ndarray, transform: AlignTransform, dtype: np.dtype | None = None) -> np.ndarray:
     """Apply per-person transforms to points (P, N, 3); flagged people come back unchanged.
 
-    ``X' = pivot + s3 R (s1 X - pivot)`` is one affine map ``X' = A X + b`` per person
+    ``X' = pivot + s3 s1 R (X - foot)`` is one affine map ``X' = A X + b`` per person
     (:func:`affine_maps`), computed in float64 and stored as ``dtype`` (default float64), a block
     of people at a time (:func:`transformed_blocks`).
     """

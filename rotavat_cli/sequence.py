@@ -358,7 +358,7 @@ def read_camera_yaml(path: str | Path, image_size: tuple[int, int] | None = None
 
 
 def write_camera_yaml(path: str | Path, camera: Camera, fit: dict | None = None) -> None:
-    """Write ``camera.yaml`` per CONVENTIONS.md atomically."""
+    """Write ``camera.yaml`` per docs/conventions.md atomically."""
     write_yaml(path, camera_to_yaml_dict(camera, fit))
 
 

@@ -292,3 +292,13 @@ def _write_camera(tmp_path: Path, cam: Camera) -> Path:
 
     write_camera_yaml(tmp_path / "cam.yaml", cam)
     return tmp_path / "cam.yaml"
+
+
+def test_declared_focal_is_found_past_empty_frames(tmp_path):
+    from rotavat_cli.autocalib import declared_focal
+
+    seq = tmp_path / "s"
+    write_frame(seq, Frame("000000", {"vertices": np.zeros((0, 4, 3), np.float32)}), "npz")
+    write_frame(seq, Frame("000001", {"vertices": np.ones((2, 4, 3), np.float32), "focal_length": np.float64(1234.0)}), "npz")
+    write_meta(seq, {"image_size": [640, 480], "focal_kind": "camera"})
+    assert declared_focal(open_sequence(seq)) == 1234.0

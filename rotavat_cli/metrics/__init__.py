@@ -2,7 +2,7 @@
 
 Inputs are metres (any float dtype); outputs are float64 and carry their unit in the name
 (``*_mm``, ``*_deg``, ``*_pct``). Point sets are ``(P, N, 3)``: ``P`` people, ``N`` joints or
-vertices, all in one frame (the camera frame of ``CONVENTIONS.md``). Every function is
+vertices, all in one frame (the camera frame of docs/conventions.md). Every function is
 vectorised over people (one batched SVD for Procrustes, no per-person loop), and ``P = 0`` is
 valid everywhere.
 
