@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_open, staged_directory
-from .parallel import ordered_map
+from .outputs import check_output_dir
+from .parallel import cap_workers, ordered_map
 from .camera import Camera, project_cam_to_px
 from .errors import InputError
 from .landmarks import foot_head_points
@@ -139,19 +140,25 @@ def _align_points(verts_cam: np.ndarray, transform: AlignTransform, mesh: MeshIn
     while both are in cache (:func:`transformed_blocks`); NaN drifts are ignored; 0 if V == 0.
     """
     P, V = verts_cam.shape[:2]
+    dtype = output_dtype(verts_cam)
     if V == 0:
-        return verts_cam.copy(), np.zeros(P), np.zeros(P)
+        return verts_cam.astype(dtype), np.zeros(P), np.zeros(P)
     moved, means, peaks = [], [], []
     shift = np.subtract(camera.principal_point, mesh.principal_point)
     start = 0
-    for before, after in transformed_blocks(verts_cam, transform, verts_cam.dtype):  # (p, 3, V) each
+    for before, after in transformed_blocks(verts_cam, transform, dtype):  # (p, 3, V) each
         focal = mesh.focal_px[start:start + len(before)]
         start += len(before)
         mean, peak = _nan_mean_max(_pixel_drift_px(before, after, focal, camera.focal_px, shift))
         moved.append(after)
         means.append(mean)
         peaks.append(peak)
-    return points_from_coords(moved, V, verts_cam.dtype), np.concatenate(means), np.concatenate(peaks)
+    return points_from_coords(moved, V, dtype), np.concatenate(means), np.concatenate(peaks)
+
+
+def output_dtype(points: np.ndarray) -> np.dtype:
+    """Aligned coordinates keep a float dtype; integer coordinates become float64 (never rounded back)."""
+    return points.dtype if points.dtype.kind == "f" else np.dtype(np.float64)
 
 
 def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
@@ -173,7 +180,7 @@ def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
     new_verts, drift_mean, drift_max = _align_points(verts, transform, mesh, camera)
     arrays = {"vertices": new_verts}
     if frame.get("joints") is not None:
-        arrays["joints"] = apply_transforms(frame.data["joints"], transform, frame.data["joints"].dtype)
+        arrays["joints"] = apply_transforms(frame.data["joints"], transform, output_dtype(frame.data["joints"]))
     new_heads = apply_transforms(heads_cam[:, None], transform)[:, 0]
     heads_drawn_px = project_cam_to_px(heads_cam, mesh.focal_px, mesh.principal_point)
     foot_world = camera.world_from_cam(transform.pivot_cam)
@@ -327,15 +334,18 @@ def _group_rows(rows: list[dict]) -> list[tuple[str, list[dict]]]:
 
 def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str = "paper", height_from: str = "frame",
                    camera_fit: dict | None = None, progress: Callable[[], None] | None = None,
-                   workers: int = 2, stature_range_m: tuple[float, float] = STATURE_RANGE_M) -> AlignSummary:
+                   workers: int = 2, stature_range_m: tuple[float, float] = STATURE_RANGE_M,
+                   force: bool = False) -> AlignSummary:
     """Align every frame of ``seq`` into ``out`` (mirrored form) with camera.yaml and people.csv.
 
-    Frames stream through ``workers`` processes, a bounded window ahead of the in-order writer of
-    people.csv, so memory stays flat and both cores work (``workers=1``: in this process).
+    Frames stream through ``workers`` processes (at most one per core and per chunk of frames), a
+    bounded window ahead of the in-order writer of people.csv, so memory stays flat and both cores
+    work (``workers=1``: in this process). ``out`` is replaced only when it is rotavat's own output
+    or empty (``force``: any folder that is not and does not hold an input;
+    :func:`rotavat_cli.outputs.check_output_dir`).
     """
     out = Path(out)
-    if out.resolve() == seq.path.resolve():
-        raise InputError(f"{out}: the output directory must differ from the input sequence")
+    check_output_dir(out, [seq.path], force)
     if height_from not in ("frame", "track"):
         raise InputError(f"height_from must be 'frame' or 'track', got {height_from!r}")
     if upright not in ("paper", "full"):
@@ -347,11 +357,11 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
     summary = AlignSummary(out)
     names = seq.frame_names
     chunks = [names[i:i + _CHUNK_FRAMES] for i in range(0, len(names), _CHUNK_FRAMES)]
-    with staged_directory(out) as stage:
+    with staged_directory(out, "align") as stage:
         tasks = ((seq, chunk, camera, stage, upright, stature_by_id, (lo, hi)) for chunk in chunks)
         with atomic_open(stage / "people.csv", "w") as handle:
             csv.writer(handle, lineterminator="\n").writerow(PEOPLE_COLUMNS)
-            for results in ordered_map(_align_chunk, tasks, workers, processes=True):
+            for results in ordered_map(_align_chunk, tasks, cap_workers(workers, len(chunks)), processes=True):
                 for n_people, cols, rows in results:
                     handle.write(rows)
                     summary.add(n_people, cols)

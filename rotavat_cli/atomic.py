@@ -10,6 +10,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
+from .outputs import STAGING_OWNER, mark_output_dir, own_staging, remove_stale_staging
+
 __all__ = ["atomic_open", "atomic_write_text", "staged_directory"]
 
 
@@ -44,20 +46,29 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
 
 
 @contextlib.contextmanager
-def staged_directory(path: str | os.PathLike) -> Iterator[Path]:
+def staged_directory(path: str | os.PathLike, command: str | None = None) -> Iterator[Path]:
     """Build a whole output directory in a hidden sibling, then swap it in; on error remove it.
 
     A half-finished output never stands at ``path``; an existing ``path`` is replaced only once
-    the new one is complete.
+    the new one is complete. The caller has checked that ``path`` may be replaced
+    (:func:`rotavat_cli.outputs.check_output_dir`). With ``command``, the new folder carries
+    rotavat's output marker. Staging folders left by killed runs are removed first; while this one
+    is built it names its owner (host, pid), so a later run can tell it is stale.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_staging(target)
     stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-", dir=target.parent))
+    own_staging(stage)
     try:
         yield stage
+        (stage / STAGING_OWNER).unlink()
+        if command is not None:
+            mark_output_dir(stage, command)
         os.chmod(stage, 0o777 & ~_umask())
         if target.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+            own_staging(old)
             os.replace(target, old / target.name)
             os.replace(stage, target)
             shutil.rmtree(old, ignore_errors=True)

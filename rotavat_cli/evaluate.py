@@ -348,12 +348,16 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> dict[str, float]
     return out
 
 
+_PER_PERSON_COLUMNS = ("pred", "frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)
+PER_PERSON_HEADER = ",".join(_PER_PERSON_COLUMNS)  # the first line of every per-person CSV rotavat writes
+
+
 def write_per_person_csv(path: str | Path, results: Seq[EvalResult]) -> None:
     """One row per matched pair of every prediction (atomic)."""
     with atomic_open(path, "w") as handle:
         writer = csv.writer(handle, lineterminator="\n")
-        keys = ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)
-        writer.writerow(("pred", *keys))
+        keys = _PER_PERSON_COLUMNS[1:]
+        writer.writerow(_PER_PERSON_COLUMNS)
         for res in results:
             cols = res.per_person
             for i in range(len(cols["frame"])):

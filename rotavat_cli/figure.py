@@ -12,6 +12,7 @@ Frames are chosen by index in the first sequence and matched by name in the othe
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -77,6 +78,11 @@ class FigureSummary:
     files: list[str]
     seconds: float
     seconds_per_frame: float
+
+    def moved_to(self, out: str | Path) -> "FigureSummary":
+        """The same summary once its folder was moved to ``out`` (a staging folder swapped in)."""
+        files = [str(Path(out) / Path(f).name) for f in self.files]
+        return dataclasses.replace(self, out=str(out), files=files)
 
 
 def parse_views(text: str) -> tuple[str, ...]:

@@ -5,14 +5,34 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 import multiprocessing
+import os
 import sys
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import TypeVar
 
-__all__ = ["ordered_map"]
+__all__ = ["ordered_map", "cap_workers", "cpu_count"]
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+
+def cpu_count() -> int:
+    """Cores this process may run on (the affinity mask where the platform has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def cap_workers(requested: int, n_items: int) -> int:
+    """Workers to start: ``requested`` (0 = one per core), never more than the cores or the work items.
+
+    >>> cap_workers(10000, 3) <= 3
+    True
+    """
+    cores = cpu_count()
+    want = cores if requested <= 0 else requested
+    return max(1, min(want, cores, max(1, n_items)))
 
 
 def _executor(workers: int, processes: bool) -> Executor:

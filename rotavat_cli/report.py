@@ -125,10 +125,16 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
 
 def write_reports(out_dir: str | Path, results: Sequence[EvalResult], gt: str, options: dict) -> tuple[Path, Path]:
     """Write metrics.json and metrics.md atomically into ``out_dir``."""
-    out_dir = Path(out_dir)
-    payload = {"gt": gt, "options": options, "metric_names": list(PERSON_METRICS),
-               "predictions": [r.as_dict() for r in results]}
-    json_path, md_path = out_dir / "metrics.json", out_dir / "metrics.md"
+    from . import __version__
+
+    json_path, md_path = report_paths(out_dir)
+    payload = {"written_by": f"rotavat {__version__}", "gt": gt, "options": options,
+               "metric_names": list(PERSON_METRICS), "predictions": [r.as_dict() for r in results]}
     atomic_write_text(json_path, json.dumps(to_plain(payload), indent=2) + "\n")
-    atomic_write_text(md_path, markdown_report(results, gt))
+    atomic_write_text(md_path, f"<!-- written by rotavat {__version__} -->\n" + markdown_report(results, gt))
     return json_path, md_path
+
+
+def report_paths(out_dir: str | Path) -> tuple[Path, Path]:
+    """The two files ``write_reports`` writes: metrics.json and metrics.md in ``out_dir``."""
+    return Path(out_dir) / "metrics.json", Path(out_dir) / "metrics.md"

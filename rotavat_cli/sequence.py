@@ -23,6 +23,7 @@ from .atomic import atomic_open, atomic_write_text
 from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .errors import InputError
 from .focal import focal_kind_or_default
+from .outputs import TEXT_HEADER
 
 __all__ = [
     "Frame",
@@ -342,8 +343,12 @@ def read_yaml(path: str | Path) -> dict:
 
 
 def write_yaml(path: str | Path, data: dict) -> None:
-    """Dump plain-typed data with ``yaml.safe_dump`` atomically."""
-    atomic_write_text(path, yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+    """Dump plain-typed data with ``yaml.safe_dump`` atomically, under rotavat's header line (which
+    says rotavat wrote the file and may replace it: :func:`rotavat_cli.outputs.written_by_rotavat`)."""
+    from . import __version__
+
+    header = f"{TEXT_HEADER} {__version__}\n"
+    atomic_write_text(path, header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
 
 
 def read_camera_yaml(path: str | Path, image_size: tuple[int, int] | None = None) -> tuple[Camera, dict]:

@@ -120,7 +120,7 @@ def test_batch_outputs_equal_the_single_sequence_calls(dataset, tmp_path, runner
         seq = open_sequence(dataset / "pred" / rel)
         camera, fit = read_camera_yaml(out / rel / "camera.yaml")
         align_sequence(seq, camera, tmp_path / "ref" / rel, camera_fit=fit, workers=1)
-        assert assert_same_tree(out / rel / "aligned", tmp_path / "ref" / rel) == 6  # 3 frames, people.csv, camera, meta
+        assert assert_same_tree(out / rel / "aligned", tmp_path / "ref" / rel) == 7  # 3 frames, people.csv, camera, meta, marker
         want = [evaluate(dataset / "pred" / rel, dataset / "gt" / rel), evaluate(out / rel / "aligned", dataset / "gt" / rel)]
         got = metrics_of(out, rel)
         for g, w in zip(got, want):
@@ -129,7 +129,7 @@ def test_batch_outputs_equal_the_single_sequence_calls(dataset, tmp_path, runner
         assert list(got[1]["camera"]) and not got[0]["camera"]  # the aligned prediction carries the estimated camera
         marker = json.loads((out / rel / MARKER).read_text())
         assert marker["steps"] == ["calibrate", "align", "eval", "render"] and marker["row"]["status"] == "done"
-        assert sorted(p.name for p in (out / rel / "render").iterdir()) == ["000000.png"]
+        assert sorted(p.name for p in (out / rel / "render").iterdir()) == [".rotavat-output", "000000.png"]
         assert not list((out / rel).glob(".*partial*")) and not (out / rel / ".aligned.chunks").exists()
     report = json.loads((out / "batch_report.json").read_text())
     assert [r["sequence"] for r in report["rows"]] == RELS
@@ -286,7 +286,7 @@ def test_dask_cluster_results_equal_the_local_ones(dataset, tmp_path, runner):
     report = json.loads(result.stdout)
     assert report["counts"]["done"] == 3 and len(report["workers"]) == 2  # both workers took tasks
     for rel in RELS:
-        assert assert_same_tree(local / rel / "aligned", tmp_path / "dask" / rel / "aligned") == 6
+        assert assert_same_tree(local / rel / "aligned", tmp_path / "dask" / rel / "aligned") == 7
         assert (local / rel / "camera.yaml").read_bytes() == (tmp_path / "dask" / rel / "camera.yaml").read_bytes()
         assert metrics_of(local, rel) == metrics_of(tmp_path / "dask", rel)
     assert (json.loads((local / "batch_report.json").read_text())["aggregate"]

@@ -124,10 +124,13 @@ def test_pred_defaults_to_current_directory(tmp_path, runner, monkeypatch):
     gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
     pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5.1]], [1])})
     monkeypatch.chdir(pred)
-    result = invoke(runner, "eval", "--gt", gt, "--json")
+    before = sorted(p.name for p in pred.iterdir())
+    refused = invoke(runner, "eval", "--gt", gt)  # the reports would land inside the input: refused
+    assert refused.exit_code == 2 and "inside the input" in refused.stderr
+    result = invoke(runner, "eval", "--gt", gt, "--out", tmp_path / "ev", "--json")
     assert result.exit_code == 0
     assert json.loads(result.stdout)["predictions"][0]["metrics"]["w_mpjpe"] == pytest.approx(100.0)
-    assert (pred / "metrics.md").exists()
+    assert (tmp_path / "ev" / "metrics.md").exists() and sorted(p.name for p in pred.iterdir()) == before
 
 
 def test_ground_aware_metrics_and_camera_errors(tmp_path):

@@ -327,7 +327,8 @@ def test_cli_render_front_over_video_frame(runner, scene, tmp_path):
     (["gt", "--image", "."], "no image named 000000"),
 ])
 def test_cli_render_bad_input_exit_2(runner, scene, tmp_path, monkeypatch, args, message):
-    monkeypatch.chdir(tmp_path)
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")  # "." (an empty image folder) is not where the output goes
     result = invoke(runner, "render", scene / args[0], *args[1:], "--out", tmp_path / "fig")
     assert result.exit_code == 2, result.output
     assert message in result.stderr and "Traceback" not in result.stderr

@@ -158,7 +158,7 @@ def task_align_merge(job: dict, plan: dict, n_chunks: int) -> dict:
     """Move the chunks' frames into ``aligned/``, concatenate their people.csv in order; summarise people.csv."""
     out = Path(job["out"])
     parts = [_chunk_dir(job, i) for i in range(n_chunks)]
-    with staged_directory(out / "aligned") as merged:  # swapped in whole once complete
+    with staged_directory(out / "aligned", "align") as merged:  # swapped in whole once complete
         for k, part in enumerate(parts):
             for entry in sorted(part.iterdir()):
                 if entry.name not in _CHUNK_FILES or (k == 0 and entry.name != "people.csv"):
@@ -234,7 +234,7 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
             figure = FigureOptions.from_config(plan["config"]["render"], Path(camera) if camera else None)
         except ValueError as exc:
             raise InputError(str(exc)) from None
-        with staged_directory(out / "render") as staging:
+        with staged_directory(out / "render", "render") as staging:
             summary = render_sequences(paths, staging, figure)
         row["render"] = {"renderer": summary.renderer, "files": [Path(f).name for f in summary.files]}
         seconds["render"] = time.perf_counter() - start

@@ -29,6 +29,7 @@ QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar a
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON result on stdout (implies no progress bar).")]
 FromOpt = Annotated[str | None, typer.Option("--from", help="Read the input in an HPS tool's own format, converted on the fly (formats: see `rotavat import --help`).")]
 ImageSizeOpt = Annotated[tuple[int, int] | None, typer.Option(help="With --from: original image width and height (px), for formats that do not store it.")]
+ForceOpt = Annotated[bool, typer.Option("--force", help="Replace an existing output that rotavat did not write (never an input).")]
 SmplModelOpt = Annotated[Path | None, typer.Option(help="With --from: SMPL/SMPL-X .npz model to pose parameter-only formats.", dir_okay=False)]
 
 

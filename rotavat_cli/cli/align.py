@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from ..align import align_sequence
+from ..outputs import beside, check_output_dir
 from ..sequence import read_camera_yaml
 from . import app
-from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info, input_sequence,
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info, input_sequence,
                       print_json, progress_bar, progress_enabled)
 from .calibrate import run_calibration
 
@@ -23,7 +23,8 @@ def align(
     out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input.", file_okay=False)] = None,
     upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
     height_from: Annotated[str | None, typer.Option(help="frame: each mesh keeps its stature; track: median stature per person_id.")] = None,
-    jobs: Annotated[int | None, typer.Option(help="Worker processes for the frames (0 = one per core).", min=0)] = None,
+    jobs: Annotated[int | None, typer.Option(help="Worker processes for the frames (0 = one per core; never more than the cores).", min=0)] = None,
+    force: ForceOpt = False,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
     smpl_model: SmplModelOpt = None,
@@ -33,7 +34,8 @@ def align(
 ) -> None:
     """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
     opts = config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs)
-    out = out or seq.with_name((seq.stem if seq.is_file() else seq.name) + "_aligned")
+    out = out or beside(seq, "_aligned")
+    check_output_dir(out, [seq, *([camera] if camera else [])], force)
     with input_sequence(seq, from_, image_size, smpl_model) as sequence:
         if camera is not None:
             cam, fit = read_camera_yaml(camera, sequence.image_size)
@@ -46,8 +48,7 @@ def align(
             cam, fit, origin = calib.result.camera, calib.fit_dict(), "calibrated from the people"
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
             summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance,
-                                     workers=opts["jobs"] or os.cpu_count() or 1,
-                                     stature_range_m=tuple(opts["stature_range_m"]))
+                                     workers=opts["jobs"], stature_range_m=tuple(opts["stature_range_m"]), force=force)
     result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
     if as_json:
         print_json(result)
@@ -59,6 +60,8 @@ def align(
         lo, hi = opts["stature_range_m"]
         info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
              "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
-    info(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
-         f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m", quiet)
+    if summary.aligned:
+        info(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
+             f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m",
+             quiet)
     info(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)

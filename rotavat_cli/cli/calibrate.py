@@ -12,9 +12,10 @@ from rich.table import Table
 
 from ..autocalib import SequenceCalibration, calibrate_sequence
 from ..errors import InputError
+from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
 from . import app
-from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
                       input_sequence, print_json)
 
 
@@ -46,6 +47,7 @@ def calibrate(
     distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
     fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Weak prior on the vertical field of view (deg).")] = None,
     per_frame: Annotated[bool | None, typer.Option("--per-frame/--pooled", help="Also calibrate each frame alone and report the spread.")] = None,
+    force: ForceOpt = False,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
     smpl_model: SmplModelOpt = None,
@@ -56,6 +58,8 @@ def calibrate(
     """Estimate focal, pitch, roll and height of the static camera from the people in a sequence."""
     if from_ and out is None:
         raise InputError("with --from, pass --out FILE for the camera.yaml (the input is not a contract sequence)")
+    target = out or seq / "camera.yaml"
+    check_output_file(target, [seq], force, inside_input_ok=("camera.yaml",) if from_ is None else ())
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False) as sequence:
         calib = run_calibration(
             sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
@@ -63,7 +67,6 @@ def calibrate(
             estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
             person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, points=points,
             box_depth_m=box_depth, distortion=distortion, fov_prior_deg=fov_prior, per_frame=per_frame)
-    target = out or seq / "camera.yaml"
     fit = calib.fit_dict()
     write_camera_yaml(target, calib.result.camera, fit)
     cam = calib.result.camera

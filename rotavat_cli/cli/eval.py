@@ -11,10 +11,11 @@ import typer
 from rich.table import Table
 
 from ..errors import GateError
-from ..evaluate import EvalOptions, evaluate, parse_joints, write_per_person_csv
-from ..report import check_gates, format_value, metric_value, parse_gate, report_rows, write_reports
+from ..evaluate import PER_PERSON_HEADER, EvalOptions, evaluate, parse_joints, write_per_person_csv
+from ..outputs import check_output_file
+from ..report import check_gates, format_value, metric_value, parse_gate, report_paths, report_rows, write_reports
 from . import app
-from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
                       input_sequence, print_json, progress_bar, progress_enabled)
 
 
@@ -30,6 +31,7 @@ def eval_(
     iou_threshold: Annotated[float | None, typer.Option(help="agora: min keypoint-box IoU of a match.")] = None,
     joints: Annotated[str | None, typer.Option(help="Joint subset used by both sides: '0-23', '0,1,2' or SMPL names.")] = None,
     engine: Annotated[str | None, typer.Option(help="Vertex metrics: auto (numba if installed), numpy, numba ('rotavat[fast]').")] = None,
+    force: ForceOpt = False,
     from_: FromOpt = None,
     gt_from: Annotated[str | None, typer.Option("--gt-from", help="Read GT in a dataset's own format (agora, bedlam, ...), converted on the fly.")] = None,
     image_size: ImageSizeOpt = None,
@@ -44,6 +46,11 @@ def eval_(
     gates = [parse_gate(text) for text in fail_if or []]
     options = EvalOptions.from_config(opts, parse_joints(joints))
     preds = pred or [Path(".")]
+    inputs = [*preds, gt]
+    for target in report_paths(out):
+        check_output_file(target, inputs, force)
+    if per_person:
+        check_output_file(per_person, inputs, force, signature=PER_PERSON_HEADER.encode())
     with ExitStack() as stack:
         gt_seq = stack.enter_context(input_sequence(gt, gt_from, image_size, smpl_model))
         pred_seqs = [stack.enter_context(input_sequence(p, from_, image_size, smpl_model)) for p in preds]

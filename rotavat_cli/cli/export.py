@@ -11,7 +11,8 @@ from ..errors import InputError
 from ..figure import export_frame
 from ..render import RenderStyle
 from . import app
-from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json
+from ..outputs import beside, check_output_file
+from ._common import ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json
 
 
 @app.command()
@@ -20,6 +21,7 @@ def export(
     frame: Annotated[int, typer.Option(help="Frame index (negative counts from the end).")] = 0,
     out: Annotated[Path | None, typer.Option(help="Output .glb file; default <SEQ>_<frame>.glb beside SEQ.", dir_okay=False)] = None,
     camera: Annotated[Path | None, typer.Option(help="camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
+    force: ForceOpt = False,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
@@ -32,7 +34,8 @@ def export(
         raise InputError(str(exc)) from None
     if out is not None and out.suffix.lower() != ".glb":
         raise InputError(f"--out must end in .glb, got {out}")
-    target = out or seq.with_name(f"{seq.name}_{frame}.glb")
+    target = out or beside(seq, f"_{frame}.glb")
+    check_output_file(target, [seq, *([camera] if camera else [])], force)
     summary = export_frame(seq, target, frame, camera, palette)
     if as_json:
         print_json(summary)

@@ -10,7 +10,9 @@ import typer
 from ..errors import InputError
 from ..figure import FigureOptions, render_sequences
 from . import app
-from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
+from ..atomic import staged_directory
+from ..outputs import beside, check_output_dir
+from ._common import ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
 
 
 @app.command()
@@ -26,6 +28,7 @@ def render(
     renderer: Annotated[str | None, typer.Option(help="auto (OpenGL via EGL, else fallback) | gl | fallback (numpy).")] = None,
     gif: Annotated[bool | None, typer.Option("--gif/--no-gif", help="Also write render.gif of the rendered frames.")] = None,
     glb: Annotated[bool | None, typer.Option("--glb/--no-glb", help="Also write a glTF scene (.glb) per frame.")] = None,
+    force: ForceOpt = False,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
@@ -37,9 +40,12 @@ def render(
         options = FigureOptions.from_config(opts, camera, image)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    out = out or seqs[0].with_name(seqs[0].name + "_render")
-    with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance:
-        summary = render_sequences(seqs, out, options, advance)
+    out = out or beside(seqs[0], "_render")
+    check_output_dir(out, [*seqs, *([camera] if camera else []), *([image] if image else [])], force)
+    with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance, \
+            staged_directory(out, "render") as stage:  # the folder is replaced whole: no stale pictures
+        summary = render_sequences(seqs, stage, options, advance)
+    summary = summary.moved_to(out)
     if as_json:
         print_json(vars(summary))
         return
