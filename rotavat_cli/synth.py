@@ -23,7 +23,9 @@ import numpy as np
 from .bodies import BodyLibrary, load_bodies
 from .camera import Camera, pixel_rays_cam, reexpress_cam
 from .focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
+from .atomic import staged_directory
 from .landmarks import foot_head_points
+from .outputs import check_output_dir
 from .rotations import axis_angle_to_matrix, rotation_between
 from .rotavat import closest_scale_on_line
 from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
@@ -269,10 +271,24 @@ def synth_frames(opts: SynthOptions, library: BodyLibrary | None = None) -> tupl
     return camera, hps_focal, frames()
 
 
-def write_synth_scene(out: str | Path, opts: SynthOptions, progress: Callable[[], None] | None = None) -> dict:
-    """Write ``out/gt`` (truth + camera.yaml) and ``out/pred`` (the HPS prediction); returns a summary."""
+def write_synth_scene(out: str | Path, opts: SynthOptions, progress: Callable[[], None] | None = None,
+                      force: bool = False) -> dict:
+    """Write ``out/gt`` (truth + camera.yaml) and ``out/pred`` (the HPS prediction); returns a summary.
+
+    ``out`` is built aside and swapped in whole: an existing ``out`` is replaced only when it is
+    empty or rotavat's own output, or with ``force`` (never a mix of old and new frames).
+    """
     out = Path(out)
+    check_output_dir(out, [], force)
     camera, hps_focal, frames = synth_frames(opts)
+    with staged_directory(out, "synth") as stage:
+        summary = _write_scene(stage, camera, hps_focal, frames, opts, progress)
+    return {**summary, "out": str(out), "gt": str(out / "gt"), "pred": str(out / "pred")}
+
+
+def _write_scene(out: Path, camera: Camera, hps_focal: float, frames: Iterator[tuple[Frame, Frame]],
+                 opts: SynthOptions, progress: Callable[[], None] | None) -> dict:
+    """The files of a synthetic scene in ``out``; returns the summary."""
     for gt, pred in frames:
         write_frame(out / "gt", gt, "npz")
         write_frame(out / "pred", pred, "npz")

@@ -393,10 +393,14 @@ def test_cli_refuses_a_non_empty_out_and_force_replaces(tmp_path, scene, model, 
     (out / "notes.txt").write_text("keep me")
     (out / "000099.npz").write_bytes(b"stale")
     assert "not empty" in _one_line_error(invoke(runner, "import", src, out))
-    result = invoke(runner, "import", src, out, "--force", "--quiet")
+    assert (out / "notes.txt").read_text() == "keep me"  # refused: nothing touched
+    result = invoke(runner, "import", src, out, "--force", "--quiet")  # said explicitly: replaced whole
     assert result.exit_code == 0, result.output
-    assert (out / "notes.txt").read_text() == "keep me" and not (out / "000099.npz").exists()
+    names = sorted(p.name for p in out.iterdir())
+    assert "notes.txt" not in names and "000099.npz" not in names and names[0] == ".rotavat-output"
     assert len(open_sequence(out)) == 2
+    again = invoke(runner, "import", src, out, "--quiet")  # rotavat's own output: replaced without --force
+    assert again.exit_code == 0, again.output
 
 
 def test_failed_import_leaves_out_untouched(tmp_path, scene, model, camera, runner):

@@ -9,6 +9,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from ..outputs import check_output_dir, mark_output_dir
 from .executors import InlineExecutor, make_executor
 from .plan import BatchOptions, completed_marker, make_plan
 from .report import BatchReport, aggregate_rows, write_batch_report
@@ -140,9 +141,12 @@ def run_batch(root: str | Path, out: str | Path, options: BatchOptions, progress
     passes finished) and ``sequence`` (a report row, when a sequence is done, skipped or failed).
     """
     root, out = Path(root), Path(out)
+    check_output_dir(out, [root, *([options.gt_root] if options.gt_root else [])], options.force)
     emit = progress or (lambda kind, data: None)
     started, t0 = datetime.now(timezone.utc).isoformat(timespec="seconds"), time.perf_counter()
     plan, jobs = make_plan(root, out, options)
+    out.mkdir(parents=True, exist_ok=True)
+    mark_output_dir(out, "batch")
     rows: dict[str, dict] = {}
     todo = []
     for job in jobs:
@@ -151,7 +155,8 @@ def run_batch(root: str | Path, out: str | Path, options: BatchOptions, progress
             rows[job["rel"]] = {**marker["row"], "status": "skipped", "reason": "complete (outputs newer than inputs)"}
         else:
             todo.append(job)
-    executor = make_executor(options) if todo else InlineExecutor()
+    n_tasks = sum(max(1, -(-(j["frames_hint"] or 1) // options.chunk_frames)) for j in todo)  # align/eval chunks
+    executor = make_executor(options, n_tasks) if todo else InlineExecutor()
     steps = plan["steps"]
     passes = ("calibrate" in steps) + ("align" in steps) + ("eval" in steps) * (1 + ("align" in steps))  # frame passes
     emit("start", {"sequences": len(jobs), "to_run": len(todo), "skipped": len(rows), "executor": executor.name,

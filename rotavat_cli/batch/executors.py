@@ -9,6 +9,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import InputError
+from ..parallel import cap_workers
 from .plan import BatchOptions
 from .tasks import one_line
 
@@ -148,18 +149,11 @@ def local_cluster(workers: int) -> Any:
                                         dashboard_address=None, silence_logs=logging.ERROR)
 
 
-def make_executor(options: BatchOptions) -> Any:
-    """The executor for ``options`` (a usage error if it cannot be had)."""
-    jobs = options.jobs or _cores()
+def make_executor(options: BatchOptions, n_tasks: int) -> Any:
+    """The executor for ``options`` (a usage error if it cannot be had): at most one local worker per
+    core and per task (``--jobs 10000`` starts no more than that; an existing Dask cluster keeps its size)."""
+    jobs = cap_workers(options.jobs, n_tasks)
     if options.executor == "dask":
         return _DaskExecutor(options.scheduler, jobs)
     return InlineExecutor() if jobs == 1 else _PoolExecutor(jobs)
-
-
-def _cores() -> int:
-    """Cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # macOS, Windows
-        return os.cpu_count() or 1
 

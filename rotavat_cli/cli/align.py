@@ -9,6 +9,7 @@ import typer
 
 from ..align import align_sequence
 from ..outputs import beside, check_output_dir
+from ..parallel import cpu_count
 from ..sequence import read_camera_yaml
 from . import app
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info, input_sequence,
@@ -36,6 +37,8 @@ def align(
     opts = config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs)
     out = out or beside(seq, "_aligned")
     check_output_dir(out, [seq, *([camera] if camera else [])], force)
+    if opts["jobs"] > cpu_count():
+        info(f"jobs {opts['jobs']}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
     with input_sequence(seq, from_, image_size, smpl_model) as sequence:
         if camera is not None:
             cam, fit = read_camera_yaml(camera, sequence.image_size)

@@ -14,6 +14,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
 from ..config import load_config
 from ..errors import InputError
+from ..outputs import beside
+from ..parallel import cpu_count
 from . import app
 from ._common import ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json, progress_enabled
 
@@ -28,7 +30,7 @@ def batch(
     executor: Annotated[str | None, typer.Option(help="local (a process pool here) or dask (a Dask cluster; pip install 'rotavat[dask]').")] = None,
     scheduler: Annotated[str | None, typer.Option(help="dask: address of an existing scheduler, e.g. tcp://10.0.0.5:8786 (default: a LocalCluster here).")] = None,
     chunk_frames: Annotated[int | None, typer.Option(help="Align/eval longer sequences as tasks of this many frames.", min=1)] = None,
-    force: Annotated[bool, typer.Option("--force", help="Redo sequences whose outputs are already complete.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Redo sequences whose outputs are already complete; write into an OUT that rotavat did not write (never into ROOT or GT).")] = False,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
     smpl_model: SmplModelOpt = None,
@@ -52,7 +54,9 @@ def batch(
     if gt_root is None and steps is None and "eval" in options.steps:  # default steps: no ground truth, no eval
         options = replace(options, steps=tuple(s for s in options.steps if s != "eval"))
         _say("eval skipped: no --gt-root", quiet or as_json)
-    out = out or root.with_name(root.name + "_batch")
+    out = out or beside(root, "_batch")
+    if options.jobs > cpu_count() and options.executor == "local":
+        _say(f"jobs {options.jobs}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
     display = _Display(progress_enabled(quiet, as_json), quiet or as_json)
     with display.progress:
         report = run_batch(root, out, options, display)

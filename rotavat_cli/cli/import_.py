@@ -23,7 +23,7 @@ def import_(
     image_size: Annotated[tuple[int, int] | None, typer.Option(help="Original image width and height (px), for formats that do not store it.")] = None,
     smpl_model: Annotated[Path | None, typer.Option(help="SMPL/SMPL-X .npz model you downloaded, to pose parameter-only formats (CLIFF, 4D-Humans, BEDLAM, AGORA params).", dir_okay=False)] = None,
     fov: Annotated[float | None, typer.Option("--fov", help="Field of view (deg) the method ran with (multihmr: its --fov, default 60).")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Replace the frames, meta.yaml and camera.yaml of a non-empty OUT.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace a non-empty OUT that rotavat did not write (never SRC).")] = False,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:

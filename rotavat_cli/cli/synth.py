@@ -26,6 +26,7 @@ def synth(
     outliers: Annotated[float | None, typer.Option(help="Fraction of gross 2D outliers.", min=0, max=1)] = None,
     hps_focal: Annotated[str | None, typer.Option(help="Focal the HPS prediction assumes: a method's rule (cliff: sqrt(W^2+H^2); bev, romp: 60 deg; 4dhumans: 5000/256 max(W,H)), true (the camera's), or a number of px. Default: cliff.")] = None,
     depth_sd: Annotated[float | None, typer.Option(help="Per-person log-normal depth error of the prediction.", min=0)] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace a non-empty OUT that rotavat did not write.")] = False,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
@@ -41,7 +42,7 @@ def synth(
         raise InputError(f"--hps-focal: {exc}") from None
     try:
         with progress_bar("synthesising", options.frames, progress_enabled(quiet, as_json)) as advance:
-            summary = write_synth_scene(out, options, advance)
+            summary = write_synth_scene(out, options, advance, force)
     except ValueError as exc:
         raise InputError(f"{out}: {exc}") from None
     if as_json:

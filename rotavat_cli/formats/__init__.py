@@ -19,7 +19,6 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import shutil
 import struct
 import tempfile
 import zipfile
@@ -30,8 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import staged_directory
 from ..camera import Camera, project_cam_to_px
 from ..errors import InputError
+from ..outputs import check_output_dir
 from ..plain import to_plain
 from ..sequence import Frame, Sequence, open_sequence, validate_frame, write_camera_yaml, write_frame, write_meta
 from ..smpl import BodyModel, load_body_model
@@ -329,38 +330,27 @@ def _invalid(src: Path, fmt: str, exc: BaseException) -> InputError:
     return InputError(f"{src}: not a valid {fmt} output ({detail})")
 
 
-def _contract_files(folder: Path) -> list[Path]:
-    """Files an import writes (and --force replaces): frame npz, meta.yaml, camera.yaml."""
-    return [p for p in folder.iterdir() if p.is_file() and (p.suffix == ".npz" or p.name in ("meta.yaml", "camera.yaml"))]
-
-
 def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: tuple[int, int] | None = None,
                     smpl_model: str | Path | BodyModel | None = None, fov_deg: float | None = None,
                     progress: Callable[[int], Any] | None = None, overwrite: bool = False) -> dict:
     """Convert ``src`` (format ``fmt``) into a contract sequence directory ``out``.
 
-    Frames are written to a temporary directory beside ``out`` and moved in only when every frame
-    converted, so a failed import leaves ``out`` untouched. ``out`` must not exist or be empty,
-    unless ``overwrite`` (then its frame ``.npz``, ``meta.yaml`` and ``camera.yaml`` are replaced;
-    other files are left alone). ``progress(n)`` is called after each frame.
+    Frames are written to a staging directory beside ``out`` and swapped in whole only when every
+    frame converted, so a failed import leaves ``out`` untouched. An existing ``out`` is replaced
+    only when it is empty or rotavat's own output, or with ``overwrite``; never when it is, holds or
+    lies inside ``src`` (:func:`rotavat_cli.outputs.check_output_dir`). ``progress(n)`` is called
+    after each frame.
 
     Returns a summary: out, format, frames, people, empty_frames, image_size, focal_px,
     has_vertices, joints_layout, camera_yaml, warnings.
     """
     src, out = Path(src), Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a directory")
-    if out.exists() and any(out.iterdir()) and not overwrite:
-        raise InputError(f"{out}: directory is not empty (choose a new output directory, or pass --force)")
-    if out.resolve() == src.resolve() or (src.is_dir() and src.resolve() in out.resolve().parents):
-        raise InputError(f"{out}: the output must not be the input or inside it")
+    check_output_dir(out, [src], overwrite)
     try:
         imported = read_format(src, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov_deg)
     except _READ_ERRORS as exc:
         raise _invalid(src, fmt, exc) from None
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.import-", dir=out.parent))
-    try:
+    with staged_directory(out, "import") as staging:
         frames = people = empty = 0
         has_vertices = False
         try:
@@ -381,9 +371,6 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         write_meta(staging, meta)
         if imported.camera is not None:
             write_camera_yaml(staging / "camera.yaml", imported.camera, imported.camera_fit)
-        _publish(staging, out)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     info = meta.get("import", {})
     return {
         "out": str(out),
@@ -398,18 +385,6 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         "camera_yaml": imported.camera is not None,
         "warnings": list(imported.warnings),
     }
-
-
-def _publish(staging: Path, out: Path) -> None:
-    """Move the staged files into ``out`` (replacing its old contract files)."""
-    if not out.exists():
-        os.replace(staging, out)
-        staging.mkdir()  # the caller removes it
-        return
-    for old in _contract_files(out):
-        old.unlink()
-    for new in staging.iterdir():
-        os.replace(new, out / new.name)
 
 
 @contextlib.contextmanager
