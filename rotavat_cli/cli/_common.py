@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
@@ -17,6 +18,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from typer.core import TyperGroup
 
 from ..config import load_config
+from ..limits import Limits, configure as configure_limits
 from ..sequence import Sequence, open_sequence
 from ..errors import InputError, RotavatError
 from ..plain import to_plain
@@ -33,21 +35,71 @@ ForceOpt = Annotated[bool, typer.Option("--force", help="Replace an existing out
 SmplModelOpt = Annotated[Path | None, typer.Option(help="With --from: SMPL/SMPL-X .npz model to pose parameter-only formats.", dir_okay=False)]
 
 
+# click's exception classes as typer ships them (typer may vendor its own click)
+_USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+_CLICK_EXCEPTION = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
 class RotavatGroup(TyperGroup):
-    """Click group that turns a RotavatError into one line on stderr and its exit code."""
+    """Click group that answers every bad input or usage with one line on stderr and exit status 2.
+
+    A RotavatError prints its message and exits with its code (2, or 1 for a quality gate). The
+    environment's refusals that no check can rule out beforehand (a file system error, memory
+    exhausted, a structure nested too deep) are input problems too: one line, exit 2. Usage errors
+    (a missing option, a bad value) are one line naming the command, not click's help box.
+    """
 
     def invoke(self, ctx: Any) -> Any:
         try:
             return super().invoke(ctx)
         except RotavatError as exc:
-            # The message is text, not markup: "rotavat[fast]" or a path with brackets stays intact.
-            console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, markup=True, soft_wrap=True)
+            _error_line(str(exc))
             raise typer.Exit(exc.exit_code) from None
+        except OSError as exc:
+            where = f"{exc.filename}: " if exc.filename else ""
+            _error_line(f"{where}{exc.strerror or exc}")
+            raise typer.Exit(2) from None
+        except MemoryError:
+            _error_line("out of memory: the input is larger than this machine can hold (see the limits section of "
+                        "configs/default.yaml)")
+            raise typer.Exit(2) from None
+        except RecursionError:
+            _error_line("the input is nested too deeply to read")
+            raise typer.Exit(2) from None
+
+    def main(self, args: Any = None, prog_name: str | None = None, complete_var: str | None = None,
+             standalone_mode: bool = True, **extra: Any) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except _USAGE_ERROR as exc:
+            name = exc.ctx.command_path if exc.ctx is not None else "rotavat"
+            _error_line(f"{name}: {exc.format_message()} (see {name} --help)")
+            sys.exit(2)
+        except _CLICK_EXCEPTION as exc:
+            _error_line(exc.format_message())
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+def _error_line(message: str) -> None:
+    """One line on stderr: ``error: <message>``. The message is text, not markup: "rotavat[fast]" or a
+    path with brackets stays intact; it is never wrapped, so CI logs and tests see one line."""
+    text = " ".join(str(message).split())
+    console.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
 
 
 def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:
-    """Effective options of one config section: defaults < --config FILE < flags (None = unset)."""
-    return load_config(config_file, {section: flags})[section]
+    """Effective options of one config section: defaults < --config FILE < flags (None = unset).
+
+    Also puts the merged config's ``limits`` in force for this process (and the workers it forks).
+    """
+    config = load_config(config_file, {section: flags})
+    configure_limits(Limits.from_config(config.get("limits")))
+    return config[section]
 
 
 @contextmanager
