@@ -61,8 +61,12 @@ def declared_focal(seq: Sequence) -> float | None:
 
 
 def grid_from_config(grid: dict) -> GridSpec:
-    """GridSpec from the ``calibrate.grid`` config section."""
-    return GridSpec(**grid)
+    """GridSpec from the ``calibrate.grid`` config section; InputError (exit 2) when it is invalid or
+    larger than ``limits.max_grid_cells`` (checked before anything is allocated)."""
+    try:
+        return GridSpec(**grid)
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc) if "calibrate.grid" in str(exc) else f"calibrate.grid: {exc}") from None
 
 
 def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:

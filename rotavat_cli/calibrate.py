@@ -41,7 +41,9 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -61,6 +63,12 @@ POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is
 # Box-derived points: a box's top- and bottom-centre share one column exactly; landmark points
 # (mid-sole, crown) of real people never do all at once (verticals converge, people sway).
 BOX_COLUMN_TOL_PX = 0.5
+# People at one depth (feet along one image row, up to a tilt of the roll's size) cannot tell the
+# camera: no depth spread, no perspective. Why these numbers: a receding ground line images steeper
+# than 10 deg; the feet of people at one depth scatter by their detection noise only (a few px),
+# well under 10% of a person's pixel height.
+_ONE_DEPTH_MAX_SLOPE = math.tan(math.radians(10.0))
+_ONE_DEPTH_SPREAD = 0.10
 # A refined parameter closer than this to its start (internal units: log f, rad, rad, log h, ...)
 # did not move: the pairs did not constrain the refinement.
 _UNMOVED_TOL = 1e-4
@@ -228,72 +236,98 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     notes: list[str] = []
     if points == "auto":
         points, notes = _resolve_points(feet_px, heads_px, method)
-    if camera_height_m is not None and not (math.isfinite(camera_height_m) and camera_height_m > 0):
-        raise ValueError(f"camera_height_m must be a positive number of metres, got {camera_height_m}")
-    size, feet, heads, usable, frames, tracks, pp, fov, residual = _check_inputs(
-        feet_px, heads_px, image_size, method, residual, points, distortion, box_depth_m, box_depth_sd_m, frame_index,
-        track_id, focal_px, estimate_roll, principal_point, person_height_m, person_height_sd_m, noise_px,
-        fov_prior_deg, fov_prior_sd_deg)
-    n_usable = int(usable.sum())
-    n_frames = 1 if frames is None else len(np.unique(frames[usable]))
-    idx = np.flatnonzero(usable)
-    prob = make_problem(feet[idx], heads[idx], pp, float(person_height_m), float(person_height_sd_m),
-                         float(noise_px), residual == "vertical", size, fov,
-                         None if tracks is None or method == "grid" else tracks[idx])
-    extra: list[str] = []
-    if method == "refine":
-        free = np.array([focal_px is None, True, estimate_roll, True, distortion, False])
-        box = float(box_depth_m) if points == "boxes" else 0.0
-        params, mask_u, scale, start = refine_fit(prob, feet[idx], heads[idx], pp, size, focal_px, free, box, grid,
-                                                  max_rounds)
-        extra = _bound_warnings(params, free, size[1])
-        if _unmoved(params, start, free):
-            method = "grid"
-            extra = [f"the refinement ended where it started (pitch {math.degrees(params[1]):.5f} deg, height "
-                     f"{params[3]:.5f} m): the pairs do not constrain it; falling back to the paper grid's best cell"]
-    if method == "grid":
-        params, mask_u, free, scale, grid_warns, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
-                                                                  person_height_m, residual, grid, workers, prob)
-        extra += grid_warns
-    if focal_px is not None:
-        params[0] = float(focal_px)  # exactly as given (no log/exp round trip)
-    camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])  # params[4:]: the point model
-    inlier_mask = np.zeros(len(feet), bool)
-    inlier_mask[idx[mask_u]] = True
-    clusters = tracks if tracks is not None else frames
-    inl = prob.subset(np.flatnonzero(mask_u))
-    pp_sd = (0.02 * max(size) if principal_point is None else 0.0) if principal_point_sd_px is None \
-        else float(principal_point_sd_px)
-    stature_mean_sd = 0.0 if camera_height_m is not None else float(person_height_mean_sd_m)
-    assumed = Systematics(pp_sd, 0.0 if distortion else float(distortion_sd), stature_mean_sd,
-                           float(box_depth_sd_m) if points == "boxes" else 0.0)
-    cov, cov_stat, cov_warns = covariances(inl, params, free, scale,
-                                            None if clusters is None else clusters[idx[mask_u]], assumed,
-                                            method == "refine")
-    std, corr = std_and_corr(params, cov, free)
-    std_stat, _ = std_and_corr(params, cov_stat, free)
-    (eu, ev), _, _ = profiled(inl, params[None], scale)
-    sq = ev[0] ** 2 if residual == "vertical" else eu[0] ** 2 + ev[0] ** 2
-    rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
-    warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), n_usable, len(feet))
-    if method == "refine" and tracks is None and n_frames > 1:
-        warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
-                     "is too small when people persist (give the person ids)")
-    fixed = {name: reason for name, reason, free_ in (
-        ("focal_px", "given", free[0]), ("roll_deg", "0 (not estimated)", free[2]),
-        ("distortion", "none", free[4] or not distortion)) if not free_}
-    stature, stature_sd = float(person_height_m), math.nan
-    if camera_height_m is not None:  # the same fit at the known scale: the stature carries it
-        ratio = float(camera_height_m) / camera.height_m
-        stature, stature_sd = stature * ratio, stature * ratio * std["height_m"] / camera.height_m
-        camera = camera.replace(height_m=float(camera_height_m))
-        std = {**std, "height_m": math.nan}
-        std_stat = {**std_stat, "height_m": math.nan}
-        fixed["height_m"] = "given"
-    return CalibrationResult(camera, method, stature, len(feet), int(mask_u.sum()), n_frames, rmse,
-                             std, corr, inlier_mask, tuple(warns), residual, std_stat, points,
-                             float(params[4]) if distortion else math.nan,
-                             float(params[5]), fixed, tuple(notes), camera_height_m is not None, stature_sd)
+    with _naming_the_chosen_model(notes, points):
+        if camera_height_m is not None and not (math.isfinite(camera_height_m) and camera_height_m > 0):
+            raise ValueError(f"camera_height_m must be a positive number of metres, got {camera_height_m}")
+        size, feet, heads, usable, frames, tracks, pp, fov, residual = _check_inputs(
+            feet_px, heads_px, image_size, method, residual, points, distortion, box_depth_m, box_depth_sd_m, frame_index,
+            track_id, focal_px, estimate_roll, principal_point, person_height_m, person_height_sd_m, noise_px,
+            fov_prior_deg, fov_prior_sd_deg)
+        n_usable = int(usable.sum())
+        n_frames = 1 if frames is None else len(np.unique(frames[usable]))
+        idx = np.flatnonzero(usable)
+        prob = make_problem(feet[idx], heads[idx], pp, float(person_height_m), float(person_height_sd_m),
+                             float(noise_px), residual == "vertical", size, fov,
+                             None if tracks is None or method == "grid" else tracks[idx])
+        extra: list[str] = []
+        if method == "refine":
+            free = np.array([focal_px is None, True, estimate_roll, True, distortion, False])
+            box = float(box_depth_m) if points == "boxes" else 0.0
+            params, mask_u, scale, start = refine_fit(prob, feet[idx], heads[idx], pp, size, focal_px, free, box, grid,
+                                                      max_rounds)
+            if _unmoved(params, start, free):
+                method = "grid"
+                extra = [f"the refinement ended where it started (pitch {math.degrees(params[1]):.5f} deg, height "
+                         f"{params[3]:.5f} m): the pairs do not constrain it; falling back to the paper grid's best cell"]
+            else:
+                _refuse_bounds(params, free, size[1])
+        if method == "grid":
+            params, mask_u, free, scale, grid_warns, prob = _grid_fit(feet[idx], heads[idx], pp, size, focal_px,
+                                                                      person_height_m, residual, grid, workers, prob)
+            extra += grid_warns
+        if focal_px is not None:
+            params[0] = float(focal_px)  # exactly as given (no log/exp round trip)
+        camera = Camera(size, params[0], tuple(pp), params[1], params[2], params[3])  # params[4:]: the point model
+        inlier_mask = np.zeros(len(feet), bool)
+        inlier_mask[idx[mask_u]] = True
+        clusters = tracks if tracks is not None else frames
+        inl = prob.subset(np.flatnonzero(mask_u))
+        pp_sd = (0.02 * max(size) if principal_point is None else 0.0) if principal_point_sd_px is None \
+            else float(principal_point_sd_px)
+        stature_mean_sd = 0.0 if camera_height_m is not None else float(person_height_mean_sd_m)
+        assumed = Systematics(pp_sd, 0.0 if distortion else float(distortion_sd), stature_mean_sd,
+                               float(box_depth_sd_m) if points == "boxes" else 0.0)
+        cov, cov_stat, cov_warns = covariances(inl, params, free, scale,
+                                                None if clusters is None else clusters[idx[mask_u]], assumed,
+                                                method == "refine")
+        std, corr = std_and_corr(params, cov, free)
+        std_stat, _ = std_and_corr(params, cov_stat, free)
+        (eu, ev), _, _ = profiled(inl, params[None], scale)
+        sq = ev[0] ** 2 if residual == "vertical" else eu[0] ** 2 + ev[0] ** 2
+        rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
+        warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), n_usable, len(feet))
+        if method == "refine" and tracks is None and n_frames > 1:
+            warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
+                         "is too small when people persist (give the person ids)")
+        fixed = {name: reason for name, reason, free_ in (
+            ("focal_px", "given", free[0]), ("roll_deg", "0 (not estimated)", free[2]),
+            ("distortion", "none", free[4] or not distortion)) if not free_}
+        stature, stature_sd = float(person_height_m), math.nan
+        if camera_height_m is not None:  # the same fit at the known scale: the stature carries it
+            ratio = float(camera_height_m) / camera.height_m
+            stature, stature_sd = stature * ratio, stature * ratio * std["height_m"] / camera.height_m
+            camera = camera.replace(height_m=float(camera_height_m))
+            std = {**std, "height_m": math.nan}
+            std_stat = {**std_stat, "height_m": math.nan}
+            fixed["height_m"] = "given"
+        return CalibrationResult(camera, method, stature, len(feet), int(mask_u.sum()), n_frames, rmse,
+                                 std, corr, inlier_mask, tuple(warns), residual, std_stat, points,
+                                 float(params[4]) if distortion else math.nan,
+                                 float(params[5]), fixed, tuple(notes), camera_height_m is not None, stature_sd)
+
+
+@contextlib.contextmanager
+def _naming_the_chosen_model(notes: list[str], points: str) -> Iterator[None]:
+    """A DegenerateSceneError says so when rotavat chose the box model by itself."""
+    try:
+        yield
+    except DegenerateSceneError as exc:
+        if notes and points == "boxes":
+            raise DegenerateSceneError(f"{exc} (with the box model: the points were recognised as box-derived; "
+                                       "--points landmarks to override)") from None
+        raise
+
+
+def at_one_depth(feet_px: np.ndarray, heads_px: np.ndarray) -> bool:
+    """True when the feet (N, 2) px lie along one nearly level image line, within a tenth of a person's height."""
+    u, v = feet_px[:, 0], feet_px[:, 1]
+    if len(u) < 3 or np.ptp(u) == 0:
+        return len(u) >= 3 and np.ptp(v) < _ONE_DEPTH_SPREAD * np.median(np.linalg.norm(feet_px - heads_px, axis=1))
+    slope, offset = np.polyfit(u, v, 1)
+    residual = v - (slope * u + offset)
+    spread = float(np.subtract(*np.percentile(residual, [95, 5])))
+    length = float(np.median(np.linalg.norm(feet_px - heads_px, axis=1)))
+    return abs(slope) < _ONE_DEPTH_MAX_SLOPE and spread < _ONE_DEPTH_SPREAD * length
 
 
 def box_derived(feet_px: np.ndarray, heads_px: np.ndarray, tol_px: float = BOX_COLUMN_TOL_PX) -> bool:
@@ -354,6 +388,8 @@ def _check_inputs(feet_px, heads_px, image_size, method: str, residual: str, poi
     pp = np.array([size[0] / 2.0, size[1] / 2.0]) if principal_point is None else np.asarray(principal_point, float)
     if pp.shape != (2,) or not np.all(np.isfinite(pp)):
         raise ValueError(f"principal_point must be (cx, cy) in pixels, got {principal_point!r}")
+    if not (0 <= pp[0] <= size[0] and 0 <= pp[1] <= size[1]):
+        raise ValueError(f"principal_point ({pp[0]:g}, {pp[1]:g}) must lie inside the {size[0]}x{size[1]} image")
     fov = None
     if fov_prior_deg is not None:
         if not (0 < fov_prior_deg < 180 and fov_prior_sd_deg > 0):
@@ -367,19 +403,30 @@ def _check_inputs(feet_px, heads_px, image_size, method: str, residual: str, poi
     if n_places < 3:
         raise DegenerateSceneError(f"the {n_usable} usable pairs stand at only {n_places} distinct foot positions "
                                    "(need >= 3)")
+    if at_one_depth(feet[usable], heads[usable]):
+        raise DegenerateSceneError(f"all {n_usable} usable pairs stand at about one depth (their feet lie along one "
+                                   "image row): the people cannot determine the camera; use frames where people "
+                                   "stand nearer and farther")
     if n_usable * (1 if residual == "vertical" else 2) < n_free:
         raise DegenerateSceneError(f"{n_usable} usable pairs with {residual} residuals cannot determine "
                                    f"{n_free} parameters; fix the focal length or add pairs")
     return size, feet, heads, usable, frames, tracks, pp, fov, residual
 
 
-def _bound_warnings(params: np.ndarray, free: np.ndarray, image_height_px: float) -> list[str]:
-    """Warnings for refined parameters stopped at their search bounds."""
+def _refuse_bounds(params: np.ndarray, free: np.ndarray, image_height_px: float) -> None:
+    """DegenerateSceneError when a refined parameter ran to its search bound: the pairs do not
+    determine it, and a camera at the bound would be a confident wrong answer."""
     lo, hi = param_bounds(image_height_px)
     x = to_internal(params)
     names = ("focal length", "pitch", "roll", "camera height", "distortion", "box depth")
-    return [f"the {names[i]} stopped at its search bound; the data do not determine it"
-            for i in range(len(names)) if free[i] and min(x[i] - lo[i], hi[i] - x[i]) < 1e-3]
+    values = (f"{params[0]:.0f} px", f"{math.degrees(params[1]):.1f} deg", f"{math.degrees(params[2]):.1f} deg",
+              f"{params[3]:.2f} m", f"{params[4]:+.3f}", f"{params[5]:.2f} m")
+    hit = [i for i in range(len(names)) if free[i] and min(x[i] - lo[i], hi[i] - x[i]) < 1e-3]
+    if hit:
+        what = ", ".join(f"the {names[i]} ({values[i]})" for i in hit)
+        raise DegenerateSceneError(f"the pairs cannot determine {what}: the fit ran to the end of its search "
+                                   "range; give what is known (--focal, --camera-height, --no-roll) or more people "
+                                   "at different depths")
 
 
 def _grid_fit(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, size: tuple[int, int], focal_px: float | None,
@@ -395,9 +442,11 @@ def _grid_fit(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, size: tuple[i
     free = np.array([focal_px is None, True, False, True, False, False])
     extra = []
     names = ("focal", "pitch", "height")
-    for axis, (i, n) in enumerate(zip(fit.index, fit.costs.shape)):
-        if n > 1 and i in (0, n - 1):
-            extra.append(f"the best {names[axis]} is on the edge of the search grid; the camera may lie outside it")
+    edges = [names[axis] for axis, (i, n) in enumerate(zip(fit.index, fit.costs.shape)) if n > 1 and i in (0, n - 1)]
+    if edges:
+        raise DegenerateSceneError(f"the paper grid's best {', '.join(edges)} lies on the edge of its search range: "
+                                   "the camera is outside it or the pairs do not determine it (calibrate.grid in "
+                                   "the config sets the ranges)")
     # Unweighted residuals for the paper's uncertainty: equal weights, scale from the residual sum.
     flat = replace(prob, sd_along=np.ones(len(feet)), sd_across=1.0, track=np.full(len(feet), -1), n_tracks=0,
                    fov_prior=None)

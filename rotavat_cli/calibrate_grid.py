@@ -74,8 +74,27 @@ class GridSpec:
         if len(steps) != 3 or min(steps) < 1:
             raise ValueError(f"grid steps must be three positive integers, got {self.steps}")
         object.__setattr__(self, "steps", steps)
+        self._check_size()
         if self.focal_range_h[0] <= 0 or self.height_range_m[0] <= 0:
             raise ValueError("grid focal and height ranges must be positive")
+
+    def _check_size(self) -> None:
+        """ValueError naming ``calibrate.grid.steps`` when a search over this grid would be larger than
+        ``limits.max_grid_cells``: the paper's grid (steps[0] x steps[1] x steps[2] cells, float64 costs),
+        or the refine method's seeding grid (its own focal and height counts x steps[1] pitches)."""
+        from .calibrate_model import _INIT_STEPS  # noqa: PLC0415 -- calibrate_model imports this module
+        from .limits import current
+
+        limit = current().max_grid_cells
+        cells = math.prod(self.steps)
+        seeding = _INIT_STEPS[0] * self.steps[1] * _INIT_STEPS[1]
+        if cells > limit:
+            raise ValueError(f"calibrate.grid.steps {list(self.steps)} make {cells:,} grid cells "
+                             f"(limit {limit:,}: limits.max_grid_cells)")
+        if seeding > limit:
+            raise ValueError(f"calibrate.grid.steps {list(self.steps)}: {self.steps[1]:,} pitch steps make the refine "
+                             f"method's seeding grid {seeding:,} cells ({_INIT_STEPS[0]} x {self.steps[1]} x "
+                             f"{_INIT_STEPS[1]}; limit {limit:,}: limits.max_grid_cells)")
 
     def focal_values_px(self, image_height_px: float) -> np.ndarray:
         """(F,) candidate focal lengths in pixels."""

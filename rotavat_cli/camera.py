@@ -47,9 +47,18 @@ __all__ = [
     "R_cam_from_world_from_up",
     "horizon_v_px",
     "reexpress_cam",
+    "check_camera_bounds",
+    "MAX_IMAGE_SIDE_PX",
+    "MAX_FOCAL_PX",
+    "MAX_HEIGHT_M",
 ]
 
 _EPS = 1e-12  # denominators below this are treated as "ray parallel to the plane"
+# Sanity bounds of a camera read from a file (why: the largest sensors are ~20,000 px wide; a 1e7 px
+# focal is a 0.01 deg field of view; 100 km is no camera over a walking person).
+MAX_IMAGE_SIDE_PX = 100_000
+MAX_FOCAL_PX = 1e7
+MAX_HEIGHT_M = 1e5
 
 
 def up_vector_cam(pitch_rad: np.ndarray | float, roll_rad: np.ndarray | float = 0.0) -> np.ndarray:
@@ -367,4 +376,20 @@ def camera_from_yaml_dict(d: dict, image_size: tuple[int, int] | None = None) ->
             raise ValueError("key 'up_cam' disagrees with pitch_deg/roll_deg")
     if cam.height_m <= 0:
         raise ValueError(f"camera height must be > 0 (camera above the ground), got {cam.height_m}")
+    check_camera_bounds(cam)
     return cam
+
+
+def check_camera_bounds(cam: Camera) -> None:
+    """ValueError naming the key when a camera is out of every real camera's range (image size, focal,
+    principal point within the image's reach, height)."""
+    W, H = cam.image_size
+    if max(W, H) > MAX_IMAGE_SIDE_PX:
+        raise ValueError(f"key 'image_size' {[W, H]} is beyond {MAX_IMAGE_SIDE_PX} px")
+    if cam.focal_px > MAX_FOCAL_PX:
+        raise ValueError(f"key 'focal_px' {cam.focal_px:g} is beyond {MAX_FOCAL_PX:g} px")
+    cx, cy = cam.principal_point
+    if not (-W <= cx <= 2 * W and -H <= cy <= 2 * H):
+        raise ValueError(f"key 'principal_point' [{cx:g}, {cy:g}] is far outside the {W}x{H} image")
+    if cam.height_m > MAX_HEIGHT_M:
+        raise ValueError(f"key 'height_m' {cam.height_m:g} is beyond {MAX_HEIGHT_M:g} m")

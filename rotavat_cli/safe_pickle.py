@@ -17,6 +17,13 @@ Supported containers:
   bytes are read with their size checked against what is left of the file;
 - ``.npy``/``.npz`` files whose members may be object arrays (``np.savez(..., results=dict)``).
 
+Sizes are checked before anything is allocated, against :mod:`rotavat_cli.limits` (the config's
+``limits:`` section): files and decompressed streams (``max_file_mb``), every array a header or a
+pickle declares (``max_array_mb``), the objects a pickle builds and the items its shared
+references add when expanded (``max_pickle_items``). :func:`open_npz` is the one place that reads
+``.npz`` members (declared zip sizes, ``.npy`` headers, then the data in bounded chunks); contract
+frames (``sequence.read_frame_npz``) use it too, with ``allow_pickle=False``.
+
 Examples
 --------
 >>> import pickle
@@ -39,29 +46,87 @@ import ast
 import builtins
 import bz2
 import io
+import itertools
 import lzma
+import math
 import pickle
 import struct
+import sys
 import zipfile
 import zlib
 from collections import OrderedDict
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
+from . import limits as _limits
 from .errors import InputError
+from .limits import human_bytes
 
-__all__ = ["MAX_BYTES", "loads", "load_file", "load_npy", "load_npy_bytes", "load_npz"]
+__all__ = ["loads", "load_file", "load_npy", "load_npy_bytes", "load_npz", "open_npz", "NpzArchive"]
 
-# Largest file, decompressed stream or npz member accepted (a guard against compression bombs).
-MAX_BYTES = 4 << 30
 _MAX_NPY_HEADER = 10_000  # numpy's own default limit for .npy headers
+_CHUNK = 1 << 24  # bytes decompressed or copied at a time
 _REFUSAL = "(only numpy arrays, numpy scalars and builtin containers are allowed)"
 
 
 class _Refused(Exception):
     """Raised inside the unpickler; turned into an InputError naming the file."""
+
+
+# ---- size checks --------------------------------------------------------------------------------
+def _array_bytes(dtype: np.dtype, shape: tuple[int, ...]) -> int:
+    """Bytes an array of ``shape`` takes (a reference per element for object arrays; at least one
+    byte per element, so zero-size dtypes cannot declare billions of elements for free)."""
+    return math.prod(shape) * max(1, 8 if dtype.hasobject else dtype.itemsize)
+
+
+def _array_refusal(dtype: np.dtype, shape: tuple[int, ...]) -> str | None:
+    """Why an array of this dtype and shape is refused (``limits.max_array_mb``), or None."""
+    nbytes, limit = _array_bytes(dtype, shape), _limits.current().max_array_bytes
+    if nbytes <= limit:
+        return None
+    return f"declares {human_bytes(nbytes)} ({dtype} {tuple(shape)}; limit {human_bytes(limit)}: limits.max_array_mb)"
+
+
+def _check_shape(shape: Any, what: str) -> tuple[int, ...]:
+    """``shape`` as a tuple of non-negative ints, or _Refused."""
+    if not isinstance(shape, tuple) or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape):
+        raise _Refused(f"malformed {what} shape")
+    return shape
+
+
+def _check_array(dtype: np.dtype, shape: tuple[int, ...]) -> None:
+    """_Refused when the declared array is over ``limits.max_array_mb``."""
+    why = _array_refusal(dtype, shape)
+    if why is not None:
+        raise _Refused(f"array {why}")
+
+
+class _Budget:
+    """What one pickle may build: objects (every opcode run, every item a container is built from)
+    and bytes of data (arrays, bytes and strings made by calls), against the limits in force."""
+
+    def __init__(self) -> None:
+        lim = _limits.current()
+        self.max_items, self.max_data = lim.max_pickle_items, lim.max_file_bytes
+        self.items = self.data = 0
+
+    def add_items(self, n: int, what: str) -> None:
+        self.items += n
+        if self.items > self.max_items:
+            raise _Refused(f"{what} would build {n:,} items (limit {self.max_items:,}: limits.max_pickle_items)"
+                           if n > self.max_items else
+                           f"pickle builds more than {self.max_items:,} objects (limits.max_pickle_items)")
+
+    def add_data(self, nbytes: int) -> None:
+        self.data += nbytes
+        if self.data > self.max_data:
+            raise _Refused(f"pickle builds more than {human_bytes(self.max_data)} of arrays and strings "
+                           f"(limit: limits.max_file_mb)")
 
 
 # ---- allowed callables (each checks its arguments) ------------------------------------------
@@ -79,6 +144,11 @@ def _reconstruct(subtype: Any, shape: Any, typecode: Any) -> np.ndarray:
         raise _Refused("malformed ndarray reconstruction arguments")
     if not isinstance(typecode, (bytes, str)):
         raise _Refused("malformed ndarray reconstruction arguments")
+    try:
+        dtype = np.dtype(typecode.decode("latin1") if isinstance(typecode, bytes) else typecode)
+    except (TypeError, ValueError):
+        raise _Refused("malformed ndarray reconstruction arguments") from None
+    _check_array(dtype, _check_shape(shape, "ndarray"))
     return _numpy_multiarray()._reconstruct(np.ndarray, shape, typecode)
 
 
@@ -101,9 +171,11 @@ def _frombuffer(buf: Any, dtype: Any, shape: Any, order: Any) -> np.ndarray:
         raise _Refused("malformed protocol-5 array")
     if not isinstance(shape, tuple) or order not in ("C", "F"):
         raise _Refused("malformed protocol-5 array")
+    if not isinstance(buf, (bytes, bytearray, pickle.PickleBuffer)):
+        raise _Refused("malformed protocol-5 array buffer")
+    _check_array(dtype, _check_shape(shape, "protocol-5 array"))
     data = bytes(buf.raw() if isinstance(buf, pickle.PickleBuffer) else buf)
-    count = int(np.prod(shape, dtype=np.int64)) if shape else 1
-    if count * dtype.itemsize != len(data):
+    if math.prod(shape) * dtype.itemsize != len(data):
         raise _Refused("protocol-5 array size does not match its shape")
     return np.frombuffer(data, dtype=dtype).reshape(shape, order=order).copy()
 
@@ -166,17 +238,39 @@ def _allowed() -> dict[tuple[str, str], Any]:
 
 
 _ALLOWED = _allowed()
+# Allowed types whose call (or __new__) copies its first argument: the copy is sized first, so
+# ``list(range(10**9))``, ``tuple.__new__(tuple, range(...))`` or ``bytes(10**9)`` never run.
+_COPYING = (list, tuple, set, frozenset, dict, OrderedDict)
+_TEXT = (str, bytes, bytearray)
 
 
 # ---- the unpickler ---------------------------------------------------------------------------
+class _CountingDispatch(dict):
+    """The opcode table, counting each opcode run against the pickle's object budget."""
+
+    __slots__ = ("budget",)
+
+    def __getitem__(self, key: int) -> Any:
+        budget = self.budget
+        budget.items += 1
+        if budget.items > budget.max_items:
+            budget.add_items(1, "pickle")
+        return dict.__getitem__(self, key)
+
+
 class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python unpickler: BUILD is overridable
-    """Pure-Python unpickler with an allow-list ``find_class`` and joblib's array placeholders."""
+    """Pure-Python unpickler with an allow-list ``find_class``, joblib's array placeholders and a
+    budget: every opcode, every call that copies a container and every array is counted or sized
+    before it runs (``limits``)."""
 
     dispatch = pickle._Unpickler.dispatch.copy()  # noqa: SLF001
 
-    def __init__(self, file: io.BytesIO) -> None:
+    def __init__(self, file: io.BytesIO, budget: _Budget | None = None) -> None:
         super().__init__(file, encoding="latin1")
         self._raw = file
+        self._budget = budget or _Budget()
+        self.dispatch = _CountingDispatch(type(self).dispatch)
+        self.dispatch.budget = self._budget
 
     def find_class(self, module: str, name: str) -> Any:
         if self.proto < 3 and self.fix_imports:  # Python 2 names (e.g. __builtin__.set)
@@ -192,19 +286,119 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
     def persistent_load(self, pid: Any) -> Any:
         raise _Refused("refused a persistent id (pickles that reference external objects are not allowed)")
 
+    # -- calls: size what a call would copy before making it
+    def _check_call(self, func: Any, args: Any) -> None:
+        if not isinstance(args, tuple):
+            raise _Refused("malformed call arguments")
+        if func is np.ndarray:
+            raise _Refused("numpy.ndarray may not be called directly (arrays are rebuilt with _reconstruct)")
+        if func is _reconstructor and len(args) >= 3 and args[2] is not None:
+            self._check_call(args[1], (args[2],))
+        elif func is _frombuffer and args and isinstance(args[0], (bytes, bytearray)):
+            self._budget.add_data(2 * len(args[0]))  # copied, then copied into the array
+        elif func is _codecs_encode and args and isinstance(args[0], str):
+            self._budget.add_data(len(args[0]))
+        if not args or not isinstance(func, type):
+            return
+        name = getattr(func, "__name__", "call")
+        if issubclass(func, _TEXT):
+            if not isinstance(args[0], _TEXT):  # str(a list) or bytes(10**9) would expand or allocate
+                raise _Refused(f"{name}() of a {type(args[0]).__name__} is not allowed")
+            self._budget.add_data(len(args[0]))
+        elif issubclass(func, _COPYING):
+            try:
+                n = len(args[0])
+            except TypeError:  # not a container: the call raises TypeError itself, or copies nothing
+                return
+            except OverflowError:
+                n = sys.maxsize
+            self._budget.add_items(n, f"{name}()")
+
+    def load_reduce(self) -> None:
+        args = self.stack.pop()
+        func = self.stack[-1]
+        self._check_call(func, args)
+        self.stack[-1] = func(*args)
+
+    dispatch[pickle.REDUCE[0]] = load_reduce
+
+    def load_newobj(self) -> None:
+        args = self.stack.pop()
+        cls = self.stack.pop()
+        self._check_call(cls, args)
+        self.append(cls.__new__(cls, *args))
+
+    dispatch[pickle.NEWOBJ[0]] = load_newobj
+
+    def load_newobj_ex(self) -> None:
+        kwargs = self.stack.pop()
+        args = self.stack.pop()
+        cls = self.stack.pop()
+        if not isinstance(kwargs, dict):
+            raise _Refused("malformed call arguments")
+        self._check_call(cls, args)
+        self.append(cls.__new__(cls, *args, **kwargs))
+
+    dispatch[pickle.NEWOBJ_EX[0]] = load_newobj_ex
+
+    def _instantiate(self, klass: Any, args: list) -> None:  # INST and OBJ
+        self._check_call(klass, tuple(args))
+        super()._instantiate(klass, args)
+
+    def load_bytearray8(self) -> None:
+        """BYTEARRAY8 allocates its announced size before reading: check it against the stream first."""
+        (size,) = struct.unpack("<Q", self.read(8))
+        if size > len(self._raw.getbuffer()):
+            raise _Refused(f"truncated pickle (a bytearray of {size:,} bytes announced)")
+        self._budget.add_data(size)
+        buf = bytearray(size)
+        self.readinto(buf)
+        self.append(buf)
+
+    dispatch[pickle.BYTEARRAY8[0]] = load_bytearray8
+
     def load_build(self) -> None:
+        state, inst = self.stack[-1], self.stack[-2]
+        if callable(inst):  # a class or function of the allow-list: never give it attributes
+            raise _Refused(f"malformed pickle (BUILD on {getattr(inst, '__name__', 'a callable')})")
+        if isinstance(inst, np.ndarray):
+            self._check_array_state(state)
         super().load_build()
         if isinstance(self.stack[-1], _JoblibArrayWrapper):
             self.stack[-1] = self._read_joblib_array(self.stack[-1])
 
     dispatch[pickle.BUILD[0]] = load_build
 
+    def _check_array_state(self, state: Any) -> None:
+        """``ndarray.__setstate__`` allocates (and zeroes) the declared shape: size it first."""
+        if not isinstance(state, tuple) or len(state) not in (4, 5):
+            raise _Refused("malformed ndarray state")
+        shape, dtype, _fortran, raw = state[-4:]
+        if not isinstance(dtype, np.dtype):
+            raise _Refused("malformed ndarray state")
+        shape = _check_shape(shape, "ndarray")
+        _check_array(dtype, shape)
+        count = math.prod(shape)
+        if dtype.hasobject:
+            if not isinstance(raw, list) or len(raw) != count:
+                raise _Refused("object array data does not match its shape")
+            self._budget.add_items(count, "object array")
+            return
+        try:
+            size = len(raw) if isinstance(raw, str) else memoryview(raw).nbytes
+        except TypeError:
+            raise _Refused("malformed ndarray state") from None
+        if size != count * dtype.itemsize:
+            raise _Refused("array data does not match its shape")
+        self._budget.add_data(size)
+
     def _read_joblib_array(self, wrapper: _JoblibArrayWrapper) -> np.ndarray:
         """Raw array bytes that joblib writes right after the placeholder."""
         if not hasattr(wrapper, "dtype"):
             raise _Refused("malformed joblib array wrapper")
+        _check_array(wrapper.dtype, wrapper.shape)
         if wrapper.dtype.hasobject:  # joblib pickles object arrays with plain pickle (protocol 2)
-            array = _RestrictedUnpickler(self._raw).load()
+            array = _RestrictedUnpickler(self._raw, self._budget).load()
             if not isinstance(array, np.ndarray):
                 raise _Refused("joblib object array is not an array")
             return array
@@ -213,21 +407,103 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
             if len(pad) != 1:
                 raise _Refused("truncated joblib array")
             self._raw.read(pad[0])
-        count = int(np.prod(wrapper.shape, dtype=np.int64)) if wrapper.shape else 1
+        count = math.prod(wrapper.shape)
         nbytes = count * wrapper.dtype.itemsize
         remaining = len(self._raw.getbuffer()) - self._raw.tell()
         if nbytes > remaining:
             raise _Refused(f"truncated joblib array ({nbytes} bytes announced, {remaining} left)")
+        self._budget.add_data(nbytes)
         array = np.frombuffer(self._raw.read(nbytes), dtype=wrapper.dtype, count=count)
         if wrapper.order == "F":
             return array.reshape(wrapper.shape[::-1]).transpose().copy()
         return array.reshape(wrapper.shape).copy()
 
 
+# ---- shared references ----------------------------------------------------------------------
+def _leaf_weight(obj: Any) -> tuple[int, int] | None:
+    """(expanded, held) items of an object that is not walked into; None for containers."""
+    if isinstance(obj, np.ndarray):
+        return None if obj.dtype.hasobject else (max(1, obj.size), max(1, obj.size))
+    if isinstance(obj, (list, tuple, set, frozenset, dict)):
+        return None
+    if isinstance(obj, _TEXT):
+        return 1 + len(obj) // 8, 1 + len(obj) // 8
+    if isinstance(obj, range):  # lazy: one object, but np.asarray or list() would make len(range) items
+        try:
+            return 1 + len(obj), 1
+        except OverflowError:
+            return sys.maxsize, 1
+    return 1, 1
+
+
+def _children(obj: Any) -> tuple[Iterator[Any], int]:
+    """Iterator over a container's references and their number."""
+    if isinstance(obj, dict):
+        return itertools.chain.from_iterable(obj.items()), 2 * len(obj)
+    if isinstance(obj, np.ndarray):
+        return iter(obj.flat), obj.size
+    return iter(obj), len(obj)
+
+
+def _expansion(root: Any) -> tuple[int, int]:
+    """(expanded, held): items a full conversion of ``root`` makes (to_plain, np.asarray, str: a shared
+    object once per reference) and items the unpickled objects hold (each object once).
+
+    Iterative (no recursion limit), linear in what is held; _Refused on a reference cycle.
+    """
+    leaf = _leaf_weight(root)
+    if leaf is not None:
+        return leaf
+    done: dict[int, int] = {}  # id -> expanded size of a finished object (leaves with a size too)
+    on_path: set[int] = {id(root)}
+    children, held = _children(root)
+    held += 1
+    stack: list[list[Any]] = [[root, children, 1]]
+    while stack:
+        frame = stack[-1]
+        for child in frame[1]:
+            key = id(child)
+            if key in done:
+                frame[2] += done[key]
+                continue
+            leaf = _leaf_weight(child)
+            if leaf is not None:
+                frame[2] += leaf[0]
+                if leaf[1] > 1 or leaf[0] > 1:  # arrays, strings, ranges: held once, expanded per reference
+                    done[key] = leaf[0]
+                    held += leaf[1]
+                continue
+            if key in on_path:
+                raise _Refused("pickle contains a reference cycle")
+            on_path.add(key)
+            grandchildren, n = _children(child)
+            held += 1 + n
+            stack.append([child, grandchildren, 1])
+            break
+        else:
+            stack.pop()
+            on_path.discard(id(frame[0]))
+            done[id(frame[0])] = frame[2]
+            if stack:
+                stack[-1][2] += frame[2]
+    return done[id(root)], held
+
+
+def _check_expansion(obj: Any) -> None:
+    """_Refused when shared references would add more than ``max_pickle_items`` items on conversion."""
+    expanded, held = _expansion(obj)
+    limit = _limits.current().max_pickle_items
+    if expanded - held > limit:
+        raise _Refused(f"shared references expand the pickle to {expanded:,} items, {expanded - held:,} more than it "
+                       f"holds (limit {limit:,} more: limits.max_pickle_items)")
+
+
 def _load_stream(file: io.BytesIO, source: str) -> Any:
     """Unpickle one object from ``file``; every failure becomes a one-line InputError."""
     try:
-        return _RestrictedUnpickler(file).load()
+        value = _RestrictedUnpickler(file).load()
+        _check_expansion(value)
+        return value
     except _Refused as exc:
         raise InputError(f"{source}: {exc}") from None
     except EOFError:
@@ -250,12 +526,26 @@ def loads(data: bytes, source: str) -> Any:
 
 
 # ---- files -----------------------------------------------------------------------------------
+def _file_size(path: Path) -> int:
+    """Size of a regular file, refusing missing files, directories and files over ``max_file_mb``."""
+    try:
+        if path.is_dir():
+            raise InputError(f"{path}: is a directory, expected a file")
+        size = path.stat().st_size
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    limit = _limits.current().max_file_bytes
+    if size > limit:
+        raise InputError(f"{path}: file is {human_bytes(size)} (limit {human_bytes(limit)}: limits.max_file_mb)")
+    return size
+
+
 def _read_bytes(path: Path) -> bytes:
     """Whole file, refusing missing, unreadable or oversized files."""
+    _file_size(path)
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise InputError(f"{path}: file is larger than {MAX_BYTES >> 30} GiB")
         return path.read_bytes()
     except FileNotFoundError:
         raise InputError(f"{path}: file not found") from None
@@ -265,27 +555,50 @@ def _read_bytes(path: Path) -> bytes:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def _bounded(decompressor: Any, data: bytes, source: str) -> bytes:
-    """Decompress ``data`` with an output cap (compression bombs)."""
-    out = decompressor.decompress(data, MAX_BYTES + 1)
-    if len(out) > MAX_BYTES:
-        raise InputError(f"{source}: decompresses to more than {MAX_BYTES >> 30} GiB")
-    return out
+def _inflate(make: Any, data: bytes, source: str, keep: bool) -> bytes | int:
+    """Decompress ``data`` in bounded chunks; the bytes (``keep``) or just their number. InputError
+    as soon as the output passes ``max_file_mb``, so a bomb never holds more than one chunk."""
+    decompressor, limit = make(), _limits.current().max_file_bytes
+    parts, total = [], 0
+    out = decompressor.decompress(data, _CHUNK)
+    while True:
+        total += len(out)
+        if total > limit:
+            raise InputError(f"{source}: decompresses to more than {human_bytes(limit)} (limit: limits.max_file_mb)")
+        if keep:
+            parts.append(out)
+        if decompressor.eof:
+            break
+        if hasattr(decompressor, "unconsumed_tail"):  # zlib
+            if not decompressor.unconsumed_tail and len(out) < _CHUNK:
+                break
+            out = decompressor.decompress(decompressor.unconsumed_tail, _CHUNK)
+        else:  # bz2, lzma
+            if decompressor.needs_input:
+                break
+            out = decompressor.decompress(b"", _CHUNK)
+    return b"".join(parts) if keep else total
+
+
+def _bounded(make: Any, data: bytes, source: str) -> bytes:
+    """Decompress ``data`` with an output cap (compression bombs): measured first, then kept."""
+    _inflate(make, data, source, keep=False)
+    return _inflate(make, data, source, keep=True)
 
 
 def _decompress(data: bytes, source: str) -> bytes:
     """Undo joblib's optional compression (detected from the magic bytes, as joblib does)."""
     try:
         if data[:2] == b"\x1f\x8b":
-            return _bounded(zlib.decompressobj(16 + zlib.MAX_WBITS), data, source)
+            return _bounded(lambda: zlib.decompressobj(16 + zlib.MAX_WBITS), data, source)
         if data[:3] == b"BZh":
-            return _bounded(bz2.BZ2Decompressor(), data, source)
+            return _bounded(bz2.BZ2Decompressor, data, source)
         if data[:6] == b"\xfd7zXZ\x00":
-            return _bounded(lzma.LZMADecompressor(format=lzma.FORMAT_XZ), data, source)
+            return _bounded(lambda: lzma.LZMADecompressor(format=lzma.FORMAT_XZ), data, source)
         if data[:5] == b"]\x00\x00\x80\x00":
-            return _bounded(lzma.LZMADecompressor(format=lzma.FORMAT_ALONE), data, source)
+            return _bounded(lambda: lzma.LZMADecompressor(format=lzma.FORMAT_ALONE), data, source)
         if data[:1] == b"x":  # zlib header (joblib's default compressor)
-            return _bounded(zlib.decompressobj(), data, source)
+            return _bounded(zlib.decompressobj, data, source)
     except (zlib.error, OSError, lzma.LZMAError, EOFError, ValueError) as exc:
         raise InputError(f"{source}: corrupt compressed data ({exc})") from None
     if data[:4] == b'\x04"M\x18':
@@ -302,21 +615,28 @@ def load_file(path: str | Path) -> Any:
     return _load_stream(io.BytesIO(_decompress(data, str(path))), str(path))
 
 
-def _parse_npy_header(raw: bytes, source: str) -> tuple[np.dtype, tuple[int, ...], bool, int]:
-    """(dtype, shape, fortran_order, data offset) of a ``.npy`` byte string."""
-    if raw[:6] != b"\x93NUMPY" or len(raw) < 10:
+# ---- .npy ------------------------------------------------------------------------------------
+def _read_npy_header(stream: BinaryIO, source: str) -> tuple[np.dtype, tuple[int, ...], bool, int]:
+    """(dtype, shape, fortran_order, data offset) read from the start of a ``.npy`` stream."""
+    magic = stream.read(8)
+    if len(magic) < 8 or magic[:6] != b"\x93NUMPY":
         raise InputError(f"{source}: not a .npy array (bad magic)")
-    major = raw[6]
+    major = magic[6]
     if major == 1:
-        hlen, start, enc = int.from_bytes(raw[8:10], "little"), 10, "latin1"
+        size_bytes, enc = 2, "latin1"
     elif major in (2, 3):
-        hlen, start, enc = int.from_bytes(raw[8:12], "little"), 12, "latin1" if major == 2 else "utf8"
+        size_bytes, enc = 4, "latin1" if major == 2 else "utf8"
     else:
         raise InputError(f"{source}: unsupported .npy format version {major}")
-    if hlen > _MAX_NPY_HEADER or start + hlen > len(raw):
+    raw_len = stream.read(size_bytes)
+    hlen = int.from_bytes(raw_len, "little")
+    if len(raw_len) < size_bytes or hlen > _MAX_NPY_HEADER:
+        raise InputError(f"{source}: malformed .npy header")
+    raw = stream.read(hlen)
+    if len(raw) < hlen:
         raise InputError(f"{source}: malformed .npy header")
     try:
-        header = ast.literal_eval(raw[start:start + hlen].decode(enc))
+        header = ast.literal_eval(raw.decode(enc))
         dtype = np.lib.format.descr_to_dtype(header["descr"])
         shape = tuple(int(s) for s in header["shape"])
         fortran = bool(header["fortran_order"])
@@ -324,45 +644,171 @@ def _parse_npy_header(raw: bytes, source: str) -> tuple[np.dtype, tuple[int, ...
         raise InputError(f"{source}: malformed .npy header") from None
     if any(s < 0 for s in shape):
         raise InputError(f"{source}: malformed .npy header (negative shape)")
-    return dtype, shape, fortran, start + hlen
+    return dtype, shape, fortran, 8 + size_bytes + hlen
+
+
+def _read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle: bool) -> np.ndarray:
+    """One array from a ``.npy`` stream of ``size`` bytes (a file, a zip member, bytes).
+
+    The header is checked before any data is read: the declared array against
+    ``limits.max_array_mb``, and against ``size`` (a header may not announce more data than the
+    stream holds). Numeric data is read in bounded chunks into an array of exactly the declared
+    size; object arrays go through the restricted unpickler (``allow_pickle``) or are refused.
+    ``what`` names the array in size messages (``path`` or ``path: member 'key'``).
+    """
+    dtype, shape, fortran, offset = _read_npy_header(stream, source)
+    why = _array_refusal(dtype, shape)
+    if why is not None:
+        raise InputError(f"{what} {why}")
+    if dtype.hasobject:
+        if not allow_pickle:
+            raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
+        array = _load_stream(io.BytesIO(_read_exactly(stream, size - offset, source)), source)
+        if not isinstance(array, np.ndarray) or array.shape != shape:
+            raise InputError(f"{source}: object array does not match its header")
+        return array
+    count = math.prod(shape)
+    nbytes = count * dtype.itemsize
+    if offset + nbytes > size:
+        raise InputError(f"{source}: corrupt or truncated array (its header declares {nbytes:,} bytes of data, "
+                         f"{max(0, size - offset):,} follow)")
+    array = np.empty(count, dtype)
+    if nbytes:
+        flat = array.view(np.uint8)
+        pos = 0
+        while pos < nbytes:
+            chunk = stream.read(min(_CHUNK, nbytes - pos))
+            if not chunk:
+                raise InputError(f"{source}: corrupt or truncated array (data ends after {pos:,} of {nbytes:,} bytes)")
+            flat[pos:pos + len(chunk)] = np.frombuffer(chunk, np.uint8)
+            pos += len(chunk)
+    if fortran:
+        return array.reshape(shape[::-1]).transpose()
+    return array.reshape(shape)
+
+
+def _read_exactly(stream: BinaryIO, n: int, source: str) -> bytes:
+    """The next ``n`` bytes (``n`` already checked against the limits), in chunks."""
+    parts, left = [], max(0, n)
+    while left:
+        chunk = stream.read(min(_CHUNK, left))
+        if not chunk:
+            break
+        parts.append(chunk)
+        left -= len(chunk)
+    return b"".join(parts)
 
 
 def load_npy_bytes(raw: bytes, source: str) -> np.ndarray:
     """Array from ``.npy`` bytes; object arrays go through the restricted unpickler."""
-    dtype, shape, fortran, offset = _parse_npy_header(raw, source)
-    if not dtype.hasobject:
-        try:
-            return np.lib.format.read_array(io.BytesIO(raw), allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise InputError(f"{source}: corrupt or truncated array ({str(exc).splitlines()[0]})") from None
-    array = _load_stream(io.BytesIO(raw[offset:]), source)
-    if not isinstance(array, np.ndarray) or array.shape != shape:
-        raise InputError(f"{source}: object array does not match its header")
-    return array
+    return _read_npy(io.BytesIO(raw), len(raw), source, source, allow_pickle=True)
 
 
 def load_npy(path: str | Path) -> np.ndarray:
-    """Read a ``.npy`` file (object arrays through the restricted unpickler)."""
+    """Read a ``.npy`` file (object arrays through the restricted unpickler); header checked first."""
     path = Path(path)
-    return load_npy_bytes(_read_bytes(path), str(path))
-
-
-def load_npz(path: str | Path) -> dict[str, np.ndarray]:
-    """Read every member of an ``.npz`` file (object arrays through the restricted unpickler)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: file not found" if not path.exists() else f"{path}: expected a .npz file")
+    size = _file_size(path)
     try:
-        with zipfile.ZipFile(path) as archive:
-            members = [info for info in archive.infolist() if info.filename.endswith(".npy")]
-            if sum(info.file_size for info in members) > MAX_BYTES:
-                raise InputError(f"{path}: arrays total more than {MAX_BYTES >> 30} GiB")
+        with open(path, "rb") as handle:
+            return _read_npy(handle, size, str(path), str(path), allow_pickle=True)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+# ---- .npz ------------------------------------------------------------------------------------
+_NPZ_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, zlib.error, NotImplementedError, RuntimeError)
+_NPZ_COMPRESSION = (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)  # what np.savez / np.savez_compressed write
+
+
+class NpzArchive:
+    """An open ``.npz``: its ``.npy`` members by key (from the zip directory, nothing read yet).
+
+    :meth:`read` reads some members with every check made first: compression method, declared
+    uncompressed size (``max_file_mb``, also for the members' total), ``.npy`` header
+    (``max_array_mb``, and no more data than the member declares). Members whose name does not end
+    in ``.npy`` are not arrays and are ignored, as ``np.savez`` never writes them.
+    """
+
+    def __init__(self, path: Path, archive: zipfile.ZipFile) -> None:
+        self.path, self._archive = path, archive
+        self.members = {info.filename[:-4]: info for info in archive.infolist() if info.filename.endswith(".npy")}
+
+    def keys(self) -> list[str]:
+        return list(self.members)
+
+    def _open(self, key: str) -> tuple[BinaryIO, zipfile.ZipInfo]:
+        info = self.members[key]
+        if info.compress_type not in _NPZ_COMPRESSION:
+            raise InputError(f"{self.path}: member '{key}' uses an unsupported compression method "
+                             f"({info.compress_type}; numpy writes stored or deflated members)")
+        return self._archive.open(info), info
+
+    def _check(self, key: str, allow_pickle: bool) -> int:
+        """Declared sizes of one member, checked without reading its data; its uncompressed size."""
+        limit = _limits.current().max_file_bytes
+        with self._open(key)[0] as stream:
+            info = self.members[key]
+            source = f"{self.path} ['{key}']"
+            dtype, shape, _, offset = _read_npy_header(stream, source)
+            what = f"{self.path}: member '{key}'"
+            why = _array_refusal(dtype, shape)
+            if why is not None:
+                raise InputError(f"{what} {why}")
+            if dtype.hasobject and not allow_pickle:
+                raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
+            if info.file_size > limit:
+                raise InputError(f"{what} holds {human_bytes(info.file_size)} uncompressed "
+                                 f"(limit {human_bytes(limit)}: limits.max_file_mb)")
+            nbytes = math.prod(shape) * dtype.itemsize
+            if not dtype.hasobject and offset + nbytes > info.file_size:
+                raise InputError(f"{source}: corrupt or truncated array (its header declares {nbytes:,} bytes of "
+                                 f"data, the member holds {max(0, info.file_size - offset):,})")
+        return info.file_size
+
+    def read(self, keys: Iterable[str] | None = None, allow_pickle: bool = True) -> dict[str, np.ndarray]:
+        """The members ``keys`` (default all; absent keys are skipped) as arrays, all checked before any is read."""
+        wanted = list(self.members) if keys is None else [k for k in dict.fromkeys(keys) if k in self.members]
+        limit = _limits.current().max_file_bytes
+        try:
+            total = sum(self._check(key, allow_pickle) for key in wanted)
+            if total > limit:
+                raise InputError(f"{self.path}: members total {human_bytes(total)} uncompressed "
+                                 f"(limit {human_bytes(limit)}: limits.max_file_mb)")
             out = {}
-            for info in members:
-                key = info.filename[:-4]
-                out[key] = load_npy_bytes(archive.read(info), f"{path} ['{key}']")
+            for key in wanted:
+                stream, info = self._open(key)
+                with stream:
+                    out[key] = _read_npy(stream, info.file_size, f"{self.path} ['{key}']", f"{self.path}: member '{key}'",
+                                         allow_pickle)
             return out
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, zlib.error, NotImplementedError) as exc:
+        except _NPZ_ERRORS as exc:
+            raise InputError(f"{self.path}: not a readable .npz file ({exc})") from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot read ({exc.strerror or exc})") from None
+
+
+@contextmanager
+def open_npz(path: str | Path) -> Iterator[NpzArchive]:
+    """Open an ``.npz`` (zip directory only); InputError for missing files, non-zips, broken zips."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: file not found")
+    if not path.is_file():
+        raise InputError(f"{path}: expected a .npz file")
+    try:
+        if not zipfile.is_zipfile(path):
+            raise InputError(f"{path}: not a valid .npz file (not a zip archive)")
+        archive = zipfile.ZipFile(path)
+    except _NPZ_ERRORS as exc:
         raise InputError(f"{path}: not a readable .npz file ({exc})") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    with archive:
+        yield NpzArchive(path, archive)
+
+
+def load_npz(path: str | Path, keys: Iterable[str] | None = None, allow_pickle: bool = True) -> dict[str, np.ndarray]:
+    """Read the members ``keys`` (default: all) of an ``.npz`` file, every declared size checked
+    first; object arrays go through the restricted unpickler (or are refused without ``allow_pickle``)."""
+    with open_npz(path) as npz:
+        return npz.read(keys, allow_pickle)

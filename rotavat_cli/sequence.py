@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import io
 import re
-import zipfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -20,9 +19,10 @@ import numpy as np
 import yaml
 
 from .atomic import atomic_open, atomic_write_text
-from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
+from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .errors import InputError
 from .focal import focal_kind_or_default
+from .safe_pickle import load_npz
 from .outputs import TEXT_HEADER
 
 __all__ = [
@@ -139,8 +139,14 @@ def _fail(source: str, message: str) -> InputError:
     return InputError(f"{source}: {message}")
 
 
+_KEY_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]{0,127}")  # a frame key: a plain name, never a path
+
+
 def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
-    """Check contract keys for shape, dtype, finiteness and a consistent people count."""
+    """Check contract keys for shape, dtype, finiteness and a consistent people count; every key a plain name."""
+    for key in data:
+        if not _KEY_NAME.fullmatch(str(key)):
+            raise _fail(source, f"member name {str(key)[:60]!r} is not a plain key name (letters, digits, _ . -)")
     counts: dict[str, int] = {}
     for key, trailing in PER_PERSON_KEYS.items():
         if key not in data:
@@ -156,6 +162,10 @@ def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
         if key == "person_ids":
             if arr.dtype.kind == "f" and arr.size and not np.all(arr == np.round(arr)):
                 raise _fail(source, "key 'person_ids' must hold integers")
+            if arr.size and (np.any(arr > np.iinfo(np.int64).max) if arr.dtype.kind in "uf" else False):
+                raise _fail(source, "key 'person_ids' has ids beyond the int64 range")
+            if arr.dtype.kind == "f" and arr.size and np.any(np.abs(arr) > 2.0**53):
+                raise _fail(source, "key 'person_ids' has ids too large to be stored exactly as floats")
             if len(np.unique(arr)) != len(arr):
                 raise _fail(source, "key 'person_ids' has duplicate ids in one frame")
         if key not in _NAN_ALLOWED and arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
@@ -183,12 +193,20 @@ def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int
     """
     size = focal = pp = person_focal = None
     if data.get("image_size") is not None:
-        arr = np.asarray(data["image_size"])
-        if arr.shape != (2,) or arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-            raise _fail(source, f"key 'image_size' must be [W, H] with positive values, got {data['image_size']!r}")
+        try:
+            arr = np.asarray(data["image_size"])
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if arr.shape != (2,) or arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)) or np.any(arr <= 0) \
+                or np.any(arr > MAX_IMAGE_SIDE_PX):
+            raise _fail(source, f"key 'image_size' must be [W, H] with positive values up to {MAX_IMAGE_SIDE_PX}, "
+                                f"got {str(data['image_size'])[:60]}")
         size = (int(arr[0]), int(arr[1]))
     if data.get("K") is not None:
-        K = np.asarray(data["K"], dtype=np.float64)
+        try:
+            K = np.asarray(data["K"], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise _fail(source, "key 'K' must be a finite 3x3 matrix of numbers") from None
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
             raise _fail(source, "key 'K' must be a finite 3x3 matrix with positive focal lengths")
         focal = float(0.5 * (K[0, 0] + K[1, 1]))
@@ -208,7 +226,10 @@ def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int
             expected = "one number" if n_people is None else f"one number or one per person ({n_people},)"
             raise _fail(source, f"key 'focal_length' must be {expected}, got shape {list(np.shape(data['focal_length']))}")
     if data.get("principal_point") is not None:
-        arr = np.asarray(data["principal_point"], dtype=np.float64)
+        try:
+            arr = np.asarray(data["principal_point"], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise _fail(source, "key 'principal_point' must be [cx, cy] in pixels") from None
         if arr.shape != (2,) or not np.all(np.isfinite(arr)):
             raise _fail(source, "key 'principal_point' must be [cx, cy]")
         pp = (float(arr[0]), float(arr[1]))
@@ -217,17 +238,10 @@ def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int
 
 # ---- frame readers ------------------------------------------------------------------------------
 def read_frame_npz(path: str | Path) -> Frame:
-    """Read and validate one ``.npz`` frame (``allow_pickle=False``)."""
+    """Read and validate one ``.npz`` frame: numeric arrays only (no pickle), every member's declared
+    size checked against ``limits`` before it is read (``safe_pickle.open_npz``)."""
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            data = {key: npz[key] for key in npz.files}
-    except FileNotFoundError:
-        raise _fail(str(path), "file not found") from None
-    except ValueError as exc:  # object arrays need pickle: refuse
-        raise _fail(str(path), f"cannot read without pickle ({exc})") from None
-    except (OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise _fail(str(path), f"not a readable .npz file ({exc})") from None
+    data = load_npz(path, allow_pickle=False)
     validate_frame(data, str(path))
     return Frame(path.stem, data, str(path))
 
@@ -241,7 +255,11 @@ def read_frame_obj(folder: str | Path) -> Frame:
     verts, faces, ids = [], None, []
     for file in files:
         try:
-            mesh = trimesh.load(file, file_type="obj", process=False, maintain_order=True, force="mesh")
+            text = file.read_bytes().decode("utf-8")
+        except UnicodeDecodeError:
+            raise _fail(str(file), "not a text OBJ file (not UTF-8)") from None
+        try:
+            mesh = trimesh.load(io.StringIO(text), file_type="obj", process=False, maintain_order=True, force="mesh")
         except Exception as exc:  # trimesh raises many types on broken files
             raise _fail(str(file), f"not a readable OBJ file ({exc})") from None
         v = np.asarray(mesh.vertices, dtype=np.float64)
@@ -268,15 +286,42 @@ def read_frame_obj(folder: str | Path) -> Frame:
 
 
 def _obj_files(folder: Path) -> list[Path]:
-    """OBJ files of a frame folder, sorted by numeric person id when stems are integers."""
-    files = [p for p in folder.iterdir() if p.suffix.lower() == ".obj" and not p.name.startswith(".")]
-    return sorted(files, key=lambda p: (0, int(p.stem), "") if re.fullmatch(r"-?\d+", p.stem) else (1, 0, p.stem))
+    """The people of a frame folder: regular ``<person id>.obj`` files (or links to one), by id."""
+    return sorted((p for p in _entries(folder) if _is_person_obj(p)), key=lambda p: int(p.stem))
+
+
+def _entries(folder: Path) -> list[Path]:
+    """Visible entries of a folder."""
+    return [p for p in folder.iterdir() if not p.name.startswith(".")]
+
+
+def _is_person_obj(entry: Path) -> bool:
+    """A person's OBJ: a regular file (or a link to one) named ``<integer id>.obj``."""
+    return entry.suffix.lower() == ".obj" and entry.is_file() and re.fullmatch(r"-?\d+", entry.stem) is not None
+
+
+def _ignored_entries(folder: Path) -> list[str]:
+    """What a frame folder holds besides its people's OBJ files, with why each is ignored."""
+    out = []
+    for entry in sorted(_entries(folder)):
+        if _is_person_obj(entry):
+            continue
+        if entry.suffix.lower() != ".obj":
+            why = "not an .obj file"
+        elif entry.is_dir():
+            why = "a folder, not an OBJ file"
+        elif not entry.exists():
+            why = "a broken link"
+        elif not entry.is_file():
+            why = "not a regular file"
+        else:
+            why = "the file name is not an integer person id (e.g. 0.obj)"
+        out.append(f"{folder.name}/{entry.name}: {why}")
+    return out
 
 
 def _person_id(file: Path) -> int:
-    """Person id from an OBJ file stem; stems must be integers."""
-    if not re.fullmatch(r"-?\d+", file.stem):
-        raise _fail(str(file), "OBJ file stem must be an integer person id (e.g. 0.obj)")
+    """Person id from an OBJ file stem (an integer, see :func:`_is_person_obj`)."""
     return int(file.stem)
 
 
@@ -383,6 +428,7 @@ class Sequence:
     meta: dict = field(default_factory=dict)
     camera: Camera | None = None
     camera_fit: dict = field(default_factory=dict)
+    ignored: tuple[str, ...] = ()  # entries of OBJ frame folders that are not people's OBJ files, with why
 
     def __len__(self) -> int:
         return len(self.frame_names)
@@ -447,28 +493,41 @@ def open_sequence(path: str | Path, read_camera: bool = True) -> Sequence:
         raise InputError(f"{path}: no such directory")
     if not path.is_dir():
         raise InputError(f"{path}: not a directory (a sequence is a directory of frames)")
-    npz = sorted(p.stem for p in path.glob("*.npz") if not p.name.startswith("."))
+    npz = sorted(p.stem for p in path.glob("*.npz") if not p.name.startswith(".") and p.is_file())
     folders = sorted(p.name for p in path.iterdir() if p.is_dir() and _is_obj_frame_dir(p))
     if npz and any(_obj_files(path / name) for name in folders):
         raise InputError(f"{path}: holds both .npz frames and OBJ frame folders; keep one form per sequence")
     if not npz and not folders:
         raise InputError(f"{path}: no frames found (expected *.npz files or frame folders of *.obj)")
     form, names = ("npz", npz) if npz else ("obj", folders)
+    ignored = tuple(line for name in names for line in _ignored_entries(path / name)) if form == "obj" else ()
     meta = read_yaml(path / META_FILE) if (path / META_FILE).exists() else {}
+    _check_meta(meta, path / META_FILE)
+    camera, fit = None, {}
     seq = Sequence(path, form, tuple(names), meta)
     seq.intrinsics, seq.focal_kind  # validates meta.yaml's intrinsics keys early
     if read_camera and (path / CAMERA_FILE).exists():
         camera, fit = read_camera_yaml(path / CAMERA_FILE, seq.intrinsics.image_size)
-        seq = Sequence(path, form, tuple(names), meta, camera, fit)
-    return seq
+    return Sequence(path, form, tuple(names), meta, camera, fit, ignored)
 
 
 def _is_obj_frame_dir(folder: Path) -> bool:
-    """A frame folder holds OBJ files only (an empty folder is an empty frame)."""
+    """A frame folder: a visible folder holding at least one ``.obj`` entry, or an empty one (an empty frame)."""
     if folder.name.startswith((".", "_")):
         return False
-    entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
-    return all(p.is_file() and p.suffix.lower() == ".obj" for p in entries)
+    entries = _entries(folder)
+    return not entries or any(p.suffix.lower() == ".obj" for p in entries)
+
+
+_META_TYPES = {"source": str, "fps": (int, float), "focal_rule": str}
+
+
+def _check_meta(meta: dict, source: Path) -> None:
+    """meta.yaml's informational keys have their types (a mapping where a name belongs is refused)."""
+    for key, kind in _META_TYPES.items():
+        value = meta.get(key)
+        if value is not None and (not isinstance(value, kind) or isinstance(value, bool)):
+            raise _fail(str(source), f"key '{key}' must be a {'name' if kind is str else 'number'}, got {value!r:.60}")
 
 
 def summarize_sequence(seq: Sequence) -> dict:
@@ -509,6 +568,7 @@ def summarize_sequence(seq: Sequence) -> dict:
         "focal_rule": seq.meta.get("focal_rule"),
         "principal_point": list(intr.principal_point) if intr.principal_point else None,
         "source": seq.meta.get("source"),
+        "ignored_entries": list(seq.ignored),
         "camera": camera_to_yaml_dict(seq.camera, seq.camera_fit or None) if seq.camera else None,
     }
 

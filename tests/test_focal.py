@@ -222,27 +222,36 @@ def test_box_derived_points_are_recognised():
     assert grid.points == "landmarks" and "--method refine" in grid.notes[0]
 
 
-@pytest.mark.parametrize("name", ["pets2009_s2l1"])  # Town Centre's head and foot come from two boxes
-def test_real_box_annotations_are_recognised(name, tmp_path, runner):
-    if not (REALDATA / name).exists():
+def test_real_box_annotations_are_recognised(tmp_path, runner):
+    """PETS 2009: one box per person (Town Centre's head and foot come from two boxes: not recognised)."""
+    from rotavat_cli.calibrate import box_derived
+    from rotavat_cli.people import gather_pairs
+
+    if not (REALDATA / "pets2009_s2l1").exists():
         pytest.skip("../shared/realdata not present")
-    result = invoke(runner, "calibrate", REALDATA / name, "--out", tmp_path / "c.yaml", "--json")
-    assert result.exit_code == 0, result.stderr
-    fit = json.loads(result.stdout)["fit"]
-    assert fit["points"] == "boxes" and any("box-derived" in n for n in fit["notes"])
+    pairs = gather_pairs(open_sequence(REALDATA / "pets2009_s2l1"))
+    assert box_derived(pairs.feet_px, pairs.heads_px)
+    towncentre = gather_pairs(open_sequence(REALDATA / "towncentre"))
+    assert not box_derived(towncentre.feet_px, towncentre.heads_px)
+    # with the box model PETS's people leave the focal undetermined: refused, not a camera at the bound
+    result = invoke(runner, "calibrate", REALDATA / "pets2009_s2l1", "--out", tmp_path / "c.yaml")
+    assert result.exit_code == 2 and "cannot determine the focal length" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "recognised as box-derived" in result.stderr
+    assert not (tmp_path / "c.yaml").exists()
 
 
 def test_the_table_never_calls_an_estimated_parameter_fixed(tmp_path, runner):
-    root = _scene(tmp_path / "s", "cliff", seed=1, frames=5, people=4)
+    from rotavat_cli.cli.calibrate import _std_cell
+
+    root = _scene(tmp_path / "s", "cliff", seed=0, frames=5, people=4)
     result = invoke(runner, "calibrate", root / "pred", "--out", tmp_path / "c.yaml")
     assert result.exit_code == 0, result.stderr
     written = yaml.safe_load((tmp_path / "c.yaml").read_text())
     table = [line for line in result.stderr.splitlines() if line.startswith("│")]
     for key in ("focal_px", "pitch_deg", "roll_deg", "height_m"):
         row = next(line for line in table if key in line)
-        assert "fixed" not in row, row  # estimated: a std, or "undetermined"
-        if written["fit"]["std"][key] == math.inf:
-            assert "undetermined" in row
+        assert "fixed" not in row and f"{written['fit']['std'][key]:.3f}" in row, row  # estimated: its std
+    assert _std_cell(math.inf, None) == "undetermined" and _std_cell(None, "given") == "fixed: given"
     given = invoke(runner, "calibrate", root / "pred", "--focal", "1000", "--no-roll", "--out", tmp_path / "g.yaml")
     rows = {key: next(line for line in given.stderr.splitlines() if line.startswith("│") and key in line)
             for key in ("focal_px", "roll_deg")}

@@ -27,6 +27,7 @@ import numpy as np
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
 from ..errors import InputError, RotavatError
+from ..limits import Limits, configure as configure_limits
 from ..plain import to_plain
 from ..sequence import open_sequence, read_camera_yaml, write_camera_yaml
 from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
@@ -73,6 +74,11 @@ def _worker() -> dict:
     return {"host": socket.gethostname(), "pid": os.getpid(), "peak_rss_mb": rss_mb}
 
 
+def _apply_limits(plan: dict) -> None:
+    """Put the batch config's size ``limits`` in force in this worker before it reads any file."""
+    configure_limits(Limits.from_config(plan["config"].get("limits")))
+
+
 def _chunks(n: int, size: int) -> list[tuple[int, int]]:
     """[start, stop) ranges of at most ``size`` covering 0..n."""
     return [(a, min(a + size, n)) for a in range(0, n, max(1, size))]
@@ -90,6 +96,7 @@ def _camera_summary(camera_file: Path, image_size: tuple[int, int] | None, origi
 
 def task_prepare(job: dict, plan: dict) -> dict:
     """Clear the previous run's marker and staging, import (--from), calibrate on the whole sequence, plan chunks."""
+    _apply_limits(plan)
     out, steps = Path(job["out"]), plan["steps"]
     out.mkdir(parents=True, exist_ok=True)
     (out / MARKER).unlink(missing_ok=True)  # from here on the outputs are not complete
@@ -140,6 +147,7 @@ def _chunk_dir(job: dict, index: int) -> Path:
 
 def task_align_chunk(job: dict, plan: dict, camera_file: str, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
+    _apply_limits(plan)
     from ..align import align_sequence
 
     seq = open_sequence(job["seq"], read_camera=False)
@@ -196,6 +204,7 @@ def _eval_pred_dir(job: dict, side: str) -> str:
 
 def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> dict:
     """Score frames [start, stop) of the sorted union of prediction and GT frame names, for one side."""
+    _apply_limits(plan)
     from ..evaluate import evaluate
 
     part = evaluate(_eval_pred_dir(job, side), job["gt"], _eval_options(plan), frames=(start, stop))
@@ -204,6 +213,7 @@ def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> 
 
 def task_finish(job: dict, plan: dict, state: dict) -> dict:
     """Merge and write the metrics, render, and write the marker last; returns the sequence's report row."""
+    _apply_limits(plan)
     out, steps = Path(job["out"]), plan["steps"]
     seconds = dict(state["seconds"])
     row = {"sequence": job["rel"], "status": "done", "reason": None, "source": job["source"], "out": job["out"],

@@ -104,10 +104,15 @@ def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:
 
 @contextmanager
 def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | None = None,
-                   smpl_model: Path | None = None, read_camera: bool = True) -> Iterator[Sequence]:
-    """Open a contract sequence, or with ``fmt`` import it into a temporary one for the command's duration."""
+                   smpl_model: Path | None = None, read_camera: bool = True, quiet: bool = False) -> Iterator[Sequence]:
+    """Open a contract sequence, or with ``fmt`` import it into a temporary one for the command's duration.
+
+    Entries of OBJ frame folders that are not people's OBJ files are reported (never silently skipped).
+    """
     if fmt is None:
-        yield open_sequence(path, read_camera=read_camera)
+        seq = open_sequence(path, read_camera=read_camera)
+        warn_ignored(seq, quiet)
+        yield seq
         return
     from ..formats import available_formats, imported_sequence
 
@@ -115,6 +120,14 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
         raise InputError(f"unknown format '{fmt}' for --from (known: {', '.join(available_formats())})")
     with imported_sequence(path, fmt, image_size=image_size, smpl_model=smpl_model) as seq:
         yield seq if read_camera else replace(seq, camera=None, camera_fit={})
+
+
+def warn_ignored(seq: Sequence, quiet: bool) -> None:
+    """One warning line for the entries of OBJ frame folders that were ignored, with the first few."""
+    if seq.ignored:
+        shown = "; ".join(seq.ignored[:3]) + (f"; and {len(seq.ignored) - 3} more" if len(seq.ignored) > 3 else "")
+        info(f"[yellow]warning:[/] {seq.path}: ignored {len(seq.ignored)} entries of OBJ frame folders "
+             f"({escape(shown)})", quiet)
 
 
 def progress_enabled(quiet: bool, as_json: bool) -> bool:

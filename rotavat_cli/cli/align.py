@@ -39,7 +39,7 @@ def align(
     check_output_dir(out, [seq, *([camera] if camera else [])], force)
     if opts["jobs"] > cpu_count():
         info(f"jobs {opts['jobs']}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
-    with input_sequence(seq, from_, image_size, smpl_model) as sequence:
+    with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
         if camera is not None:
             cam, fit = read_camera_yaml(camera, sequence.image_size)
             origin = str(camera)

@@ -60,7 +60,7 @@ def calibrate(
         raise InputError("with --from, pass --out FILE for the camera.yaml (the input is not a contract sequence)")
     target = out or seq / "camera.yaml"
     check_output_file(target, [seq], force, inside_input_ok=("camera.yaml",) if from_ is None else ())
-    with input_sequence(seq, from_, image_size, smpl_model, read_camera=False) as sequence:
+    with input_sequence(seq, from_, image_size, smpl_model, read_camera=False, quiet=quiet or as_json) as sequence:
         calib = run_calibration(
             sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
             camera_height_m=camera_height,

@@ -52,8 +52,9 @@ def eval_(
     if per_person:
         check_output_file(per_person, inputs, force, signature=PER_PERSON_HEADER.encode())
     with ExitStack() as stack:
-        gt_seq = stack.enter_context(input_sequence(gt, gt_from, image_size, smpl_model))
-        pred_seqs = [stack.enter_context(input_sequence(p, from_, image_size, smpl_model)) for p in preds]
+        gt_seq = stack.enter_context(input_sequence(gt, gt_from, image_size, smpl_model, quiet=quiet or as_json))
+        pred_seqs = [stack.enter_context(input_sequence(p, from_, image_size, smpl_model, quiet=quiet or as_json))
+                     for p in preds]
         with progress_bar("evaluating", sum(len(s) for s in pred_seqs), progress_enabled(quiet, as_json)) as advance:
             results = [evaluate(s.path, gt_seq.path, options, advance) for s in pred_seqs]
     for result, path in zip(results, preds):  # report the user's paths, not temporary imports

@@ -10,7 +10,7 @@ from rich.table import Table
 
 from ..sequence import open_sequence, summarize_sequence
 from . import app
-from ._common import JsonOpt, console, print_json
+from ._common import JsonOpt, console, print_json, warn_ignored
 
 
 @app.command()
@@ -19,7 +19,9 @@ def info(
     as_json: JsonOpt = False,
 ) -> None:
     """Validate a sequence and print a summary: form, frames, people, keys, sizes, intrinsics, camera."""
-    summary = summarize_sequence(open_sequence(seq))
+    sequence = open_sequence(seq)
+    warn_ignored(sequence, as_json)
+    summary = summarize_sequence(sequence)
     if as_json:
         print_json(summary)
         return

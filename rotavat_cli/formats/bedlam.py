@@ -43,7 +43,7 @@ def sniff(path: Path) -> str | None:
 def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     """BEDLAM per-scene .npz -> contract frames (one frame per image)."""
     path = single_file(src, sniff, "BEDLAM scene .npz", ' (import one scene at a time: a sequence is one camera)')
-    data = safe_pickle.load_npz(path)
+    data = safe_pickle.load_npz(path, keys=_KEYS | {"gtkps", "sub"})  # other members are never read
     missing = sorted(_KEYS - set(data))
     if missing:
         raise fail(path, f"not a BEDLAM scene file (missing {', '.join(missing)})")

@@ -56,7 +56,7 @@ def sniff(path: Path) -> str | None:
     files = [path] if path.is_file() else sorted(path.glob("*.npz"))[:3] if path.is_dir() else []
     for file in files:
         if file.suffix == ".npz" and _is_results_npz(file):
-            results = safe_pickle.load_npz(file)["results"].item()
+            results = safe_pickle.load_npz(file, keys=("results",))["results"].item()
             if isinstance(results, dict) and results and all(isinstance(v, dict) for v in results.values()):
                 results = next(iter(results.values()))  # video_results.npz
             betas = results.get("smpl_betas") if isinstance(results, dict) else None
@@ -92,7 +92,7 @@ def _image_stem(name: str) -> str:
 
 def _load_results(path: Path) -> dict:
     """The dict stored in an .npz's 'results' object array."""
-    data = safe_pickle.load_npz(path)
+    data = safe_pickle.load_npz(path, keys=("results",))  # other members are never read
     if "results" not in data:
         raise fail(path, "not a ROMP/BEV result file (no 'results' array)")
     results = data["results"]

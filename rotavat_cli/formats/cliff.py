@@ -55,7 +55,7 @@ def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[t
 def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     """CLIFF demo .npz -> contract frames (see the module docstring for the conventions)."""
     path = single_file(src, sniff, "CLIFF results .npz")
-    data = safe_pickle.load_npz(path)
+    data = safe_pickle.load_npz(path, keys=_KEYS)  # other members are never read
     missing = sorted(k for k in ("imgname", "detection_all", "global_t", "focal_l", "pred_joints") if k not in data)
     if missing:
         raise fail(path, f"not a CLIFF results file (missing {', '.join(missing)})")

@@ -69,7 +69,7 @@ def _humans(path: Path) -> dict[str, np.ndarray | None]:
     if path.suffix == ".npy":
         content: object = safe_pickle.load_npy(path)
     elif path.suffix == ".npz":
-        content = safe_pickle.load_npz(path)
+        content = safe_pickle.load_npz(path, keys=("humans", "verts_smplx", "j3d_smplx"))  # the members used
     else:
         content = safe_pickle.load_file(path)
     if isinstance(content, Mapping) and "humans" in content:
