@@ -72,6 +72,10 @@ def grid_from_config(grid: dict) -> GridSpec:
 def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:
     """Calibrate a sequence from its people with the ``calibrate`` config section ``options``."""
     image_size = seq.require_image_size()
+    try:
+        grid = grid_from_config(options["grid"])  # checked before any frame is read
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"calibrate.grid: {exc}") from None
     pairs = gather_pairs(seq)
     mesh_focal = declared_focal(seq)
     mesh_kind = seq.focal_kind if mesh_focal is not None else None
@@ -91,7 +95,7 @@ def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:
         person_height_m=options["person_height_m"], person_height_sd_m=options["person_height_sd_m"],
         camera_height_m=options["camera_height_m"],
         residual=options["residual"], points=options["points"], box_depth_m=options["box_depth_m"],
-        distortion=options["distortion"], fov_prior_deg=options["fov_prior_deg"], grid=grid_from_config(options["grid"]),
+        distortion=options["distortion"], fov_prior_deg=options["fov_prior_deg"], grid=grid,
     )
     try:
         result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, **kwargs)

@@ -19,6 +19,7 @@ frame by frame. Metric names (all mm unless stated):
 from __future__ import annotations
 
 import csv
+import math
 from collections.abc import Callable, Sequence as Seq
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -154,6 +155,10 @@ def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: 
     if pj is not None and gj is not None:
         pj, gj = pj[pi], gj[gi]
         if opts.joints:
+            for side, arr in ((pred, pj), (gt, gj)):
+                if max(opts.joints) >= arr.shape[1] or min(opts.joints) < -arr.shape[1]:
+                    raise InputError(f"{side.source}: --joints asks for joint {max(opts.joints)} but the frame "
+                                     f"has {arr.shape[1]} joints (0..{arr.shape[1] - 1})")
             pj, gj = pj[:, list(opts.joints)], gj[:, list(opts.joints)]
         if pj.shape[1] != gj.shape[1]:
             raise InputError(f"{pred.source}: prediction has {pj.shape[1]} joints, ground truth {gj.shape[1]}: "
@@ -262,6 +267,10 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
     opts = options or EvalOptions()
     if opts.match not in ("auto", "ids", "hungarian", "agora"):
         raise InputError(f"--match must be auto, ids, hungarian or agora, got {opts.match!r}")
+    if not (math.isfinite(opts.threshold_px) and opts.threshold_px > 0):
+        raise InputError(f"--threshold-px must be a positive number of pixels, got {opts.threshold_px}")
+    if not (math.isfinite(opts.iou_threshold) and 0 <= opts.iou_threshold <= 1):
+        raise InputError(f"--iou-threshold must be within 0..1, got {opts.iou_threshold}")
     try:
         M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
     except ValueError as exc:

@@ -378,6 +378,8 @@ def read_yaml(path: str | Path) -> dict:
         raise _fail(str(path), "file not found") from None
     except yaml.YAMLError as exc:
         raise _fail(str(path), f"invalid YAML ({str(exc).splitlines()[0]})") from None
+    except RecursionError:
+        raise _fail(str(path), "YAML nested too deeply to read") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise _fail(str(path), f"cannot read ({exc})") from None
     if data is None:

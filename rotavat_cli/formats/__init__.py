@@ -290,7 +290,8 @@ def detect_format(path: str | Path) -> str | None:
     for module in _MODULES:
         try:
             found = module.sniff(path)
-        except (InputError, OSError, ValueError, KeyError, TypeError, IndexError, AttributeError):
+        except (InputError, OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, EOFError,
+                zipfile.BadZipFile, RecursionError):
             found = None
         if found:
             return found
