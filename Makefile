@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 OUT    ?= out
 SAMPLE := sample_data
 
-.PHONY: install run test bench bench-quick sample clean
+.PHONY: install run test bench bench-quick fuzz sample clean
 
 $(STAMP): pyproject.toml
 	@bash tools/system_deps.sh
@@ -28,6 +28,10 @@ bench: install
 
 bench-quick: install
 	$(BIN)/python benchmarks/run_all.py --quick
+
+# Randomized hostile-input campaign (tests/fuzz/run_fuzz.py: a few minutes; FUZZ_ARGS="--iterations N --seed S").
+fuzz: install
+	$(BIN)/python tests/fuzz/run_fuzz.py $(FUZZ_ARGS)
 
 # Regenerate the committed sample scene (deterministic).
 sample: install

@@ -28,11 +28,11 @@ from .parallel import cap_workers, ordered_map
 from .camera import Camera, project_cam_to_px
 from .errors import InputError
 from .landmarks import foot_head_points
-from .rotavat import FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords, rotavat_transforms, transformed_blocks
+from .rotavat import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, points_from_coords, rotavat_transforms, transformed_blocks
 from .focal import CAMERA
 from .sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 
-__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "STATURE_RANGE_M", "MeshIntrinsics", "AlignSummary",
+__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "STATURE_RANGE_M", "HEIGHT_FROM", "MeshIntrinsics", "AlignSummary",
            "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]
 
 PEOPLE_COLUMNS = (
@@ -41,6 +41,7 @@ PEOPLE_COLUMNS = (
 )
 IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outside the plausible range
 STATURE_RANGE_M = (1.0, 2.3)  # plausible aligned statures (config align.stature_range_m)
+HEIGHT_FROM = ("frame", "track")  # each mesh keeps its stature, or one per person_id
 
 
 @dataclass(frozen=True)
@@ -346,10 +347,10 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
     """
     out = Path(out)
     check_output_dir(out, [seq.path], force)
-    if height_from not in ("frame", "track"):
-        raise InputError(f"height_from must be 'frame' or 'track', got {height_from!r}")
-    if upright not in ("paper", "full"):
-        raise InputError(f"upright must be 'paper' or 'full', got {upright!r}")
+    if height_from not in HEIGHT_FROM:
+        raise InputError(f"height_from must be one of {', '.join(HEIGHT_FROM)}, got {height_from!r}")
+    if upright not in UPRIGHT:
+        raise InputError(f"upright must be one of {', '.join(UPRIGHT)}, got {upright!r}")
     lo, hi = (float(v) for v in stature_range_m)
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
         raise InputError(f"stature_range_m must be [low, high] metres with 0 <= low < high, got {list(stature_range_m)}")

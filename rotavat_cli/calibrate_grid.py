@@ -181,8 +181,9 @@ def _paper_costs_one_pitch(rel_feet: np.ndarray, diff: np.ndarray, focal_px: np.
     g_max = np.full(len(focal_px), -np.inf)
     ray_ok = np.ones(len(focal_px), bool)
     inv_k32 = inv_k.astype(np.float32)[:, None]
-    work = np.empty((C, min(n_pairs, max(256, _BLOCK_ELEMS // C))), np.float32)
-    for blk in _blocks(n_pairs, C):
+    blocks = _blocks(n_pairs, max(C, len(focal_px)))  # (F, pairs) terms and (C, pairs) scratch both stay small
+    work = np.empty((C, max((blk.stop - blk.start for blk in blocks), default=0)), np.float32)
+    for blk in blocks:
         d, g, m_u, m_v = _pair_terms(rel_feet[blk], focal_px, up)
         ray_ok &= np.all(d > _RAY_EPS, axis=1)
         g_max = np.maximum(g_max, g.max(axis=1))

@@ -9,6 +9,8 @@ mutated in place), safe to dump next to outputs with ``yaml.safe_dump``.
 from __future__ import annotations
 
 import copy
+import math
+import reprlib
 from pathlib import Path
 from typing import Any
 
@@ -56,25 +58,94 @@ def merge_config(base: dict, override: dict, source: str, prefix: str = "") -> d
 
 # Keys whose value is a name or a number (the default is a name).
 _NAME_OR_NUMBER = {"synth.hps_focal"}
+# Inclusive bounds of numeric keys (None: open); every number must also be finite.
+_RANGES: dict[str, tuple[float | None, float | None]] = {
+    "align.jobs": (0, None), "batch.jobs": (0, None), "batch.chunk_frames": (1, None),
+    "synth.frames": (1, None), "synth.people": (0, None), "synth.noise_px": (0, None), "synth.outliers": (0, 1),
+    "synth.depth_sd": (0, None), "synth.lean": (0, 1),
+    "calibrate.person_height_m": (0.5, 3.0), "calibrate.person_height_sd_m": (0, 1.0),
+    "calibrate.camera_height_m": (0.01, 1e5), "calibrate.box_depth_m": (-1.0, 2.0), "calibrate.focal_px": (1e-3, 1e7),
+    "calibrate.fov_prior_deg": (0.1, 179.9),
+    "eval.threshold_px": (1e-9, None), "eval.iou_threshold": (0, 1),
+    "render.fps": (0.01, 1000), "render.margin": (0, 10), "render.every": (1, None),
+    "limits.max_file_mb": (1, None), "limits.max_array_mb": (1, None), "limits.max_pickle_items": (1, None),
+    "limits.max_grid_cells": (1, None),
+    # lists: every item
+    "calibrate.grid.steps": (1, 100_000), "calibrate.grid.focal_range_h": (1e-3, 1e3),
+    "calibrate.grid.pitch_range_deg": (-90, 90), "calibrate.grid.height_range_m": (1e-2, 1e5),
+    "calibrate.principal_point": (-1e6, 1e6), "synth.image_size": (32, 100_000), "render.size": (16, 20_000),
+    "align.stature_range_m": (0, 10),
+}
+_MAX_LIST = 64  # longest list a config key takes (lists are [W, H], ranges, grid steps, colours ...)
+_SHORT = reprlib.Repr()
+_SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 40
+
+
+def _choices() -> dict[str, tuple[str, ...]]:
+    """Keys whose value is one of a few names: each list lives beside the code that uses it."""
+    from .align import HEIGHT_FROM
+    from .batch.plan import EXECUTORS
+    from .calibrate import METHODS, POINTS, RESIDUALS
+    from .evaluate import MATCHES
+    from .metrics import ENGINES
+    from .render_gl import RENDERERS
+    from .rotavat import UPRIGHT
+
+    return {"calibrate.method": METHODS, "calibrate.residual": RESIDUALS, "calibrate.points": POINTS,
+            "align.upright": UPRIGHT, "align.height_from": HEIGHT_FROM, "eval.match": MATCHES, "eval.engine": ENGINES,
+            "render.renderer": RENDERERS, "batch.executor": EXECUTORS}
 
 
 def _check_type(default: Any, value: Any, key: str, source: str) -> Any:
-    """Accept ``value`` if it fits the default's type (null defaults accept anything plain)."""
-    if value is None or default is None:
+    """Accept ``value`` if it fits the default's type (null defaults accept any plain scalar or flat
+    list), numbers finite and within the key's range, names among the key's choices."""
+    if value is None:
+        if default is not None:
+            raise InputError(f"{source}: key '{key}' must be like {_SHORT.repr(default)}, got null")
         return value
-    if key in _NAME_OR_NUMBER and isinstance(value, (int, float)) and not isinstance(value, bool):
-        return value
-    if isinstance(default, bool):
+    if default is None:
+        ok = _is_scalar(value) or (isinstance(value, list) and len(value) <= _MAX_LIST and all(map(_is_scalar, value)))
+    elif key in _NAME_OR_NUMBER and _is_number(value):
+        ok = True
+    elif isinstance(default, bool):
         ok = isinstance(value, bool)
     elif isinstance(default, (int, float)):
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-    elif isinstance(default, list):
-        ok = isinstance(value, list) and len(value) == len(default)
+        ok = _is_number(value)
+    elif isinstance(default, list):  # same length, each item of its default item's kind
+        ok = isinstance(value, list) and len(value) == len(default) and all(map(_same_kind, default, value))
     else:
         ok = isinstance(value, type(default))
     if not ok:
-        raise InputError(f"{source}: key '{key}' must be like {default!r}, got {value!r}")
+        raise InputError(f"{source}: key '{key}' must be like {_SHORT.repr(default)}, got {_SHORT.repr(value)}")
+    for number in (value if isinstance(value, list) else [value]):
+        if _is_number(number) and not math.isfinite(number):
+            raise InputError(f"{source}: key '{key}' must be finite, got {number}")
+    choices = _choices().get(key)
+    if choices is not None and value not in choices:
+        raise InputError(f"{source}: key '{key}' must be one of {', '.join(choices)}, got {_SHORT.repr(value)}")
+    lo, hi = _RANGES.get(key, (None, None))
+    for number in (value if isinstance(value, list) else [value]):
+        if _is_number(number) and ((lo is not None and number < lo) or (hi is not None and number > hi)):
+            span = f"{'' if lo is None else lo}..{'' if hi is None else hi}"
+            raise InputError(f"{source}: key '{key}' must be within {span}, got {_SHORT.repr(number)}")
     return value
+
+
+def _same_kind(default: Any, value: Any) -> bool:
+    """A list item fits its default item: a number for a number, a name for a name, a flag for a flag."""
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(default, bool) and isinstance(value, bool)
+    if _is_number(default):
+        return _is_number(value)
+    return _is_scalar(value) and not _is_number(value) if isinstance(default, str) else _is_scalar(value)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_scalar(value: Any) -> bool:
+    return value is None or isinstance(value, (str, bool, int, float))
 
 
 def load_config(path: str | Path | None = None, overrides: dict | None = None) -> dict:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from collections.abc import Callable, Sequence as Seq
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,6 +41,8 @@ __all__ = ["PERSON_METRICS", "EvalOptions", "EvalResult", "evaluate", "merge_res
 PERSON_METRICS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
                   "root_err", "foot_height", "lean_deg", "stature_err")
 PELVIS = 0  # root joint index (SMPL order); see bodies.SMPL_JOINT_NAMES
+MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
+MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
 
 
 @dataclass(frozen=True)
@@ -93,13 +96,17 @@ def parse_joints(spec: str | None, n_joints: int | None = None) -> tuple[int, ..
     for token in (t.strip() for t in spec.split(",") if t.strip()):
         if token in SMPL_JOINT_NAMES:
             out.append(SMPL_JOINT_NAMES.index(token))
-        elif "-" in token[1:]:
-            lo, hi = token.split("-", 1)
-            out.extend(range(int(lo), int(hi) + 1))
+        elif re.fullmatch(r"\d+-\d+", token):
+            lo, hi = (int(v) for v in token.split("-"))
+            if hi < lo or hi - lo >= MAX_JOINTS:
+                raise InputError(f"--joints: range '{token}' must go up, over at most {MAX_JOINTS} joints")
+            out.extend(range(lo, hi + 1))
         elif token.lstrip("-").isdigit():
             out.append(int(token))
         else:
-            raise InputError(f"--joints: '{token}' is neither an index, a range nor an SMPL joint name")
+            raise InputError(f"--joints: '{token[:40]}' is neither an index, a range nor an SMPL joint name")
+        if len(out) > MAX_JOINTS:
+            raise InputError(f"--joints: more than {MAX_JOINTS} joints")
     if n_joints is not None and any(not 0 <= j < n_joints for j in out):
         raise InputError(f"--joints: indices must be within 0..{n_joints - 1}")
     return tuple(out)
@@ -265,8 +272,8 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
     names; :func:`merge_results` joins the results of consecutive ranges into the whole one.
     """
     opts = options or EvalOptions()
-    if opts.match not in ("auto", "ids", "hungarian", "agora"):
-        raise InputError(f"--match must be auto, ids, hungarian or agora, got {opts.match!r}")
+    if opts.match not in MATCHES:
+        raise InputError(f"--match must be one of {', '.join(MATCHES)}, got {opts.match!r}")
     if not (math.isfinite(opts.threshold_px) and opts.threshold_px > 0):
         raise InputError(f"--threshold-px must be a positive number of pixels, got {opts.threshold_px}")
     if not (math.isfinite(opts.iou_threshold) and 0 <= opts.iou_threshold <= 1):

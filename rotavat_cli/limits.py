@@ -13,10 +13,12 @@ The defaults (``configs/default.yaml``) are proportionate to real data, with a w
   seen (a long 4D-Humans/PHALP tracking pickle) is a few hundred MB.
 - ``max_array_mb`` (1024): the largest single array a file may declare (npz/npy header, pickled
   array, joblib array). A whole CLIFF/BEDLAM scene file's largest array is tens of MB.
+- ``max_frame_mb`` (256): all the arrays of one contract frame (``.npz``) together. A frame of
+  100 SMPL-X people in float64 is 25 MB.
 - ``max_pickle_items`` (20,000,000): the most objects one pickle may build (opcodes run, items
   a container is built from, object-array elements) and the most items its shared references may
-  add when expanded (a list referenced 1,000 times is converted 1,000 times). A PHALP pickle of a
-  few thousand frames is a few million.
+  add when expanded (a list referenced 1,000 times is converted 1,000 times). A PHALP-like pickle
+  of 2,000 frames of 5 people builds 1.4 million; every object costs roughly 50-250 bytes.
 - ``max_grid_cells`` (2,000,000): calibration grid cells (``calibrate.grid.steps``); the paper's
   50^3 is 125,000 and takes well under a second.
 
@@ -43,6 +45,7 @@ _MB = 1 << 20
 _KEYS = {
     "max_file_mb": ("max_file_bytes", _MB),
     "max_array_mb": ("max_array_bytes", _MB),
+    "max_frame_mb": ("max_frame_bytes", _MB),
     "max_pickle_items": ("max_pickle_items", 1),
     "max_grid_cells": ("max_grid_cells", 1),
 }
@@ -50,10 +53,12 @@ _KEYS = {
 
 @dataclass(frozen=True)
 class Limits:
-    """Largest file/stream (bytes), array (bytes), pickle (items) and calibration grid (cells)."""
+    """Largest file/stream (bytes), array (bytes), contract frame (bytes), pickle (items) and
+    calibration grid (cells)."""
 
     max_file_bytes: int
     max_array_bytes: int
+    max_frame_bytes: int
     max_pickle_items: int
     max_grid_cells: int
 

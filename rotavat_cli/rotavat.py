@@ -36,7 +36,7 @@ from .camera import pixel_rays_cam, project_cam_to_px
 from .rotations import axis_angle_to_matrix
 
 __all__ = [
-    "FLAGS", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",
+    "FLAGS", "UPRIGHT", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",
     "coords_first", "points_from_coords", "closest_scale_on_line", "person_blocks", "method_rays_cam",
 ]
 
@@ -49,6 +49,7 @@ FLAGS = {
     4: "head_ray_misses_axis",  # the upright axis never meets the crown ray in front of the camera
 }
 _EPS = 1e-9  # relative tolerance for parallel rays and zero-length axes
+UPRIGHT = ("paper", "full")  # the paper's in-plane vertical, or the true vertical
 
 
 @dataclass(frozen=True)
@@ -127,8 +128,8 @@ def rotavat_transforms(
     its ray (NaN entries keep the ray rule). ``foot_rays_cam``/``head_rays_cam`` (P, 3): the rays
     the foot and crown must end on (default: through the points themselves).
     """
-    if upright not in ("paper", "full"):
-        raise ValueError(f"upright must be 'paper' or 'full', got {upright!r}")
+    if upright not in UPRIGHT:
+        raise ValueError(f"upright must be one of {', '.join(UPRIGHT)}, got {upright!r}")
     F = np.asarray(feet_cam, dtype=np.float64)
     H = np.asarray(heads_cam, dtype=np.float64)
     rF = F if foot_rays_cam is None else np.asarray(foot_rays_cam, dtype=np.float64)

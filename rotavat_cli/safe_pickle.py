@@ -112,7 +112,7 @@ class _Budget:
 
     def __init__(self) -> None:
         lim = _limits.current()
-        self.max_items, self.max_data = lim.max_pickle_items, lim.max_file_bytes
+        self.max_items, self.max_data, self.max_array = lim.max_pickle_items, lim.max_file_bytes, lim.max_array_bytes
         self.items = self.data = 0
 
     def add_items(self, n: int, what: str) -> None:
@@ -144,11 +144,12 @@ def _reconstruct(subtype: Any, shape: Any, typecode: Any) -> np.ndarray:
         raise _Refused("malformed ndarray reconstruction arguments")
     if not isinstance(typecode, (bytes, str)):
         raise _Refused("malformed ndarray reconstruction arguments")
-    try:
-        dtype = np.dtype(typecode.decode("latin1") if isinstance(typecode, bytes) else typecode)
-    except (TypeError, ValueError):
-        raise _Refused("malformed ndarray reconstruction arguments") from None
-    _check_array(dtype, _check_shape(shape, "ndarray"))
+    if shape != (0,):  # numpy always pickles (0,) with b'b' and sets the real shape in BUILD
+        try:
+            dtype = np.dtype(typecode.decode("latin1") if isinstance(typecode, bytes) else typecode)
+        except (TypeError, ValueError):
+            raise _Refused("malformed ndarray reconstruction arguments") from None
+        _check_array(dtype, _check_shape(shape, "ndarray"))
     return _numpy_multiarray()._reconstruct(np.ndarray, shape, typecode)
 
 
@@ -377,8 +378,9 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
         if not isinstance(dtype, np.dtype):
             raise _Refused("malformed ndarray state")
         shape = _check_shape(shape, "ndarray")
-        _check_array(dtype, shape)
         count = math.prod(shape)
+        if count * max(1, 8 if dtype.hasobject else dtype.itemsize) > self._budget.max_array:
+            _check_array(dtype, shape)
         if dtype.hasobject:
             if not isinstance(raw, list) or len(raw) != count:
                 raise _Refused("object array data does not match its shape")
@@ -445,6 +447,9 @@ def _children(obj: Any) -> tuple[Iterator[Any], int]:
     return iter(obj), len(obj)
 
 
+_PLAIN_SCALARS = frozenset({int, float, bool, complex, type(None)})  # one item each, never walked into
+
+
 def _expansion(root: Any) -> tuple[int, int]:
     """(expanded, held): items a full conversion of ``root`` makes (to_plain, np.asarray, str: a shared
     object once per reference) and items the unpickled objects hold (each object once).
@@ -454,21 +459,26 @@ def _expansion(root: Any) -> tuple[int, int]:
     leaf = _leaf_weight(root)
     if leaf is not None:
         return leaf
-    done: dict[int, int] = {}  # id -> expanded size of a finished object (leaves with a size too)
+    done: dict[int, int] = {}  # id -> expanded size of a finished object (and of sized leaves)
     on_path: set[int] = {id(root)}
     children, held = _children(root)
     held += 1
     stack: list[list[Any]] = [[root, children, 1]]
     while stack:
         frame = stack[-1]
+        acc, pushed = 0, False
         for child in frame[1]:
+            if type(child) in _PLAIN_SCALARS:
+                acc += 1
+                continue
             key = id(child)
-            if key in done:
-                frame[2] += done[key]
+            weight = done.get(key)
+            if weight is not None:
+                acc += weight
                 continue
             leaf = _leaf_weight(child)
             if leaf is not None:
-                frame[2] += leaf[0]
+                acc += leaf[0]
                 if leaf[1] > 1 or leaf[0] > 1:  # arrays, strings, ranges: held once, expanded per reference
                     done[key] = leaf[0]
                     held += leaf[1]
@@ -479,8 +489,10 @@ def _expansion(root: Any) -> tuple[int, int]:
             grandchildren, n = _children(child)
             held += 1 + n
             stack.append([child, grandchildren, 1])
+            pushed = True
             break
-        else:
+        frame[2] += acc
+        if not pushed:
             stack.pop()
             on_path.discard(id(frame[0]))
             done[id(frame[0])] = frame[2]
@@ -765,15 +777,19 @@ class NpzArchive:
                                  f"data, the member holds {max(0, info.file_size - offset):,})")
         return info.file_size
 
-    def read(self, keys: Iterable[str] | None = None, allow_pickle: bool = True) -> dict[str, np.ndarray]:
-        """The members ``keys`` (default all; absent keys are skipped) as arrays, all checked before any is read."""
+    def read(self, keys: Iterable[str] | None = None, allow_pickle: bool = True,
+             total_limit: tuple[int, str] | None = None) -> dict[str, np.ndarray]:
+        """The members ``keys`` (default all; absent keys are skipped) as arrays, all checked before any is read.
+
+        total_limit: (bytes, config key) for the members' total; default ``limits.max_file_mb``.
+        """
         wanted = list(self.members) if keys is None else [k for k in dict.fromkeys(keys) if k in self.members]
-        limit = _limits.current().max_file_bytes
+        limit, key_name = total_limit or (_limits.current().max_file_bytes, "limits.max_file_mb")
         try:
             total = sum(self._check(key, allow_pickle) for key in wanted)
             if total > limit:
                 raise InputError(f"{self.path}: members total {human_bytes(total)} uncompressed "
-                                 f"(limit {human_bytes(limit)}: limits.max_file_mb)")
+                                 f"(limit {human_bytes(limit)}: {key_name})")
             out = {}
             for key in wanted:
                 stream, info = self._open(key)
@@ -807,8 +823,10 @@ def open_npz(path: str | Path) -> Iterator[NpzArchive]:
         yield NpzArchive(path, archive)
 
 
-def load_npz(path: str | Path, keys: Iterable[str] | None = None, allow_pickle: bool = True) -> dict[str, np.ndarray]:
+def load_npz(path: str | Path, keys: Iterable[str] | None = None, allow_pickle: bool = True,
+             total_limit: tuple[int, str] | None = None) -> dict[str, np.ndarray]:
     """Read the members ``keys`` (default: all) of an ``.npz`` file, every declared size checked
-    first; object arrays go through the restricted unpickler (or are refused without ``allow_pickle``)."""
+    first; object arrays go through the restricted unpickler (or are refused without ``allow_pickle``).
+    total_limit: as :meth:`NpzArchive.read`."""
     with open_npz(path) as npz:
-        return npz.read(keys, allow_pickle)
+        return npz.read(keys, allow_pickle, total_limit)

@@ -21,9 +21,10 @@ import yaml
 from .atomic import atomic_open, atomic_write_text
 from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .errors import InputError
+from . import limits
 from .focal import focal_kind_or_default
-from .safe_pickle import load_npz
 from .outputs import TEXT_HEADER
+from .safe_pickle import load_npz
 
 __all__ = [
     "Frame",
@@ -241,7 +242,7 @@ def read_frame_npz(path: str | Path) -> Frame:
     """Read and validate one ``.npz`` frame: numeric arrays only (no pickle), every member's declared
     size checked against ``limits`` before it is read (``safe_pickle.open_npz``)."""
     path = Path(path)
-    data = load_npz(path, allow_pickle=False)
+    data = load_npz(path, allow_pickle=False, total_limit=(limits.current().max_frame_bytes, "limits.max_frame_mb"))
     validate_frame(data, str(path))
     return Frame(path.stem, data, str(path))
 
@@ -266,6 +267,8 @@ def read_frame_obj(folder: str | Path) -> Frame:
         f = np.asarray(mesh.faces, dtype=np.int64)
         if v.ndim != 2 or v.shape[0] == 0:
             raise _fail(str(file), "OBJ has no vertices")
+        if not np.all(np.isfinite(v)):
+            raise _fail(str(file), "OBJ has non-finite vertices (NaN or inf)")
         if verts and v.shape != verts[0].shape:
             raise _fail(str(file), f"has {v.shape[0]} vertices but {files[0].name} has {verts[0].shape[0]}: "
                         "one frame must share one topology")
@@ -371,6 +374,8 @@ def _obj_text(verts: np.ndarray, faces: np.ndarray) -> str:
 def read_yaml(path: str | Path) -> dict:
     """Load a YAML mapping with the safe loader; errors name the file."""
     path = Path(path)
+    if path.exists() and not path.is_file():
+        raise _fail(str(path), "not a regular file")
     try:
         with open(path, encoding="utf-8") as handle:
             data = yaml.safe_load(handle)

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import safe_pickle
 from .errors import InputError
 from .rotations import axis_angle_to_matrix
 
@@ -91,23 +92,18 @@ def _model_arrays(path: Path) -> dict[str, np.ndarray]:
     if path.suffix.lower() == ".pkl":
         raise InputError(f"{path}: pickled SMPL models are not read (they hold chumpy/scipy objects); "
                          "pass the .npz release of the model (e.g. SMPL_NEUTRAL.npz, SMPLX_NEUTRAL.npz)")
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            missing = [k for k in _REQUIRED if k not in npz.files]
-            if missing:
-                raise InputError(f"{path}: not an SMPL-family .npz model (missing {', '.join(missing)})")
-            arrays = {}
-            for key in _REQUIRED + (("f",) if "f" in npz.files else ()):
-                try:
-                    arrays[key] = npz[key]
-                except ValueError:
-                    raise InputError(f"{path}: key '{key}' is a pickled object (e.g. a scipy sparse matrix); "
-                                     "re-save the model with dense numpy arrays") from None
-            return arrays
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found") from None
-    except (OSError, ValueError, EOFError) as exc:
-        raise InputError(f"{path}: not a readable .npz model ({str(exc).splitlines()[0]})") from None
+    with safe_pickle.open_npz(path) as npz:  # declared sizes checked against the limits before reading
+        missing = [k for k in _REQUIRED if k not in npz.keys()]
+        if missing:
+            raise InputError(f"{path}: not an SMPL-family .npz model (missing {', '.join(missing)})")
+        keys = _REQUIRED + (("f",) if "f" in npz.keys() else ())
+        try:
+            return npz.read(keys, allow_pickle=False)
+        except InputError as exc:
+            if "object array" in str(exc):
+                raise InputError(f"{path}: a key is a pickled object (e.g. a scipy sparse matrix); re-save the "
+                                 "model with dense numpy arrays") from None
+            raise
 
 
 def load_body_model(path: str | Path) -> BodyModel:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .bodies import BodyLibrary, load_bodies
-from .camera import Camera, pixel_rays_cam, reexpress_cam
+from .camera import MAX_IMAGE_SIDE_PX, Camera, pixel_rays_cam, reexpress_cam
 from .focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from .atomic import staged_directory
 from .landmarks import foot_head_points
@@ -57,6 +57,14 @@ class SynthOptions:
     stature_sd_m: float = 0.07
     pred_stature_sd_m: float = 0.03
     noise_3d_m: float = 0.005
+
+    def __post_init__(self) -> None:
+        width, height = self.image_size
+        if not (32 <= int(width) <= MAX_IMAGE_SIDE_PX and 32 <= int(height) <= MAX_IMAGE_SIDE_PX):
+            raise ValueError(f"--image-size (image_size) must be two sizes of 32 to {MAX_IMAGE_SIDE_PX} px, got "
+                             f"{list(self.image_size)}")
+        if self.frames < 1 or self.people < 0:
+            raise ValueError(f"frames must be >= 1 and people >= 0, got {self.frames} and {self.people}")
 
 
 def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None,

@@ -225,7 +225,7 @@ def test_a_failing_sequence_is_reported_and_the_others_finish(data, tmp_path, ru
     (["empty"], "no sequences"),
     (["pred", "--steps", "eval"], "needs --gt-root"),
     (["pred", "--steps", "align,fly"], "unknown step"),
-    (["pred", "--executor", "slurm"], "--executor must be local or dask"),
+    (["pred", "--executor", "slurm"], "--executor: must be one of local, dask"),
     (["pred", "--from", "nosuchtool"], "unknown format"),
 ])
 def test_usage_errors_exit_2(data, tmp_path, runner, monkeypatch, args, message):

@@ -173,5 +173,5 @@ def test_box_depth_flag_overrides_the_config_and_bad_values_exit_2(tmp_path, run
     assert json.loads(result.stdout)["fit"]["box_depth_m"] == 0.15
     result = invoke(runner, "calibrate", seq, "--points", "boxes", "--box-depth", "nan",
                     "--out", tmp_path / "bad.yaml")
-    assert result.exit_code == 2 and "box_depth" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert result.exit_code == 2 and "--box-depth" in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad.yaml").exists()

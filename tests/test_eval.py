@@ -197,7 +197,7 @@ def test_engine_option_over_config_and_its_errors(tmp_path, runner, monkeypatch)
     for key in ("w_pve", "pve", "pa_pve"):
         assert scores[engines[-1]][key] == pytest.approx(scores["numpy"][key], abs=1e-5)
     bad = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "bad", "--engine", "cuda")
-    assert bad.exit_code == 2 and "--engine" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    assert bad.exit_code == 2 and "--engine: must be one of" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad" / "metrics.json").exists()
     monkeypatch.setattr("rotavat_cli.metrics.fused.compiled_kernels", lambda: None)  # as if numba were missing
     missing = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "bad", "--engine", "numba")

@@ -190,7 +190,7 @@ def test_camera_height_from_the_command_line(tmp_path, runner):
     assert written["height_m"] == true.height_m and written["fit"]["person_height"] == "estimated"
     assert abs(written["fit"]["person_height_m"] - 1.70) < 0.15
     bad = invoke(runner, "calibrate", scene / "pred", "--camera-height", "-3", "--out", tmp_path / "d.yaml")
-    assert bad.exit_code == 2 and "camera_height_m" in bad.stderr and not (tmp_path / "d.yaml").exists()
+    assert bad.exit_code == 2 and "--camera-height" in bad.stderr and not (tmp_path / "d.yaml").exists()
 
 
 def _boxes(camera: Camera, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

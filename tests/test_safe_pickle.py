@@ -240,7 +240,8 @@ def test_broken_npz_and_npy(tmp_path):
 
 
 def test_decompression_bomb_is_capped(tmp_path):
-    small = limits.Limits(max_file_bytes=1 << 16, max_array_bytes=1 << 16, max_pickle_items=10**6, max_grid_cells=10**6)
+    small = limits.Limits(max_file_bytes=1 << 16, max_array_bytes=1 << 16, max_frame_bytes=1 << 16, max_pickle_items=10**6,
+                          max_grid_cells=10**6)
     (tmp_path / "bomb.pkl").write_bytes(zlib.compress(b"\x80\x04" + b"N" * (1 << 20)))
     with limits.applied(small), pytest.raises(InputError, match=r"decompresses to more than 64\.0 KiB \(limit: limits\.max_file_mb\)"):
         safe_pickle.load_file(tmp_path / "bomb.pkl")

@@ -167,5 +167,5 @@ def test_model_file_errors(tmp_path):
     with pytest.raises(InputError, match="file not found"):
         load_body_model(tmp_path / "nope.npz")
     (tmp_path / "junk.npz").write_bytes(b"junk")
-    with pytest.raises(InputError, match="not a readable .npz model"):
+    with pytest.raises(InputError, match="junk.npz: not a valid .npz file"):
         load_body_model(tmp_path / "junk.npz")

@@ -11,6 +11,7 @@ from typing import Any
 
 from ..config import default_config
 from ..errors import InputError
+from ..evaluate import MATCHES
 from ..figure import FigureOptions
 from ..plain import to_plain
 from .discover import discover_sequences, fingerprint, frames_hint
@@ -19,6 +20,7 @@ __all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "Bat
            "make_plan", "completed_marker"]
 
 STEPS = ("calibrate", "align", "eval", "render")
+EXECUTORS = ("local", "dask")
 MARKER = ".rotavat-complete"
 MARKER_VERSION = 1
 ALIGN_STAGING = ".aligned.chunks"  # align chunks' staging (aligned/ and render/ are staged beside them by staged_directory)
@@ -105,12 +107,12 @@ def completed_marker(job: dict, plan: dict) -> dict | None:
 
 def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[dict]]:
     """Validate the options, find the sequences, and build the plan and one job per sequence."""
-    if options.executor not in ("local", "dask"):
-        raise InputError(f"--executor must be local or dask, got {options.executor!r}")
+    if options.executor not in EXECUTORS:
+        raise InputError(f"--executor must be one of {', '.join(EXECUTORS)}, got {options.executor!r}")
     if options.jobs < 0 or options.chunk_frames < 1:
         raise InputError(f"--jobs must be >= 0 and --chunk-frames >= 1, got {options.jobs} and {options.chunk_frames}")
-    if options.config["eval"]["match"] not in ("auto", "ids", "hungarian", "agora"):
-        raise InputError(f"eval.match must be auto, ids, hungarian or agora, got {options.config['eval']['match']!r}")
+    if options.config["eval"]["match"] not in MATCHES:
+        raise InputError(f"eval.match must be one of {', '.join(MATCHES)}, got {options.config['eval']['match']!r}")
     steps = parse_steps(options.steps)
     if "eval" in steps and options.gt_root is None:
         raise InputError("the eval step needs --gt-root (ground truth mirroring ROOT's tree)")

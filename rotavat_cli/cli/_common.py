@@ -17,7 +17,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from typer.core import TyperGroup
 
-from ..config import load_config
+from ..config import load_config, merge_config
 from ..limits import Limits, configure as configure_limits
 from ..sequence import Sequence, open_sequence
 from ..errors import InputError, RotavatError
@@ -96,10 +96,41 @@ def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:
     """Effective options of one config section: defaults < --config FILE < flags (None = unset).
 
     Also puts the merged config's ``limits`` in force for this process (and the workers it forks).
+    A flag's bad value is reported under the flag's name (``--size``), not its config key.
     """
-    config = load_config(config_file, {section: flags})
+    return use_config(config_file, {section: flags})[section]
+
+
+# Flags named otherwise than their config key less its unit (focal_px -> --focal, box_depth_m -> --box-depth).
+_FLAG_NAMES = {"estimate_roll": "--roll/--no-roll", "person_height_sd_m": "--height-sd", "threshold_px": "--threshold-px",
+               "estimate_focal": "--estimate-focal"}
+
+
+def _flag_name(key: str) -> str:
+    """The command-line flag that sets config key ``key`` of a section."""
+    if key in _FLAG_NAMES:
+        return _FLAG_NAMES[key]
+    for unit in ("_px", "_deg", "_m"):
+        if key.endswith(unit):
+            key = key[: -len(unit)]
+            break
+    return "--" + key.replace("_", "-")
+
+
+def use_config(config_file: Path | None, overrides: dict | None = None) -> dict:
+    """The merged config (defaults < --config FILE < overrides: flags by section, None = unset), its
+    ``limits`` put in force for this process and the workers it forks. A flag's bad value is reported
+    under the flag's name (``--size``), not its config key."""
+    config = load_config(config_file)
+    for section, flags in (overrides or {}).items():
+        for key, value in flags.items():
+            if value is not None:
+                try:
+                    config = merge_config(config, {section: {key: value}}, _flag_name(key))
+                except InputError as exc:
+                    raise InputError(str(exc).replace(f" key '{section}.{key}'", "", 1)) from None
     configure_limits(Limits.from_config(config.get("limits")))
-    return config[section]
+    return config
 
 
 @contextmanager

@@ -12,12 +12,12 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
-from ..config import load_config
 from ..errors import InputError
 from ..outputs import beside
 from ..parallel import cpu_count
 from . import app
-from ._common import ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json, progress_enabled
+from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json, progress_enabled,
+                      use_config)
 
 
 @app.command()
@@ -44,7 +44,7 @@ def batch(
     failing sequence is reported with its reason and the others go on. Exit status: 0 all ok, 1 a
     sequence failed, 2 bad input or usage.
     """
-    cfg = load_config(config, {"batch": {"steps": steps, "executor": executor, "jobs": jobs, "scheduler": scheduler,
+    cfg = use_config(config, {"batch": {"steps": steps, "executor": executor, "jobs": jobs, "scheduler": scheduler,
                                          "chunk_frames": chunk_frames}})
     options = BatchOptions.from_config(cfg, gt_root=gt_root, fmt=from_, image_size=image_size, smpl_model=smpl_model, force=force)
     if options.scheduler and options.executor != "dask":

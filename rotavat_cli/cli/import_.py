@@ -6,11 +6,12 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 
 from ..errors import InputError
 from ..formats import available_formats, detect_format, import_sequence
 from . import app
-from ._common import JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled
+from ._common import ConfigOpt, JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled, use_config
 
 _FORMATS = ", ".join(available_formats())
 
@@ -24,10 +25,12 @@ def import_(
     smpl_model: Annotated[Path | None, typer.Option(help="SMPL/SMPL-X .npz model you downloaded, to pose parameter-only formats (CLIFF, 4D-Humans, BEDLAM, AGORA params).", dir_okay=False)] = None,
     fov: Annotated[float | None, typer.Option("--fov", help="Field of view (deg) the method ran with (multihmr: its --fov, default 60).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a non-empty OUT that rotavat did not write (never SRC).")] = False,
+    config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Convert HPS results (CLIFF, BEV/ROMP, 4D-Humans, Multi-HMR, SPEC, AGORA, BEDLAM) into the contract (OpenCV camera frame, metres)."""
+    use_config(config)  # its limits
     fmt = from_ or detect_format(src)
     if fmt is None:
         raise InputError(f"{src}: cannot tell its format; pass --from ({_FORMATS})")
@@ -40,7 +43,7 @@ def import_(
         print_json(summary)
         return
     for warning in summary["warnings"]:
-        info(f"[yellow]warning:[/] {warning}", quiet)
+        info(f"[yellow]warning:[/] {escape(str(warning))}", quiet)
     size = summary["image_size"]
     focal = summary["focal_px"]
     info(f"imported {summary['frames']} frames ({summary['people']} people, {summary['empty_frames']} empty) "

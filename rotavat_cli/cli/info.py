@@ -10,17 +10,20 @@ from rich.table import Table
 
 from ..sequence import open_sequence, summarize_sequence
 from . import app
-from ._common import JsonOpt, console, print_json, warn_ignored
+from ._common import ConfigOpt, JsonOpt, QuietOpt, console, print_json, use_config, warn_ignored
 
 
 @app.command()
 def info(
     seq: Annotated[Path, typer.Argument(help="Sequence directory (npz frames or folders of per-person OBJ).")],
+    config: ConfigOpt = None,
+    quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Validate a sequence and print a summary: form, frames, people, keys, sizes, intrinsics, camera."""
+    use_config(config)  # its limits
     sequence = open_sequence(seq)
-    warn_ignored(sequence, as_json)
+    warn_ignored(sequence, quiet or as_json)
     summary = summarize_sequence(sequence)
     if as_json:
         print_json(summary)

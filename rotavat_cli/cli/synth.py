@@ -35,7 +35,10 @@ def synth(
     opts = config_for(config, "synth", seed=seed, frames=frames, people=people,
                       image_size=list(image_size) if image_size else None, roll_deg=roll, noise_px=noise_px,
                       outliers=outliers, hps_focal=hps_focal, depth_sd=depth_sd)
-    options = SynthOptions(**{**opts, "image_size": tuple(opts["image_size"])})
+    try:
+        options = SynthOptions(**{**opts, "image_size": tuple(opts["image_size"])})
+    except ValueError as exc:
+        raise InputError(f"synth: {exc}") from None
     try:
         hps_focal_px(options.hps_focal, random_camera(np.random.default_rng(0), options.image_size))
     except ValueError as exc:

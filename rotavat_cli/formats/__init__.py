@@ -191,7 +191,8 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
         if value is None:
             continue
         value = value[keep]
-        data[key] = value.astype(np.int64) if key == "person_ids" else value.astype(np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):  # out-of-range values become inf: refused below
+            data[key] = value.astype(np.int64) if key == "person_ids" else value.astype(np.float32)
     if "vertices" not in data and n_verts is not None and not keep.any():
         data["vertices"] = np.zeros((0, n_verts, 3), np.float32)
     if faces is not None and "vertices" in data and data["vertices"].shape[1] == 0:

@@ -110,7 +110,10 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
             raise fail(path, f"expected a dict, got {type(data).__name__}")
         out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None}
         if data.get("joints") is not None:
-            out["keypoints_2d"] = as_array(data["joints"], "joints", path).reshape(-1, 2) * scale_2d
+            joints_2d = as_array(data["joints"], "joints", path, ndim=2)
+            if joints_2d.shape[1] != 2:
+                raise fail(path, f"'joints' must be (J, 2) pixels, got shape {list(joints_2d.shape)}")
+            out["keypoints_2d"] = joints_2d * scale_2d
         if data.get("verts") is not None:
             out["vertices"] = as_array(data["verts"], "verts", path, ndim=2, last=(3,))
             if data.get("allSmplJoints3d") is not None:

@@ -68,6 +68,8 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     pred_joints = as_array(data["pred_joints"], "pred_joints", path, ndim=3, last=(3,)) if n_det else np.zeros((0, 24, 3))
     global_t = as_array(data["global_t"], "global_t", path).reshape(-1, 3) if n_det else np.zeros((0, 3))
     focal_l = as_array(data["focal_l"], "focal_l", path).reshape(-1) if n_det else np.zeros(0)
+    if not np.all(np.isfinite(focal_l) & (focal_l > 0)):
+        raise fail(path, "'focal_l' must hold positive focal lengths (px)")
     if len(pred_joints) != n_det:
         raise fail(path, f"'pred_joints' has {len(pred_joints)} rows but 'detection_all' has {n_det}")
     frame_index = det[:, 0].astype(np.int64)

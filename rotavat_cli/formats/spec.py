@@ -77,7 +77,11 @@ def _scalar(obj: object, name: str, source: object) -> float:
 
 def _camcalib(path: Path) -> dict[str, float]:
     data = safe_pickle.load_file(path)
-    return {key: _scalar(get(data, key, path), key, path) for key in ("pitch", "roll", "vfov", "f_pix")}
+    cam = {key: _scalar(get(data, key, path), key, path) for key in ("pitch", "roll", "vfov", "f_pix")}
+    if cam["f_pix"] <= 0 or not 0 < cam["vfov"] < np.pi:
+        raise fail(path, f"'f_pix' must be a positive focal length and 'vfov' a field of view in (0, pi), got "
+                         f"{cam['f_pix']:g} and {cam['vfov']:g}")
+    return cam
 
 
 def _infer_image_size(j3d_cam: np.ndarray, j2d: np.ndarray, focal: float) -> tuple[int, int] | None:

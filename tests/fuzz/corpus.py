@@ -8,8 +8,9 @@ the two, never anything else; ``gate``: a ``--fail-if`` gate that trips, exit 1)
 result checks. The harness adds foreign sentinel files around every case and hashes the whole
 folder before and after.
 
-Everything is deterministic (fixed seeds) and small: the largest file is a few KB, except the
-compressed bombs (about 1-20 KB on disk, declaring up to gigabytes when inflated).
+Everything is deterministic (fixed seeds) and small: files are a few KB, except the compressed
+bombs (1 KB for bzip2, 0.8-1.2 MB for deflate, which cannot pack more than ~1000:1), which inflate
+to gigabytes. Nothing large is ever written to disk.
 
 >>> cases = all_cases()
 >>> len({c.id for c in cases}) == len(cases)           # ids are unique
@@ -26,6 +27,7 @@ import io
 import json
 import os
 import pickle
+import re
 import struct
 import sys
 import tempfile
@@ -467,6 +469,12 @@ def bytearray_bomb(n: int = 2**31) -> bytes:
         if n < 2**31 else _global("builtins", "bytearray") + b"(\x8a\x05" + n.to_bytes(5, "little") + b"tR."
 
 
+def list_range_bomb(n: int = 2**27) -> bytes:
+    """Unpickling calls list(range(n))."""
+    return (_global("builtins", "list") + b"(" + _global("builtins", "range") + b"(J" + struct.pack("<i", n)
+            + b"tRtR.")
+
+
 def huge_array_pickle(shape: tuple[int, ...] = (10**6, 10**6, 3)) -> bytes:
     """A pickled ndarray whose state declares ``shape`` with 8 bytes of data."""
     arr = np.zeros(1, dtype="<f8")
@@ -791,6 +799,9 @@ def gen_importers() -> list[Case]:
                               lambda fmt=fmt: {**format_files(fmt), "model.npz": lambda root: npz_bytes(
                                   {**_load_npz_bytes(tiny_model_bytes()), "J_regressor": _obj(F.Evil(root / MARKER))})},
                               "refuse", inputs, [], ["model.npz"], payload=True))
+            cases.append(Case(f"{cls}/{fmt}/model-truncated", cls, import_args(fmt),
+                              lambda fmt=fmt: {**format_files(fmt), "model.npz": tiny_model_bytes()[:3000]},
+                              "refuse", inputs, [], ["model.npz"]))
             cases.append(Case(f"{cls}/{fmt}/model-huge-shape", cls, import_args(fmt),
                               lambda fmt=fmt: {**format_files(fmt), "model.npz": npz_from_members({
                                   **{f"{k}.npy": npy_bytes(v) for k, v in _load_npz_bytes(tiny_model_bytes()).items()},
@@ -874,6 +885,9 @@ def _importer_structure_cases() -> list[Case]:
     cliff = format_members("cliff")[0]
     add("cliff", "pose-rows-mismatch", _npz_edit("cliff", cliff, lambda d: _set(d, pose=d["pose"][:-1])), "either",
         note="fewer parameter rows than detections is CLIFF's --infill layout")
+    add("cliff", "member-dotdot-path", lambda: {**format_files("cliff"), cliff: zip_raw(
+        [stored(n, b) for n, b in _members_of(format_files("cliff")[cliff]).items()]
+        + [stored("../../../evil.npy", npy_bytes(np.arange(3.0)))])}, "either")
     add("cliff", "pose-strings", _npz_edit("cliff", cliff, lambda d: _set(d, pose=d["pose"].astype("U6"))), "either")
     add("cliff", "global-t-nan", _npz_edit("cliff", cliff, lambda d: _set(d, global_t=d["global_t"] * np.nan)), "either",
         note="people with non-finite values: refused, or dropped with a warning")
@@ -1022,6 +1036,9 @@ def gen_yaml() -> list[Case]:
     add("meta-deep-nesting", meta(META.decode() + yaml_deep()), INFO, "either", ["meta.yaml"], subprocess=True,
         outputs=[])
     # wrong types and values
+    add("config-deep-nesting", config("align:\n  stature_range_m: " + "[" * 100_000 + "]" * 100_000 + "\n"),
+        ALIGN + ["--config", "config.yaml"], "refuse", ["config.yaml"])
+    add("camera-deep-nesting", cam(camera_yaml().decode() + yaml_deep()), ALIGN, "either", ["cam.yaml"])
     add("meta-source-mapping", meta(META.decode().replace("source: fuzz", "source: {a: 1, b: [2, 3]}")), INFO,
         "either", ["meta.yaml"], outputs=[])
     add("meta-top-level-list", meta("- 640\n- 480\n"), INFO, "refuse", ["meta.yaml"])
@@ -1165,6 +1182,11 @@ def gen_paths() -> list[Case]:
         "refuse", ["s/pred"])
     add("export-out-is-frame", ["export", "s/pred", "--camera", "cam.yaml", "--out", "s/pred/000000.npz"], "refuse",
         ["000000.npz"])
+    add("export-out-inside-input", ["export", "s/pred", "--camera", "cam.yaml", "--out", "s/pred/scene.glb"], "refuse",
+        ["s/pred"])
+    add("render-out-foreign-folder", ["render", "s/pred", "--camera", "cam.yaml", "--out", "mine", "--renderer",
+                                      "fallback"], "refuse", ["mine"],
+        files=lambda: {**s_files(), "mine/holiday.png": b"\x89PNG not rotavat's"})
     add("export-out-foreign-glb", ["export", "s/pred", "--camera", "cam.yaml", "--out", "scene.glb"], "refuse",
         ["scene.glb"], files=lambda: {**s_files(), "scene.glb": b"glTF user file"})
     add("synth-out-is-foreign-folder", ["synth", "s", "--frames", "1", "--people", "1"], "refuse", ["s"])
@@ -1196,12 +1218,14 @@ def gen_obj() -> list[Case]:
     add("non-utf8-vertex", {"seq/000001/10.obj": good.replace("v ", "v \xff", 1).encode("latin1")}, info, "refuse",
         ["10.obj"])
     add("binary-garbage", {"seq/000001/10.obj": np.random.default_rng(5).bytes(2000)}, info, "refuse", ["10.obj"])
-    add("vertex-nan", {"seq/000001/10.obj": good.replace("v ", "v nan nan nan\nv ", 1).encode()}, info, "refuse",
-        ["10.obj"])
+    add("vertex-nan", {"seq/000001/10.obj": re.sub(r"^v .*$", "v nan nan nan", good, count=1, flags=re.M).encode()},
+        info, "refuse", ["10.obj"])
+    add("vertex-inf", {"seq/000001/10.obj": re.sub(r"^v .*$", "v 0 inf 8", good, count=1, flags=re.M).encode()},
+        align, "refuse", ["10.obj"])
     add("face-index-out-of-range", {"seq/000001/10.obj": (good + "f 1 2 999999\n").encode()}, info, "refuse",
         ["10.obj"])
-    add("topology-differs", {"seq/000001/10.obj": obj_text(tiny_body()[0][:20], np.zeros((0, 3), int)).encode()},
-        info, "refuse", ["10.obj", "000001"])
+    add("topology-differs", {"seq/000001/10.obj": obj_text(tiny_body()[0][:30] + [0, 0, -8], tiny_body()[1][
+        np.all(tiny_body()[1] < 30, axis=1)]).encode()}, info, "refuse", ["10.obj", "11.obj", "000001"])
     add("empty-obj", {"seq/000001/10.obj": b""}, info, "refuse", ["10.obj"])
     add("mixed-npz-and-obj", {"seq/000009.npz": npz_bytes(scene_frames()[0])}, info, "refuse", ["seq"])
     cases.append(Case(f"{cls}/subfolder-named-0.obj", cls, info, base, "either", ["seq", "cam.yaml"], [],
@@ -1220,8 +1244,11 @@ def gen_obj() -> list[Case]:
                       symlinks={"seq/000001/96.obj": "/dev/zero"}, subprocess=True, timeout_s=20,
                       note="an endless file: read with a bound, skipped, or refused"))
     cases.append(Case(f"{cls}/frame-npz-is-fifo", "npz-frame", INFO, lambda: dict(base_seq()), "either", SEQ_INPUTS,
-                      [], ["000005.npz"], fifos=["seq/000005.npz"], subprocess=True, timeout_s=15,
+                      [], ["000005.npz"], fifos=["seq/000005.npz"], timeout_s=5,
                       note="a named pipe among the frames must not hang the reader"))
+    cases.append(Case(f"{cls}/camera-yaml-is-fifo", "yaml", INFO, lambda: dict(base_seq()), "either", SEQ_INPUTS,
+                      [], ["seq/camera.yaml", "camera.yaml"], fifos=["seq/camera.yaml"],
+                      timeout_s=5, note="SEQ/camera.yaml a named pipe: refused or skipped, never waited on"))
     return cases
 
 
@@ -1381,6 +1408,10 @@ def gen_bombs() -> list[Case]:
              lambda: {**format_files("agora"), format_members("agora")[0]: bytearray_bomb(2**31)}, "refuse",
              ["src", "model.npz"], [], [Path(format_members("agora")[0]).name], subprocess=True,
              note="a 30-byte pickle calling bytearray(2**31)"),
+        Case(f"{cls}/pickle-list-of-range", cls, import_args("agora"),
+             lambda: {**format_files("agora"), format_members("agora")[0]: list_range_bomb()}, "refuse",
+             ["src", "model.npz"], [], [Path(format_members("agora")[0]).name], subprocess=True,
+             note="a 40-byte pickle calling list(range(2**27)): 5 GB of ints"),
         Case(f"{cls}/pickle-shared-reference-expansion", cls, import_args("agora"),
              lambda: {**format_files("agora"), format_members("agora")[0]: pickle.dumps(
                  {"verts": shared_reference_bomb(), "joints": np.zeros((24, 2)), "allSmplJoints3d": np.zeros((24, 3))},

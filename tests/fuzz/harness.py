@@ -42,7 +42,8 @@ try:
 except ImportError:  # run as a script from tests/fuzz
     import corpus as C  # type: ignore[no-redef]
 
-KILL_RSS_MB = 1600.0  # a subprocess above this is killed (the machine's safety net; the rule's bound is lower)
+KILL_FACTOR = 1.1  # a case's command is killed at 1.1x its RSS bound: past the bound is a violation already
+KILL_RSS_MB = 1100.0  # run_subprocess's default kill threshold (direct calls)
 LEFTOVER_GRACE_S = 3.0  # processes of a finished command still alive after this are a violation
 ADDRESS_SPACE_LIMIT = 8 << 30  # RLIMIT_AS of subprocess runs: a runaway allocation fails instead of swapping
 
@@ -213,8 +214,10 @@ def run_inprocess(args: list[str], cwd: Path, timeout: float) -> dict:
     t0 = time.monotonic()
     tb, timed_out = "", False
     with _cwd(cwd), warnings.catch_warnings():
-        warnings.resetwarnings()  # print warnings to (the captured) stderr, as a real run does
+        # print warnings to (the captured) stderr, as a real run does, even under pytest's recorder
+        warnings.resetwarnings()
         warnings.simplefilter("default")
+        warnings.showwarning = _show_on_stderr
         try:
             with _alarm(timeout):
                 result = CliRunner().invoke(app, args, catch_exceptions=True)
@@ -228,6 +231,10 @@ def run_inprocess(args: list[str], cwd: Path, timeout: float) -> dict:
             "timed_out": timed_out, "seconds": time.monotonic() - t0}
 
 
+def _show_on_stderr(message, category, filename, lineno, file=None, line=None) -> None:
+    sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
 def rotavat_command() -> list[str]:
     exe = Path(sys.executable).with_name("rotavat")
     if exe.exists():
@@ -235,11 +242,38 @@ def rotavat_command() -> list[str]:
     return [sys.executable, "-c", "import sys; sys.argv[0] = 'rotavat'; from rotavat_cli.cli import main; main()"]
 
 
-def _limits() -> None:  # pragma: no cover - runs in the child
-    import resource
-
-    with contextlib.suppress(ValueError, OSError):
-        resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE_LIMIT, ADDRESS_SPACE_LIMIT))
+# A small process between the harness and the command. A forked child's ru_maxrss starts at its
+# parent's RSS (Linux keeps the old mm's high-water mark across exec), so forking rotavat straight
+# from a large pytest process would report pytest's size; forked from this ~10 MB trampoline, the
+# command's own peak (with its waited-for workers) comes back through a pipe.
+_TRAMPOLINE = r"""
+import os, resource, signal, sys
+fd, limit, cmd = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3:]
+try:
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+except (ValueError, OSError):
+    pass
+pid = os.fork()
+if pid == 0:
+    os.close(fd)
+    try:
+        os.execv(cmd[0], cmd)
+    finally:
+        os._exit(127)
+while True:
+    try:
+        _, status, usage = os.wait4(pid, 0)
+        break
+    except InterruptedError:
+        continue
+os.write(fd, str(usage.ru_maxrss).encode())
+os.close(fd)
+code = os.waitstatus_to_exitcode(status)
+if code < 0:
+    signal.signal(-code, signal.SIG_DFL)
+    os.kill(os.getpid(), -code)
+os._exit(code)
+"""
 
 
 def _tree(pid: int) -> list[Any]:
@@ -262,26 +296,28 @@ def _rss_mb(procs: list[Any]) -> float:
 
 
 def run_subprocess(args: list[str], cwd: Path, timeout: float, kill_rss_mb: float = KILL_RSS_MB) -> dict:
-    """A real ``rotavat`` process: exit, output, peak RSS (wait4 rusage + polling), processes at once."""
+    """A real ``rotavat`` process: exit, output, peak RSS (its wait4 rusage, through the trampoline, and
+    polling), processes at once (the command and its descendants)."""
     try:
         import psutil
     except ImportError:  # pragma: no cover
         psutil = None
     env = dict(os.environ)
     env.pop("FORCE_COLOR", None)
+    read_fd, write_fd = os.pipe()
     with tempfile.TemporaryFile() as out_f, tempfile.TemporaryFile() as err_f:
         t0 = time.monotonic()
-        proc = subprocess.Popen(rotavat_command() + args, cwd=cwd, stdout=out_f, stderr=err_f,
-                                stdin=subprocess.DEVNULL, preexec_fn=_limits, start_new_session=True, env=env)
-        killed, max_procs, polled_rss = None, 1, 0.0
+        command = [sys.executable, "-S", "-c", _TRAMPOLINE, str(write_fd), str(ADDRESS_SPACE_LIMIT),
+                   *rotavat_command(), *args]
+        proc = subprocess.Popen(command, cwd=cwd, stdout=out_f, stderr=err_f, stdin=subprocess.DEVNULL,
+                                pass_fds=(write_fd,), start_new_session=True, env=env)
+        os.close(write_fd)
+        killed, max_procs, polled_rss = None, 0, 0.0
         while True:
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
             if pid:
                 break
-            procs = []
-            if psutil is not None:
-                with contextlib.suppress(psutil.Error):
-                    procs = [psutil.Process(proc.pid)] + _tree(proc.pid)
+            procs = _tree(proc.pid) if psutil is not None else []  # the command and its workers
             max_procs = max(max_procs, len(procs))
             polled_rss = max(polled_rss, _rss_mb(procs))
             elapsed = time.monotonic() - t0
@@ -309,9 +345,17 @@ def run_subprocess(args: list[str], cwd: Path, timeout: float, kill_rss_mb: floa
         err_f.seek(0)
         stdout = out_f.read().decode("utf-8", "replace")
         stderr = err_f.read().decode("utf-8", "replace")
+    os.set_blocking(read_fd, False)
+    try:
+        reported = os.read(read_fd, 64)
+    except BlockingIOError:
+        reported = b""
+    finally:
+        os.close(read_fd)
+    maxrss_mb = int(reported) / 1024.0 if reported.strip().isdigit() else 0.0  # none when killed
     return {"exit_code": proc.returncode, "stdout": stdout, "stderr": stderr, "traceback": "",
             "timed_out": bool(killed and "after" in killed), "killed": killed, "seconds": seconds,
-            "peak_rss_mb": max(usage.ru_maxrss / 1024.0, polled_rss), "max_procs": max_procs, "leftover": leftover}
+            "peak_rss_mb": max(maxrss_mb, polled_rss), "max_procs": max_procs, "leftover": leftover}
 
 
 def _group_alive(pgid: int) -> bool:
@@ -337,7 +381,7 @@ def evaluate(case: C.Case, root: Path, run: dict, before: dict, after: dict) -> 
     if run.get("timed_out"):
         v.append(("R6 time", f"no result within {case.timeout_s:.0f} s (killed)"))
     elif run.get("killed"):
-        v.append(("R4 memory", run["killed"]))
+        v.append(("R4 memory", f"peak RSS over {case.max_rss_mb:.0f} MB ({run['killed']})"))
     if tb:
         last = [line for line in tb.strip().splitlines() if line.strip()][-1]
         v.append(("R1 traceback", last[:240]))
@@ -402,6 +446,7 @@ def evaluate(case: C.Case, root: Path, run: dict, before: dict, after: dict) -> 
     if run.get("peak_rss_mb") is not None and run["peak_rss_mb"] > case.max_rss_mb and not run.get("killed"):
         v.append(("R4 memory", f"peak RSS {run['peak_rss_mb']:.0f} MB > {case.max_rss_mb:.0f} MB"))
     if case.max_children is not None and run.get("max_procs") is not None and run["max_procs"] - 1 > case.max_children:
+        # max_procs counts the command itself and every descendant alive at once
         v.append(("R6 procs", f"{run['max_procs'] - 1} child processes at once (cap {case.max_children})"))
     if run.get("leftover"):
         v.append(("R6 procs", run["leftover"][0]))
@@ -449,7 +494,8 @@ def run_case(case: C.Case, root: Path, subprocess_mode: bool | None = None) -> R
         (root / rel).chmod(0o555)
     before = snapshot(root)
     try:
-        run = run_subprocess(case.args, cwd, case.timeout_s) if use_sub else run_inprocess(case.args, cwd, case.timeout_s)
+        run = (run_subprocess(case.args, cwd, case.timeout_s, KILL_FACTOR * case.max_rss_mb) if use_sub
+               else run_inprocess(case.args, cwd, case.timeout_s))
         after = snapshot(root)
     finally:
         _unlock(root)
