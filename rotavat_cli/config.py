@@ -76,6 +76,8 @@ _RANGES: dict[str, tuple[float | None, float | None]] = {
     "calibrate.principal_point": (-1e6, 1e6), "synth.image_size": (32, 100_000), "render.size": (16, 20_000),
     "align.stature_range_m": (0, 10),
 }
+_ORDERED = {"align.stature_range_m": "<", "calibrate.grid.focal_range_h": "<=",  # [low, high] pairs
+            "calibrate.grid.pitch_range_deg": "<=", "calibrate.grid.height_range_m": "<="}
 _MAX_LIST = 64  # longest list a config key takes (lists are [W, H], ranges, grid steps, colours ...)
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 40
@@ -120,6 +122,8 @@ def _check_type(default: Any, value: Any, key: str, source: str) -> Any:
     for number in (value if isinstance(value, list) else [value]):
         if _is_number(number) and not math.isfinite(number):
             raise InputError(f"{source}: key '{key}' must be finite, got {number}")
+    if key in _ORDERED and not (value[0] < value[1] if _ORDERED[key] == "<" else value[0] <= value[1]):
+        raise InputError(f"{source}: key '{key}' must be [low, high] with low {_ORDERED[key]} high, got {value}")
     choices = _choices().get(key)
     if choices is not None and value not in choices:
         raise InputError(f"{source}: key '{key}' must be one of {', '.join(choices)}, got {_SHORT.repr(value)}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import warnings
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
@@ -51,7 +52,9 @@ class RotavatGroup(TyperGroup):
 
     def invoke(self, ctx: Any) -> Any:
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings():  # numpy's overflow/invalid-value notes on hostile data: the
+                warnings.simplefilter("ignore", RuntimeWarning)  # checks after them say what is wrong, once
+                return super().invoke(ctx)
         except RotavatError as exc:
             _error_line(str(exc))
             raise typer.Exit(exc.exit_code) from None

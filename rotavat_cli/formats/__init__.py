@@ -321,7 +321,10 @@ def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None
 
 
 _FOV_FORMATS = ("multihmr",)  # formats whose field of view is a user setting of the method
-_READ_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError, MemoryError)
+# What malformed content raises in numpy and the readers (a unicode array holding invalid code points
+# raises SystemError when read as text).
+_READ_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError, MemoryError, SystemError,
+                UnicodeError)
 
 
 def _invalid(src: Path, fmt: str, exc: BaseException) -> InputError:
