@@ -163,18 +163,25 @@ def causes_table(seeds: int) -> None:
         scenes = [cause_scene(seed, gen) for seed in range(seeds)]
         for fit_name, kw in CAUSE_FITS.items():
             given, free = [], []
+            refused = 0
             for data in scenes:
                 cam = data.camera
                 args = (data.feet_px, data.heads_px, cam.image_size)
                 common = dict(frame_index=data.frame_index, track_id=data.track_id, **kw)
-                given.append(_signed(fit_camera(*args, focal_px=cam.focal_px, **common), cam))
-                free.append(_signed(fit_camera(*args, **common), cam))
+                for out, extra in ((given, dict(focal_px=cam.focal_px)), (free, {})):
+                    try:
+                        out.append(_signed(fit_camera(*args, **extra, **common), cam))
+                    except RotavatError:
+                        refused += 1
+            if not given or not free:
+                print(f"| {cause} | {fit_name} | refused on every scene |" + " |" * 7)
+                continue
             g, f = np.array(given), np.array(free)
             cells = [f"{np.mean(g[:, i]):+.2f} ± {np.std(g[:, i]):.2f}" for i in (1, 2, 3)]
             cells.append("/".join(f"{np.mean(g[:, i] < 2):.0%}" for i in (6, 7, 8)))
             cells += [f"{np.mean(f[:, i]):+.1f} ± {np.std(f[:, i]):.1f}" for i in (0, 4, 3)]
             cells.append("/".join(f"{np.mean(f[:, i] < 2):.0%}" for i in (5, 8)))
-            print(f"| {cause} | {fit_name} | " + " | ".join(cells) + " |")
+            print(f"| {cause} | {fit_name} | " + " | ".join(cells) + " |" + (f" ({refused} refused)" if refused else ""))
 
 
 def _signed(res: CalibrationResult, true: Camera) -> list[float]:
@@ -243,7 +250,11 @@ def real_table(quick: bool) -> None:
                  dict(focal_px=true.focal_px, principal_point=true.principal_point, points="boxes", distortion=True))]
         for name, kw in rows:
             t0 = time.perf_counter()
-            res = fit_camera(d["feet"], d["heads"], d["size"], frame_index=d["frame"], track_id=d["ids"], **kw)
+            try:
+                res = fit_camera(d["feet"], d["heads"], d["size"], frame_index=d["frame"], track_id=d["ids"], **kw)
+            except RotavatError as exc:  # refused: the people cannot give this camera
+                print(f"| {seq.name} | {name} | refused: {str(exc)[:90]} |" + " |" * 9)
+                continue
             dt = time.perf_counter() - t0
             c = res.camera
             hor = float(c.horizon_v_px(W / 2.0) - true.horizon_v_px(W / 2.0))

@@ -9,6 +9,7 @@ mutated in place), safe to dump next to outputs with ``yaml.safe_dump``.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import reprlib
 from pathlib import Path
@@ -83,6 +84,7 @@ _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 40
 
 
+@functools.lru_cache(maxsize=1)
 def _choices() -> dict[str, tuple[str, ...]]:
     """Keys whose value is one of a few names: each list lives beside the code that uses it."""
     from .align import HEIGHT_FROM
