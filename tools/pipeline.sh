@@ -5,8 +5,14 @@ set -euo pipefail
 rotavat=$1
 scene=$2/scene
 out=$3
+# `out` is replaced only when it is this pipeline's own (rotavat's marker) or empty: never a user's folder.
+if [ -d "$out" ] && [ -n "$(ls -A "$out")" ] && [ ! -f "$out/.rotavat-output" ]; then
+  echo "error: $out exists and rotavat did not write it; move it away or run 'make run OUT=another_dir'" >&2
+  exit 2
+fi
 rm -rf "$out"
 mkdir -p "$out"
+echo '{"written_by": "rotavat", "command": "make run"}' > "$out/.rotavat-output"
 
 echo "== 1. inspect the HPS prediction ($scene/pred)"
 "$rotavat" info "$scene/pred"
