@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-__all__ = ["RotavatError", "InputError", "DegenerateSceneError", "GateError"]
+import contextlib
+from collections.abc import Iterator
+
+__all__ = ["RotavatError", "InputError", "DegenerateSceneError", "GateError", "TaskError", "BatchFailedError",
+           "input_errors"]
 
 
 class RotavatError(Exception):
@@ -27,3 +31,31 @@ class GateError(RotavatError):
     """A ``--fail-if`` quality gate tripped; exit status 1."""
 
     exit_code = 1
+
+
+class TaskError(RotavatError):
+    """A task of one batch sequence failed: the one-line reason (the sequence is reported failed)."""
+
+    exit_code = 1
+
+
+class BatchFailedError(RotavatError):
+    """``rotavat batch`` finished, but some sequences failed (the others' outputs are complete); exit 1."""
+
+    exit_code = 1
+
+
+@contextlib.contextmanager
+def input_errors(what: str) -> Iterator[None]:
+    """A ValueError raised inside (a pure function's refusal) becomes an InputError ``"{what}: {message}"``.
+
+    >>> with input_errors("--size"):
+    ...     raise ValueError("must be positive")
+    Traceback (most recent call last):
+    ...
+    rotavat_cli.errors.InputError: --size: must be positive
+    """
+    try:
+        yield
+    except ValueError as exc:
+        raise InputError(f"{what}: {exc}") from None

@@ -30,7 +30,7 @@ import numpy as np
 from . import metrics as M
 from .atomic import atomic_open
 from .camera import Camera, project_cam_to_px
-from .errors import InputError
+from .errors import InputError, input_errors
 from .landmarks import foot_head_points
 from .matching import match_agora, match_by_ids, match_hungarian
 from .sequence import Frame, Intrinsics, Sequence, open_sequence
@@ -278,10 +278,8 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
         raise InputError(f"--threshold-px must be a positive number of pixels, got {opts.threshold_px}")
     if not (math.isfinite(opts.iou_threshold) and 0 <= opts.iou_threshold <= 1):
         raise InputError(f"--iou-threshold must be within 0..1, got {opts.iou_threshold}")
-    try:
+    with input_errors("--engine"):
         M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
-    except ValueError as exc:
-        raise InputError(f"--engine: {exc}") from None
     pred_seq, gt_seq = open_sequence(pred_dir), open_sequence(gt_dir)
     result = EvalResult(str(pred_dir), str(gt_dir))
     pred_cam, gt_cam = pred_seq.camera, gt_seq.camera

@@ -91,10 +91,10 @@ def hybrik_focal_px(box_width_px: np.ndarray) -> np.ndarray:
     return _HYBRIK_FOCAL_ON_256 / 256.0 * np.asarray(box_width_px, dtype=np.float64)
 
 
-def focal_kind_or_default(value: object, source: str) -> str:
+def focal_kind_or_default(value: object) -> str:
     """A meta.yaml ``focal_kind`` validated (None -> ``assumed``); ValueError naming the allowed values."""
     if value is None:
         return ASSUMED
     if value not in FOCAL_KINDS:
-        raise ValueError(f"{source}: key 'focal_kind' must be one of {', '.join(FOCAL_KINDS)}, got {value!r}")
+        raise ValueError(f"key 'focal_kind' must be one of {', '.join(FOCAL_KINDS)}, got {value!r}")
     return str(value)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["axis_angle_to_matrix", "rotation_between", "rotate_about"]
+__all__ = ["axis_angle_to_matrix", "rotation_between"]
 
 
 def axis_angle_to_matrix(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
@@ -37,9 +37,3 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     axis = np.cross(a, b)
     angle = np.arctan2(np.linalg.norm(axis, axis=-1), np.sum(a * b, axis=-1))
     return axis, angle
-
-
-def rotate_about(points: np.ndarray, R: np.ndarray, center: np.ndarray) -> np.ndarray:
-    """Rotate points (P, N, 3) by R (P, 3, 3) about centres (P, 3)."""
-    c = np.asarray(center, dtype=np.float64)[:, None, :]
-    return np.einsum("pij,pnj->pni", R, np.asarray(points, dtype=np.float64) - c) + c

@@ -12,6 +12,7 @@ import io
 import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ import yaml
 
 from .atomic import atomic_open, atomic_write_text
 from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict
-from .errors import InputError
+from .errors import InputError, input_errors
 from . import limits
 from .focal import focal_kind_or_default
 from .outputs import TEXT_HEADER
@@ -122,7 +123,7 @@ class Frame:
         ids = self.data.get("person_ids")
         return np.arange(self.n_people, dtype=np.int64) if ids is None else ids.astype(np.int64)
 
-    @property
+    @cached_property
     def intrinsics(self) -> Intrinsics:
         """Intrinsics stated by the frame itself (``image_size``, ``focal_length`` or ``K``)."""
         return _intrinsics_from_mapping(self.data, self.source, self.n_people)
@@ -406,10 +407,8 @@ def write_yaml(path: str | Path, data: dict) -> None:
 def read_camera_yaml(path: str | Path, image_size: tuple[int, int] | None = None) -> tuple[Camera, dict]:
     """Read ``camera.yaml`` -> (Camera, fit block or {})."""
     data = read_yaml(path)
-    try:
+    with input_errors(str(path)):
         camera = camera_from_yaml_dict(data, image_size)
-    except ValueError as exc:
-        raise _fail(str(path), str(exc)) from None
     fit = data.get("fit") or {}
     return camera, fit if isinstance(fit, dict) else {}
 
@@ -440,23 +439,21 @@ class Sequence:
     def __len__(self) -> int:
         return len(self.frame_names)
 
-    @property
+    @cached_property
     def focal_kind(self) -> str:
         """Whether the focal its meshes were made with is the camera's own ('camera') or a method's
         guess ('assumed'): meta.yaml ``focal_kind``, absent = 'assumed' (rotavat.focal)."""
-        try:
-            return focal_kind_or_default(self.meta.get("focal_kind"), str(self.path / META_FILE))
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
+        with input_errors(str(self.path / META_FILE)):
+            return focal_kind_or_default(self.meta.get("focal_kind"))
 
-    @property
+    @cached_property
     def intrinsics(self) -> Intrinsics:
         """Sequence-level intrinsics from meta.yaml (frames may override)."""
         return _intrinsics_from_mapping(self.meta, str(self.path / META_FILE))
 
-    @property
+    @cached_property
     def image_size(self) -> tuple[int, int] | None:
-        """[W, H] from meta.yaml, else the first frame that states it, else camera.yaml."""
+        """[W, H] from meta.yaml, else the first frame that states it, else camera.yaml (found once)."""
         if self.intrinsics.image_size is not None:
             return self.intrinsics.image_size
         for name in self.frame_names[:1]:

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from _reference_metrics import reference_pa_errors_mm
+from rotavat_cli.camera import height_above_ground
 from rotavat_cli.metrics import (
     JOINT_ERROR_KEYS,
     VERTEX_ERROR_KEYS,
     camera_errors,
     compiled_kernels,
     detection_scores,
-    height_above_ground_m,
     lean_deg,
     mpjpe,
     normalize_by_f1,
@@ -387,7 +387,7 @@ def test_to_gravity_frame_matches_contract_world_frame():
     back = to_gravity_frame(points_cam, r_cam_from_world.T, -r_cam_from_world.T @ t_cam_from_world)
     np.testing.assert_allclose(back, points_world, atol=1e-12)
     # World Y is the height above ground.
-    np.testing.assert_allclose(height_above_ground_m(points_cam, up, 6.0), back[..., 1], atol=1e-12)
+    np.testing.assert_allclose(height_above_ground(points_cam, up, 6.0), back[..., 1], atol=1e-12)
 
 
 # --------------------------------------------------------------------------- all at once
@@ -641,15 +641,6 @@ def test_broken_numba_falls_back_with_a_warning(monkeypatch):
 
 
 # --------------------------------------------------------------------------- ground-aware
-
-
-def test_height_above_ground_on_known_camera():
-    up, _, _ = _camera(30.0, 0.0, 6.0)
-    # The optical axis hits the ground at depth 6 / sin(30 deg) = 12 m.
-    assert height_above_ground_m([0.0, 0.0, 12.0], up, 6.0) == pytest.approx(0.0, abs=1e-12)
-    assert height_above_ground_m(np.zeros((2, 3)), up, 6.0) == pytest.approx([6.0, 6.0])
-    with pytest.raises(ValueError, match="unit vector"):
-        height_above_ground_m(np.zeros(3), 2.0 * up, 6.0)
 
 
 def test_lean_and_stature():

@@ -23,11 +23,11 @@ with a one-line reason.
 """
 
 
+from ..errors import TaskError
 from .discover import discover_sequences, fingerprint
 from .driver import Progress, run_batch
 from .plan import MARKER, STEPS, BatchOptions, completed_marker, parse_steps
 from .report import REPORT_JSON, REPORT_MD, BatchReport, aggregate_rows, markdown_batch_report, write_batch_report
-from .tasks import TaskError
 
 __all__ = ["STEPS", "MARKER", "REPORT_JSON", "REPORT_MD", "BatchOptions", "BatchReport", "Progress", "TaskError",
            "parse_steps", "discover_sequences", "fingerprint", "completed_marker", "run_batch", "aggregate_rows",

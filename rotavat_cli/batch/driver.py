@@ -9,11 +9,12 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from ..errors import TaskError
 from ..outputs import check_output_dir, mark_output_dir
 from .executors import InlineExecutor, make_executor
 from .plan import BatchOptions, completed_marker, make_plan
 from .report import BatchReport, aggregate_rows, write_batch_report
-from .tasks import TaskError, one_line, run_task, task_align_chunk, task_align_merge, task_eval_chunk, task_finish, task_prepare
+from .tasks import one_line, run_task, task_align_chunk, task_align_merge, task_eval_chunk, task_finish, task_prepare
 
 __all__ = ["Progress", "run_batch"]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import default_config
-from ..errors import InputError
+from ..errors import InputError, input_errors
 from ..evaluate import MATCHES
 from ..figure import FigureOptions
 from ..plain import to_plain
@@ -124,10 +124,8 @@ def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[
     if out.resolve() == root.resolve() or (gt_root is not None and out.resolve() == gt_root):
         raise InputError(f"{out}: the output folder must differ from ROOT and --gt-root")
     if "render" in steps:
-        try:
+        with input_errors("render"):
             FigureOptions.from_config(options.config["render"])
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
     found = discover_sequences(root, options.fmt, exclude=[out] + ([gt_root] if gt_root else []))
     if not found:
         what = f"{options.fmt} outputs" if options.fmt else "sequences (folders of *.npz frames or of OBJ frame folders)"

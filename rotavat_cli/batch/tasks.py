@@ -26,7 +26,7 @@ import numpy as np
 
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
-from ..errors import InputError, RotavatError
+from ..errors import InputError, RotavatError, TaskError
 from ..limits import Limits, configure as configure_limits
 from ..plain import to_plain
 from ..sequence import open_sequence, read_camera_yaml, write_camera_yaml
@@ -34,12 +34,6 @@ from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
 
 __all__ = ["TaskError", "run_task", "one_line", "task_prepare", "task_align_chunk", "task_align_merge", "task_eval_chunk",
            "task_finish"]
-
-
-class TaskError(RotavatError):
-    """A task of one sequence failed: the one-line reason (the sequence is reported failed, exit 1)."""
-
-    exit_code = 1
 
 
 

@@ -6,11 +6,11 @@ import json
 import os
 import sys
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -25,7 +25,6 @@ from ..errors import InputError, RotavatError
 from ..plain import to_plain
 
 console = Console(stderr=True)
-T = TypeVar("T")
 
 ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file overriding configs/default.yaml (flags override it).", dir_okay=False)]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no summary on stderr.")]
@@ -186,14 +185,6 @@ def progress_bar(description: str, total: int | None, enabled: bool) -> Iterator
     with progress:
         task = progress.add_task(description, total=total)
         yield lambda n=1: progress.advance(task, n)
-
-
-def track(items: Iterable[T], description: str, total: int | None, enabled: bool) -> Iterator[T]:
-    """Iterate with a progress bar when enabled."""
-    with progress_bar(description, total, enabled) as advance:
-        for item in items:
-            yield item
-            advance()
 
 
 def print_json(data: Any) -> None:

@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
-from ..errors import InputError
+from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
 from . import app
@@ -71,9 +71,8 @@ def batch(
              + _headline(report.aggregate), quiet)
         _say(f"wrote {out / REPORT_JSON} and {out / REPORT_MD}", quiet)
     if report.failed:
-        console.print(f"[bold red]error:[/] {len(report.failed)} of {counts['sequences']} sequences failed "
-                      f"(reasons above and in {out / REPORT_MD})", highlight=False)
-        raise typer.Exit(1)
+        raise BatchFailedError(f"{len(report.failed)} of {counts['sequences']} sequences failed (reasons above and "
+                               f"in {out / REPORT_MD})")
 
 
 def _headline(aggregate: dict) -> str:

@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ..errors import InputError
+from ..errors import input_errors
 from ..synth import SynthOptions, hps_focal_px, random_camera, write_synth_scene
 from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
@@ -35,19 +35,12 @@ def synth(
     opts = config_for(config, "synth", seed=seed, frames=frames, people=people,
                       image_size=list(image_size) if image_size else None, roll_deg=roll, noise_px=noise_px,
                       outliers=outliers, hps_focal=hps_focal, depth_sd=depth_sd)
-    try:
+    with input_errors("synth"):
         options = SynthOptions(**{**opts, "image_size": tuple(opts["image_size"])})
-    except ValueError as exc:
-        raise InputError(f"synth: {exc}") from None
-    try:
+    with input_errors("--hps-focal"):
         hps_focal_px(options.hps_focal, random_camera(np.random.default_rng(0), options.image_size))
-    except ValueError as exc:
-        raise InputError(f"--hps-focal: {exc}") from None
-    try:
-        with progress_bar("synthesising", options.frames, progress_enabled(quiet, as_json)) as advance:
-            summary = write_synth_scene(out, options, advance, force)
-    except ValueError as exc:
-        raise InputError(f"{out}: {exc}") from None
+    with input_errors(str(out)), progress_bar("synthesising", options.frames, progress_enabled(quiet, as_json)) as advance:
+        summary = write_synth_scene(out, options, advance, force)
     if as_json:
         print_json(summary)
     cam = summary["camera"]

@@ -47,7 +47,6 @@ from .points import (
 from .scene import (
     camera_errors,
     detection_scores,
-    height_above_ground_m,
     lean_deg,
     normalize_by_f1,
     root_err_mm,
@@ -65,7 +64,6 @@ __all__ = [
     "camera_errors",
     "compiled_kernels",
     "detection_scores",
-    "height_above_ground_m",
     "lean_deg",
     "mpjpe",
     "normalize_by_f1",

@@ -8,22 +8,9 @@ import numpy as np
 
 from ._common import CAMERA_KEYS, MM_PER_M, _unit_vector
 
-__all__ = ["height_above_ground_m", "lean_deg", "root_err_mm", "stature_m", "stature_err_mm", "detection_scores",
+__all__ = ["lean_deg", "root_err_mm", "stature_m", "stature_err_mm", "detection_scores",
            "normalize_by_f1", "camera_errors"]
 
-
-
-def height_above_ground_m(
-    points_cam: np.ndarray, up_cam: np.ndarray, ground_offset_m: float
-) -> np.ndarray:
-    """Signed height above the ground plane ``n·X + h``, metres: (..., 3) -> (...).
-
-    up_cam: (3,) unit world-up in the camera frame (the *true* camera's); ground_offset_m: h.
-    """
-    pts = np.asarray(points_cam, dtype=np.float64)
-    if pts.shape[-1:] != (3,):
-        raise ValueError(f"points_cam must have shape (..., 3), got {pts.shape}")
-    return pts @ _unit_vector(up_cam, "up_cam") + float(ground_offset_m)
 
 
 def lean_deg(feet_cam: np.ndarray, heads_cam: np.ndarray, up_cam: np.ndarray) -> np.ndarray:
