@@ -29,6 +29,7 @@ from .camera import Camera, project_cam_to_px
 from .errors import InputError
 from .landmarks import foot_head_points
 from .rotavat import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, points_from_coords, rotavat_transforms, transformed_blocks
+from .plain import csv_cell
 from .focal import CAMERA
 from .sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 
@@ -383,7 +384,4 @@ def _csv_rows(cols: dict[str, np.ndarray]) -> str:
 
 def _cells(column: np.ndarray) -> list[str]:
     """CSV cells of one column (P,): a loop over people is formatting here, not numerics."""
-    values = column.tolist()
-    if column.dtype.kind == "f":
-        return ["" if not math.isfinite(v) else f"{v:.6g}" for v in values]
-    return [str(v) for v in values]
+    return [csv_cell(v) for v in column.tolist()]

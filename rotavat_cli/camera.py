@@ -47,6 +47,7 @@ __all__ = [
     "R_cam_from_world_from_up",
     "horizon_v_px",
     "reexpress_cam",
+    "camera_parameters",
     "check_camera_bounds",
     "MAX_IMAGE_SIDE_PX",
     "MAX_FOCAL_PX",
@@ -310,15 +311,26 @@ class Camera:
 _ANGLE_KEYS = ("pitch_deg", "roll_deg")
 
 
+def camera_parameters(camera: Camera) -> dict[str, float]:
+    """The four scene parameters in report units: focal_px, pitch_deg, roll_deg, height_m (plain floats).
+
+    >>> camera_parameters(Camera((640, 480), 500.0, None, np.deg2rad(20.0), 0.0, 5.0))
+    {'focal_px': 500.0, 'pitch_deg': 20.0, 'roll_deg': 0.0, 'height_m': 5.0}
+    """
+    return {"focal_px": float(camera.focal_px), "pitch_deg": float(np.rad2deg(camera.pitch_rad)),
+            "roll_deg": float(np.rad2deg(camera.roll_rad)), "height_m": float(camera.height_m)}
+
+
 def camera_to_yaml_dict(camera: Camera, fit: dict | None = None) -> dict:
     """Plain-typed dict in the ``camera.yaml`` schema of docs/conventions.md (degrees, metres, lists)."""
+    params = camera_parameters(camera)
     d: dict[str, Any] = {
         "image_size": [int(v) for v in camera.image_size],
-        "focal_px": float(camera.focal_px),
+        "focal_px": params["focal_px"],
         "principal_point": [float(v) for v in camera.principal_point],
-        "pitch_deg": float(np.rad2deg(camera.pitch_rad)),
-        "roll_deg": float(np.rad2deg(camera.roll_rad)),
-        "height_m": float(camera.height_m),
+        "pitch_deg": params["pitch_deg"],
+        "roll_deg": params["roll_deg"],
+        "height_m": params["height_m"],
         "up_cam": [float(v) for v in camera.up_cam],
         "ground_offset_m": float(camera.ground_offset_m),
         "R_world_to_cam": [[float(v) for v in row] for row in camera.R_cam_from_world],

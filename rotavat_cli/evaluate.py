@@ -29,8 +29,9 @@ import numpy as np
 
 from . import metrics as M
 from .atomic import atomic_open
-from .camera import Camera, project_cam_to_px
+from .camera import Camera, camera_parameters, project_cam_to_px
 from .errors import InputError, input_errors
+from .plain import csv_cell
 from .landmarks import foot_head_points
 from .matching import match_agora, match_by_ids, match_hungarian
 from .sequence import Frame, Intrinsics, Sequence, open_sequence
@@ -252,15 +253,9 @@ class _ScoreBatch:
         self.queue = []
 
 
-def _camera_dict(cam: Camera) -> dict[str, float]:
-    """Camera parameters in report units."""
-    return {"focal_px": cam.focal_px, "pitch_deg": float(np.rad2deg(cam.pitch_rad)),
-            "roll_deg": float(np.rad2deg(cam.roll_rad)), "height_m": cam.height_m}
-
-
 def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     """Camera errors under report names."""
-    err = M.camera_errors(_camera_dict(pred_cam), _camera_dict(gt_cam))
+    err = M.camera_errors(camera_parameters(pred_cam), camera_parameters(gt_cam))
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
@@ -375,11 +370,4 @@ def write_per_person_csv(path: str | Path, results: Seq[EvalResult]) -> None:
         for res in results:
             cols = res.per_person
             for i in range(len(cols["frame"])):
-                writer.writerow([res.pred, *(_fmt(cols[k][i]) for k in keys)])
-
-
-def _fmt(value: object) -> str:
-    """CSV cell text (6 significant digits; NaN empty)."""
-    if isinstance(value, float):
-        return "" if not np.isfinite(value) else f"{value:.6g}"
-    return str(value)
+                writer.writerow([res.pred, *(csv_cell(cols[k][i]) for k in keys)])

@@ -33,6 +33,7 @@ __all__ = [
     "Sequence",
     "PER_PERSON_KEYS",
     "open_sequence",
+    "is_sequence_dir",
     "read_frame_npz",
     "read_frame_obj",
     "write_frame",
@@ -513,6 +514,18 @@ def open_sequence(path: str | Path, read_camera: bool = True) -> Sequence:
     if read_camera and (path / CAMERA_FILE).exists():
         camera, fit = read_camera_yaml(path / CAMERA_FILE, seq.intrinsics.image_size)
     return Sequence(path, form, tuple(names), meta, camera, fit, ignored)
+
+
+def is_sequence_dir(folder: str | Path) -> bool:
+    """True for a folder of frames: ``*.npz`` files, or frame folders of which one at least holds a
+    person's OBJ (the rule :func:`open_sequence` reads by; ``rotavat batch`` discovers by it)."""
+    folder = Path(folder)
+    try:
+        entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
+        return any(p.suffix == ".npz" and p.is_file() for p in entries) or any(
+            p.is_dir() and _is_obj_frame_dir(p) and _obj_files(p) for p in entries)
+    except OSError:
+        return False
 
 
 def _is_obj_frame_dir(folder: Path) -> bool:

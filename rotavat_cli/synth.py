@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .bodies import BodyLibrary, load_bodies
-from .camera import MAX_IMAGE_SIDE_PX, Camera, pixel_rays_cam, reexpress_cam
+from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
 from .focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from .atomic import staged_directory
 from .landmarks import foot_head_points
@@ -314,6 +314,5 @@ def _write_scene(out: Path, camera: Camera, hps_focal: float, frames: Iterator[t
     params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(opts).items()}
     write_yaml(out / "synth.yaml", params)
     return {"out": str(out), "gt": str(out / "gt"), "pred": str(out / "pred"), "frames": opts.frames,
-            "people": opts.people, "camera": {"focal_px": camera.focal_px, "pitch_deg": float(np.rad2deg(camera.pitch_rad)),
-                                               "roll_deg": float(np.rad2deg(camera.roll_rad)), "height_m": camera.height_m},
+            "people": opts.people, "camera": camera_parameters(camera),
             "hps_focal_px": hps_focal, "hps_focal_rule": rule}

@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from ..errors import InputError
+from ..sequence import is_sequence_dir
 
 __all__ = ["discover_sequences", "fingerprint", "frames_hint"]
 
@@ -36,7 +37,7 @@ def discover_sequences(root: str | Path, fmt: str | None = None, exclude: Iterab
         seen.add(real)
         dirnames[:] = sorted(d for d in dirnames if not d.startswith((".", "_")))
         if matches is None:
-            if any(f.endswith(".npz") and not f.startswith(".") for f in filenames) or any(_obj_frame_dir(here / d) for d in dirnames):
+            if is_sequence_dir(here):
                 found.append((_rel(here, root), here))
                 dirnames[:] = []
         elif matches(here):
@@ -58,14 +59,6 @@ def _rel(path: Path, root: Path, strip: bool = False) -> str:
     rel = path.relative_to(root)
     return (rel.with_suffix("") if strip else rel).as_posix()
 
-
-def _obj_frame_dir(folder: Path) -> bool:
-    """An OBJ frame folder: at least one .obj and nothing else (hidden entries aside)."""
-    try:
-        entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
-    except OSError:
-        return False
-    return bool(entries) and all(p.suffix.lower() == ".obj" and p.is_file() for p in entries)
 
 
 def _format_matcher(fmt: str) -> Callable[[Path], bool]:

@@ -30,7 +30,7 @@ from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces, natural_key,
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces, natural_key,
                people_frame)
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width

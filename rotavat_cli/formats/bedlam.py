@@ -29,7 +29,7 @@ from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
+from ._common import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
                people_frame)
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}

@@ -40,7 +40,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
 from ..smpl import lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
                natural_key, people_frame)
 
 _NET_INPUT = 512

@@ -28,7 +28,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24, lbs
-from . import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
+from ._common import (ImportedSequence, npz_has_keys, single_file, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
                model_faces, no_model_warning, people_frame)
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}

@@ -33,7 +33,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ..smpl import lbs
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
                no_model_warning, padded_square, people_frame)
 
 

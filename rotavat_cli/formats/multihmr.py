@@ -34,7 +34,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
 from ..smpl import joints_to_smpl24
-from . import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
                need_image_size, people_frame, project_px)
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
