@@ -127,7 +127,7 @@ def align_and_eval(pred_dir: Path, gt_dir: Path, camera: Camera, out: Path) -> A
     """Align the prediction into ``camera`` (written to ``out``) and score it against the ground truth."""
     align_sequence(open_sequence(pred_dir), camera, out, workers=1)
     people = summarize_people_csv(out / "people.csv")
-    return Aligned(float(camera.focal_px), float(evaluate(out, gt_dir).metrics["w_mpjpe"]),
+    return Aligned(float(camera.focal_px), float(evaluate(open_sequence(out), open_sequence(gt_dir)).metrics["w_mpjpe"]),
                    people.median_stature_m, people.implausible)
 
 
@@ -166,7 +166,7 @@ def run_seed(root: Path, size: tuple[int, int], rules: list[str], seed: int, fra
         assert gt_focal == truth.focal_px, "the rule changed the synthetic camera"
         results.append(SeedResult(
             size, rule, seed, float(gt_focal), stature,
-            pred_mm=float(evaluate(scene / "pred", scene / "gt").metrics["w_mpjpe"]),
+            pred_mm=float(evaluate(open_sequence(scene / "pred"), open_sequence(scene / "gt")).metrics["w_mpjpe"]),
             self_cal=calibrate_align_eval(scene, None, "self_cal"),
             true_f=calibrate_align_eval(scene, gt_focal, "true_f"),
             ref=ref))

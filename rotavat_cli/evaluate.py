@@ -34,7 +34,7 @@ from .errors import InputError, input_errors
 from .plain import csv_cell
 from .landmarks import foot_head_points
 from .matching import match_agora, match_by_ids, match_hungarian
-from .sequence import Frame, Intrinsics, Sequence, open_sequence
+from .sequence import Frame, Intrinsics, Sequence
 
 __all__ = ["PERSON_METRICS", "EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
 
@@ -259,9 +259,10 @@ def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
-def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | None = None,
+def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None,
              progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
-    """Score one prediction sequence against the ground truth, frame by frame.
+    """Score one prediction sequence against the ground truth, frame by frame (both opened:
+    :func:`~rotavat_cli.sequence.open_sequence`).
 
     ``frames=(start, stop)`` scores only that range of the sorted union of both sides' frame
     names; :func:`merge_results` joins the results of consecutive ranges into the whole one.
@@ -275,8 +276,7 @@ def evaluate(pred_dir: str | Path, gt_dir: str | Path, options: EvalOptions | No
         raise InputError(f"--iou-threshold must be within 0..1, got {opts.iou_threshold}")
     with input_errors("--engine"):
         M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
-    pred_seq, gt_seq = open_sequence(pred_dir), open_sequence(gt_dir)
-    result = EvalResult(str(pred_dir), str(gt_dir))
+    result = EvalResult(pred_seq.label, gt_seq.label)
     pred_cam, gt_cam = pred_seq.camera, gt_seq.camera
     if pred_cam is not None and gt_cam is not None:
         result.camera = _camera_errors(pred_cam, gt_cam)

@@ -436,6 +436,12 @@ class Sequence:
     camera: Camera | None = None
     camera_fit: dict = field(default_factory=dict)
     ignored: tuple[str, ...] = ()  # entries of OBJ frame folders that are not people's OBJ files, with why
+    origin: str | None = None  # what the user named, when it is not ``path`` (an HPS tool's output read with --from)
+
+    @property
+    def label(self) -> str:
+        """How reports name the sequence: the user's path (the tool's output for an imported one)."""
+        return self.origin or str(self.path)
 
     def __len__(self) -> int:
         return len(self.frame_names)

@@ -121,7 +121,8 @@ def test_batch_outputs_equal_the_single_sequence_calls(dataset, tmp_path, runner
         camera, fit = read_camera_yaml(out / rel / "camera.yaml")
         align_sequence(seq, camera, tmp_path / "ref" / rel, camera_fit=fit, workers=1)
         assert assert_same_tree(out / rel / "aligned", tmp_path / "ref" / rel) == 7  # 3 frames, people.csv, camera, meta, marker
-        want = [evaluate(dataset / "pred" / rel, dataset / "gt" / rel), evaluate(out / rel / "aligned", dataset / "gt" / rel)]
+        want = [evaluate(open_sequence(dataset / "pred" / rel), open_sequence(dataset / "gt" / rel)),
+                evaluate(open_sequence(out / rel / "aligned"), open_sequence(dataset / "gt" / rel))]
         got = metrics_of(out, rel)
         for g, w in zip(got, want):
             assert g["metrics"] == to_plain(w.metrics)  # equal floats, not close ones

@@ -13,7 +13,7 @@ from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError
 from rotavat_cli.evaluate import EvalOptions, evaluate, parse_joints
 from rotavat_cli.report import parse_gate
-from rotavat_cli.sequence import write_camera_yaml
+from rotavat_cli.sequence import open_sequence, write_camera_yaml
 
 JOINTS = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [0.0, -0.5, 0.0], [0.0, 0.0, 0.3]])
 
@@ -37,7 +37,7 @@ def people(offsets, ids=None, joints=JOINTS):
 def test_translation_only_offset(tmp_path):
     gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
     pred = write_seq(tmp_path / "pred", {"000000": people([[0.03, 0.04, 5]], [1])})
-    r = evaluate(pred, gt)
+    r = evaluate(open_sequence(pred), open_sequence(gt))
     assert r.metrics["w_mpjpe"] == pytest.approx(50.0)
     assert r.metrics["mpjpe"] == pytest.approx(0.0, abs=1e-9)
     assert r.metrics["pa_mpjpe"] == pytest.approx(0.0, abs=1e-6)
@@ -49,7 +49,7 @@ def test_rotation_about_pelvis(tmp_path):
     Rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
     gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
     pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5]], [1], joints=JOINTS @ Rz.T)})
-    r = evaluate(pred, gt)
+    r = evaluate(open_sequence(pred), open_sequence(gt))
     # joint 1 (0.2 m) and 2 (0.5 m) each move by r*sqrt(2); joint 3 lies on the axis
     expected = 1000.0 * (0.2 * np.sqrt(2) + 0.5 * np.sqrt(2)) / 4
     assert r.metrics["mpjpe"] == pytest.approx(expected)
@@ -60,7 +60,7 @@ def test_rotation_about_pelvis(tmp_path):
 def test_scale_only_about_pelvis(tmp_path):
     gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
     pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5]], [1], joints=JOINTS * 1.5)})
-    r = evaluate(pred, gt)
+    r = evaluate(open_sequence(pred), open_sequence(gt))
     assert r.metrics["mpjpe"] == pytest.approx(1000.0 * 0.5 * (0.2 + 0.5 + 0.3) / 4)
     assert r.metrics["pa_mpjpe"] == pytest.approx(0.0, abs=1e-6)
 
@@ -72,7 +72,7 @@ def test_id_swap_misses_and_false_positives(tmp_path):
     pred = write_seq(tmp_path / "pred", {"000000": people([[1, 0, 5], [0, 0, 5], [5, 0, 5]], [2, 1, 9]),
                                          "000001": {"joints": np.zeros((0, 4, 3)), "person_ids": np.zeros(0, int)},
                                          "000002": people([[0, 0, 5]], [1])})
-    r = evaluate(pred, gt)
+    r = evaluate(open_sequence(pred), open_sequence(gt))
     assert (r.matched, r.missed, r.false_positives) == (2, 2, 2)
     assert r.frames == 2 and r.frames_pred_only == 1
     assert r.metrics["w_mpjpe"] == pytest.approx(0.0)
@@ -83,11 +83,11 @@ def test_id_swap_misses_and_false_positives(tmp_path):
 def test_hungarian_without_ids_and_threshold(tmp_path):
     gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5], [1, 0, 5]])})
     pred = write_seq(tmp_path / "pred", {"000000": people([[1.01, 0, 5], [0.01, 0, 5], [3, 0, 5]])})
-    r = evaluate(pred, gt, EvalOptions(match="hungarian", threshold_px=20.0))
+    r = evaluate(open_sequence(pred), open_sequence(gt), EvalOptions(match="hungarian", threshold_px=20.0))
     assert (r.matched, r.missed, r.false_positives) == (2, 0, 1)
     assert r.metrics["w_mpjpe"] == pytest.approx(10.0)
     assert r.per_person["pred_index"] == [1, 0]
-    r2 = evaluate(pred, gt, EvalOptions(match="hungarian", threshold_px=0.5))
+    r2 = evaluate(open_sequence(pred), open_sequence(gt), EvalOptions(match="hungarian", threshold_px=0.5))
     assert r2.matched == 0 and r2.missed == 2
 
 
@@ -95,8 +95,8 @@ def test_joint_count_mismatch_needs_joints_option(tmp_path):
     gt = write_seq(tmp_path / "gt", {"000000": people([[0, 0, 5]], [1])})
     pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5]], [1], joints=np.vstack([JOINTS, JOINTS]))})
     with pytest.raises(InputError, match="--joints"):
-        evaluate(pred, gt)
-    r = evaluate(pred, gt, EvalOptions(joints=parse_joints("0-3")))
+        evaluate(open_sequence(pred), open_sequence(gt))
+    r = evaluate(open_sequence(pred), open_sequence(gt), EvalOptions(joints=parse_joints("0-3")))
     assert r.metrics["w_mpjpe"] == pytest.approx(0.0)
 
 
@@ -138,12 +138,12 @@ def test_ground_aware_metrics_and_camera_errors(tmp_path):
 
     write_synth_scene(tmp_path / "s", SynthOptions(seed=3, frames=2, people=4))
     gt_cam = Camera((1280, 720), 1000.0, None, 0.3, 0.0, 5.0)
-    r_self = evaluate(tmp_path / "s" / "gt", tmp_path / "s" / "gt")
+    r_self = evaluate(open_sequence(tmp_path / "s" / "gt"), open_sequence(tmp_path / "s" / "gt"))
     assert r_self.metrics["w_mpjpe"] == 0.0 and r_self.metrics["foot_height"] < 10.0
     assert r_self.metrics["stature_err"] == 0.0 and r_self.metrics["lean_deg"] < 5.0
     assert r_self.camera["cam_focal_pct"] == 0.0
     write_camera_yaml(tmp_path / "s" / "pred" / "camera.yaml", gt_cam)
-    r = evaluate(tmp_path / "s" / "pred", tmp_path / "s" / "gt")
+    r = evaluate(open_sequence(tmp_path / "s" / "pred"), open_sequence(tmp_path / "s" / "gt"))
     assert np.isfinite(r.metrics["w_mpjpe_spec"]) and "cam_pitch_deg" in r.camera
 
 
@@ -169,8 +169,8 @@ def test_frame_ranges_merge_into_the_whole_result(tmp_path):
     write_synth_scene(tmp_path / "s", SynthOptions(seed=5, frames=5, people=3))
     pred, gt = tmp_path / "s" / "pred", tmp_path / "s" / "gt"
     (pred / "000004.npz").unlink()  # a frame on the ground-truth side only: counted in its range
-    whole = evaluate(pred, gt)
-    parts = [evaluate(pred, gt, frames=(0, 2)), evaluate(pred, gt, frames=(2, 5))]
+    whole = evaluate(open_sequence(pred), open_sequence(gt))
+    parts = [evaluate(open_sequence(pred), open_sequence(gt), frames=(0, 2)), evaluate(open_sequence(pred), open_sequence(gt), frames=(2, 5))]
     assert [p.frames for p in parts] == [2, 2] and [p.frames_gt_only for p in parts] == [0, 1]
     merged = merge_results(parts)
     assert json.dumps(merged.as_dict(per_person=True)) == json.dumps(whole.as_dict(per_person=True))  # NaN-safe
@@ -203,7 +203,7 @@ def test_engine_option_over_config_and_its_errors(tmp_path, runner, monkeypatch)
     missing = invoke(runner, "eval", pred, "--gt", gt, "--out", tmp_path / "bad", "--engine", "numba")
     assert missing.exit_code == 2 and "rotavat[fast]" in missing.stderr
     with pytest.raises(InputError, match="--engine"):
-        evaluate(pred, gt, EvalOptions(engine="gpu"))
+        evaluate(open_sequence(pred), open_sequence(gt), EvalOptions(engine="gpu"))
 
 
 def test_pairs_are_scored_in_batches_across_frames(tmp_path, monkeypatch):
@@ -222,11 +222,11 @@ def test_pairs_are_scored_in_batches_across_frames(tmp_path, monkeypatch):
     calls = []
     real = ev._pair_metrics
     monkeypatch.setattr(ev, "_pair_metrics", lambda pairs, n, *a: calls.append(n) or real(pairs, n, *a))
-    batched = evaluate(pred, gt)
+    batched = evaluate(open_sequence(pred), open_sequence(gt))
     assert calls == [6, 3, 6]  # frames 0-1, frame 2 alone (no vertices), frames 3-4
     monkeypatch.setattr(ev, "SCORE_BATCH_PEOPLE", 1)
     calls.clear()
-    per_frame = evaluate(pred, gt)
+    per_frame = evaluate(open_sequence(pred), open_sequence(gt))
     assert calls == [3] * 5
     assert json.dumps(batched.as_dict(per_person=True)) == json.dumps(per_frame.as_dict(per_person=True))
     rows = batched.per_person

@@ -33,7 +33,7 @@ def _scene(root: Path, rule: str, seed: int = 6, frames: int = 10, people: int =
 def _w_mpjpe_mm(pred: Path, gt: Path) -> float:
     from rotavat_cli.evaluate import evaluate
 
-    return float(evaluate(pred, gt).metrics["w_mpjpe"])
+    return float(evaluate(open_sequence(pred), open_sequence(gt)).metrics["w_mpjpe"])
 
 
 # ---- the contract --------------------------------------------------------------------------------

@@ -56,9 +56,7 @@ def eval_(
         pred_seqs = [stack.enter_context(input_sequence(p, from_, image_size, smpl_model, quiet=quiet or as_json))
                      for p in preds]
         with progress_bar("evaluating", sum(len(s) for s in pred_seqs), progress_enabled(quiet, as_json)) as advance:
-            results = [evaluate(s.path, gt_seq.path, options, advance) for s in pred_seqs]
-    for result, path in zip(results, preds):  # report the user's paths, not temporary imports
-        result.pred, result.gt = str(path), str(gt)
+            results = [evaluate(s, gt_seq, options, advance) for s in pred_seqs]
     json_path, md_path = write_reports(out, results, str(gt), {**opts, "joints": joints})
     if per_person:
         write_per_person_csv(per_person, results)

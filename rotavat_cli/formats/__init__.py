@@ -20,6 +20,7 @@ import contextlib
 import tempfile
 import zipfile
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -171,4 +172,4 @@ def imported_sequence(src: str | Path, fmt: str, **options: Any) -> Iterator[Seq
     with tempfile.TemporaryDirectory(prefix="rotavat-import-") as tmp:
         out = Path(tmp) / "seq"
         import_sequence(src, out, fmt, **options)
-        yield open_sequence(out)
+        yield replace(open_sequence(out), origin=str(src))
