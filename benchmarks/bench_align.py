@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rotavat_cli.align import align_sequence  # noqa: E402
+from rotavat_cli.alignment.align import align_sequence  # noqa: E402
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta  # noqa: E402
 from rotavat_cli.synth import SynthOptions, synth_frames  # noqa: E402
 
@@ -81,7 +81,7 @@ def time_align(seq_path: Path, out: Path, camera) -> tuple[float, float]:
 _CHILD = """
 import json, resource, sys
 sys.path.insert(0, {root!r})
-from rotavat_cli.align import align_sequence
+from rotavat_cli.alignment.align import align_sequence
 from rotavat_cli.sequence import open_sequence, Sequence
 from rotavat_cli.camera import camera_from_yaml_dict
 seq = open_sequence({seq!r})

@@ -28,9 +28,10 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from _synthetic_pairs import random_surveillance_camera, synthetic_pairs  # noqa: E402
 
-from rotavat_cli.calibrate import CalibrationResult, fit_camera, fit_per_frame  # noqa: E402
-from rotavat_cli.calibrate_grid import GridSpec, paper_grid_search, predict_heads_px  # noqa: E402
-from rotavat_cli.camera import Camera, camera_from_yaml_dict  # noqa: E402
+from rotavat_cli.calibration import (CalibrateOptions, CalibrationResult, GridSpec, calibrate_sequence,  # noqa: E402
+                                     fit_camera, fit_per_frame, paper_grid_search)
+from rotavat_cli.camera import (Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px,  # noqa: E402
+                                up_vector_cam)
 from rotavat_cli.errors import RotavatError  # noqa: E402
 
 REALDATA = ROOT.parent / "shared" / "realdata"
@@ -99,7 +100,6 @@ def synthetic_table(seeds: int) -> None:
 
 def synth_scene_table(seeds: int) -> None:
     """`refine` on full `rotavat synth` scenes: realistic bodies, their own mid-sole/crown landmarks."""
-    from rotavat_cli.autocalib import calibrate_sequence
     from rotavat_cli.config import default_config
     from rotavat_cli.sequence import open_sequence
     from rotavat_cli.synth import SynthOptions, write_synth_scene
@@ -114,7 +114,8 @@ def synth_scene_table(seeds: int) -> None:
             out = Path(tmp) / f"s{seed}"
             write_synth_scene(out, SynthOptions(seed=100 + seed, frames=100, people=20, noise_px=2.0, outliers=0.1))
             true = open_sequence(out / "gt").camera
-            est = calibrate_sequence(open_sequence(out / "pred"), default_config()["calibrate"]).result.camera
+            options = CalibrateOptions.from_config(default_config()["calibrate"])
+            est = calibrate_sequence(open_sequence(out / "pred"), options).result.camera
             for m, v in errors(est, true).items():
                 errs[m].append(v)
     print("| refine | " + " | ".join(f"{np.median(errs[m]):.2f} / {np.percentile(errs[m], 90):.2f}"
@@ -294,8 +295,9 @@ def loop_baseline(feet: np.ndarray, heads: np.ndarray, pp, focal, pitch, height,
     chosen = cells[::step][:max_cells]
     best = math.inf
     t0 = time.perf_counter()
-    for f, p, c in chosen:
-        pred = predict_heads_px(feet, f, p, 0.0, c, pp, 1.70)
+    for f, p, c in chosen:  # the person model written plainly with camera.py (what the grid's kernel replaces)
+        up = up_vector_cam(p, 0.0)
+        pred = project_cam_to_px(backproject_px_to_plane(feet, f, pp, up, c) + 1.70 * up, f, pp)
         cost = float(np.sum((pred - heads) ** 2))
         if math.isfinite(cost) and cost < best:
             best = cost

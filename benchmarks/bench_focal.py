@@ -43,8 +43,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rotavat_cli.align import align_sequence, summarize_people_csv  # noqa: E402
-from rotavat_cli.autocalib import calibrate_sequence  # noqa: E402
+from rotavat_cli.alignment.align import align_sequence, summarize_people_csv  # noqa: E402
+from rotavat_cli.calibration import CalibrateOptions, calibrate_sequence  # noqa: E402
 from rotavat_cli.camera import Camera  # noqa: E402
 from rotavat_cli.config import default_config  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
@@ -120,7 +120,7 @@ def calibrate(pred_dir: Path, focal_px: float | None) -> Camera:
     """Camera calibrated from the prediction's people with the defaults; the focal fixed when given."""
     options = default_config()["calibrate"]
     options["focal_px"] = focal_px
-    return calibrate_sequence(open_sequence(pred_dir), options).result.camera
+    return calibrate_sequence(open_sequence(pred_dir), CalibrateOptions.from_config(options)).result.camera
 
 
 def align_and_eval(pred_dir: Path, gt_dir: Path, camera: Camera, out: Path) -> Aligned:

@@ -21,8 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rotavat_cli.errors import RotavatError  # noqa: E402
-from rotavat_cli.render import VIEWS, RenderStyle, RowFrame, render_grid, scene_extents  # noqa: E402
-from rotavat_cli.render_gl import open_rasterizer  # noqa: E402
+from rotavat_cli.render import VIEWS, RenderStyle, RowFrame, open_rasterizer, render_grid, scene_extents  # noqa: E402
 from rotavat_cli.synth import SynthOptions, synth_frames  # noqa: E402
 
 

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .align import AlignSummary, align_frame, align_sequence, track_statures
+from .alignment import (AlignSummary, AlignTransform, align_frame, align_sequence, apply_transforms, rotavat_transforms,
+                        track_statures)
+from .calibration import CalibrateOptions, CalibrationResult, calibrate_sequence, fit_camera
 from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .config import default_config, load_config
 from .errors import DegenerateSceneError, GateError, InputError, RotavatError
@@ -21,7 +23,7 @@ from .formats import available_formats, detect_format, import_sequence, imported
 from .landmarks import foot_head_points
 from .metrics import mpjpe, procrustes_align, pve
 from .people import gather_pairs
-from .rotavat import AlignTransform, apply_transforms, rotavat_transforms
+from .render import FigureOptions, export_frame, render_sequences
 from .sequence import (
     Frame,
     Intrinsics,
@@ -37,10 +39,13 @@ __all__ = [
     "__version__",
     "AlignSummary",
     "AlignTransform",
+    "CalibrateOptions",
+    "CalibrationResult",
     "Camera",
     "DegenerateSceneError",
     "EvalOptions",
     "EvalResult",
+    "FigureOptions",
     "Frame",
     "GateError",
     "InputError",
@@ -51,6 +56,7 @@ __all__ = [
     "align_frame",
     "align_sequence",
     "available_formats",
+    "calibrate_sequence",
     "detect_format",
     "import_sequence",
     "imported_sequence",
@@ -59,6 +65,8 @@ __all__ = [
     "camera_to_yaml_dict",
     "default_config",
     "evaluate",
+    "export_frame",
+    "fit_camera",
     "foot_head_points",
     "gather_pairs",
     "load_config",
@@ -67,6 +75,7 @@ __all__ = [
     "procrustes_align",
     "pve",
     "read_camera_yaml",
+    "render_sequences",
     "rotavat_transforms",
     "track_statures",
     "write_camera_yaml",

@@ -74,7 +74,7 @@ _RANGES: dict[str, tuple[float | None, float | None]] = {
     # lists: every item
     "calibrate.grid.steps": (1, 100_000), "calibrate.grid.focal_range_h": (1e-3, 1e3),
     "calibrate.grid.pitch_range_deg": (-90, 90), "calibrate.grid.height_range_m": (1e-2, 1e5),
-    "calibrate.principal_point": (-1e6, 1e6), "synth.image_size": (32, 100_000), "render.size": (16, 20_000),
+    "calibrate.principal_point": (-1e6, 1e6), "synth.image_size": (32, 100_000), "render.size": (16, 8192),
     "align.stature_range_m": (0, 10),
 }
 _ORDERED = {"align.stature_range_m": "<", "calibrate.grid.focal_range_h": "<=",  # [low, high] pairs
@@ -87,13 +87,13 @@ _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 4
 @functools.lru_cache(maxsize=1)
 def _choices() -> dict[str, tuple[str, ...]]:
     """Keys whose value is one of a few names: each list lives beside the code that uses it."""
-    from .align import HEIGHT_FROM
+    from .alignment.align import HEIGHT_FROM
     from .batch.plan import EXECUTORS
-    from .calibrate import METHODS, POINTS, RESIDUALS
+    from .calibration import METHODS, POINTS, RESIDUALS
     from .evaluate import MATCHES
     from .metrics import ENGINES
-    from .render_gl import RENDERERS
-    from .rotavat import UPRIGHT
+    from .render import RENDERERS
+    from .alignment.transform import UPRIGHT
 
     return {"calibrate.method": METHODS, "calibrate.residual": RESIDUALS, "calibrate.points": POINTS,
             "align.upright": UPRIGHT, "align.height_from": HEIGHT_FROM, "eval.match": MATCHES, "eval.engine": ENGINES,

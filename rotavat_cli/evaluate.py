@@ -36,11 +36,8 @@ from .landmarks import foot_head_points
 from .matching import match_agora, match_by_ids, match_hungarian
 from .sequence import Frame, Intrinsics, Sequence
 
-__all__ = ["PERSON_METRICS", "EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
+__all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PersonMetric", "EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
 
-# Per-person metrics, in report order.
-PERSON_METRICS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
-                  "root_err", "foot_height", "lean_deg", "stature_err")
 PELVIS = 0  # root joint index (SMPL order); see bodies.SMPL_JOINT_NAMES
 MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
 MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
@@ -191,21 +188,58 @@ def _concat_pairs(parts: Seq[_Pairs]) -> _Pairs:
                     for f in ("pred_joints", "gt_joints", "pred_verts", "gt_verts")))
 
 
+# ---- the per-person metrics: a registry (a new metric = one entry) -----------------------------------
+@dataclass(frozen=True)
+class PersonMetric:
+    """One family of per-person metrics: the names it reports and how to compute them from matched pairs.
+
+    ``compute(pairs, pred_cam, gt_cam, opts)`` returns a dict name -> (M,) values for the names it
+    can compute (a missing name stays NaN: e.g. no vertices, no ground-truth camera).
+    """
+
+    names: tuple[str, ...]
+    compute: Callable[[_Pairs, Camera | None, Camera | None, "EvalOptions"], dict[str, np.ndarray]]
+
+
+def _errors(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
+    """MPJPE, PA-MPJPE, W-MPJPE, PVE, PA-PVE, W-PVE and SPEC's pair, in one fused pass (:func:`metrics.person_errors_mm`)."""
+    rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
+    return M.person_errors_mm(pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts, *rotations, PELVIS,
+                              engine=opts.engine)
+
+
+def _root_error(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
+    """Pelvis position error, no alignment (scored where the ground truth has a camera, as the ground-aware ones)."""
+    if pairs.pred_joints is None or gt_cam is None:
+        return {}
+    return {"root_err": M.root_err_mm(pairs.pred_joints[:, PELVIS], pairs.gt_joints[:, PELVIS])}
+
+
+def _ground_aware(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
+    """Foot height above the true ground, lean from the true vertical, stature error (meshes and a true camera)."""
+    if gt_cam is None or pairs.pred_verts is None:
+        return {}
+    feet_p, heads_p = foot_head_points(pairs.pred_verts)
+    feet_g, heads_g = foot_head_points(pairs.gt_verts)
+    return {"foot_height": np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0,
+            "lean_deg": M.lean_deg(feet_p, heads_p, gt_cam.up_cam),
+            "stature_err": M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)}
+
+
+PERSON_METRIC_FAMILIES: tuple[PersonMetric, ...] = (
+    PersonMetric(("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec"), _errors),
+    PersonMetric(("root_err",), _root_error),
+    PersonMetric(("foot_height", "lean_deg", "stature_err"), _ground_aware),
+)
+PERSON_METRICS = tuple(name for family in PERSON_METRIC_FAMILIES for name in family.names)  # report order
+
+
 def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
                   opts: EvalOptions) -> dict[str, np.ndarray]:
     """Every per-person metric for ``n_pairs`` gathered pairs, (M,) each; NaN where not computable."""
     out = {name: np.full(n_pairs, np.nan) for name in PERSON_METRICS}
-    pj, gj, pv, gv = pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts
-    if pj is not None and gt_cam is not None:
-        out["root_err"] = M.root_err_mm(pj[:, PELVIS], gj[:, PELVIS])
-    rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
-    out.update(M.person_errors_mm(pj, gj, pv, gv, *rotations, PELVIS, engine=opts.engine))
-    if gt_cam is not None and pv is not None:
-        feet_p, heads_p = foot_head_points(pv)
-        feet_g, heads_g = foot_head_points(gv)
-        out["foot_height"] = np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0
-        out["lean_deg"] = M.lean_deg(feet_p, heads_p, gt_cam.up_cam)
-        out["stature_err"] = M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)
+    for family in PERSON_METRIC_FAMILIES:
+        out.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts).items() if k in family.names})
     return out
 
 

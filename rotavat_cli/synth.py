@@ -27,7 +27,7 @@ from .atomic import staged_directory
 from .landmarks import foot_head_points
 from .outputs import check_output_dir
 from .rotations import axis_angle_to_matrix, rotation_between
-from .rotavat import closest_scale_on_line
+from .alignment.transform import closest_scale_on_line
 from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 
 __all__ = ["SynthOptions", "HPS_FOCAL_CHOICES", "random_camera", "hps_focal_px", "sample_walks", "synth_frames",

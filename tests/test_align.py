@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import invoke, tree_hash
-from rotavat_cli.align import align_frame, align_sequence, aligned_meta
+from rotavat_cli.alignment.align import align_frame, align_sequence, aligned_meta
 from rotavat_cli.camera import Camera
 from rotavat_cli.sequence import Frame, open_sequence, write_frame
 
@@ -194,7 +194,7 @@ def test_drift_columns_equal_the_plain_computation(scene, upright):
 
 
 def test_hypot_f32_is_np_hypot():
-    from rotavat_cli.align import _hypot_f32
+    from rotavat_cli.alignment.align import _hypot_f32
 
     rng = np.random.default_rng(3)
     x = (rng.normal(size=20000) * 10.0 ** rng.uniform(-40, 38, 20000)).astype(np.float32)
@@ -210,7 +210,7 @@ def test_hypot_f32_is_np_hypot():
 
 
 def test_nan_mean_max_is_nanmean_nanmax():
-    from rotavat_cli.align import _nan_mean_max
+    from rotavat_cli.alignment.align import _nan_mean_max
 
     values = np.random.default_rng(4).uniform(0, 50, (4, 6890)).astype(np.float32)
     for rows in (values, np.where(np.arange(6890) % 7 == 0, np.nan, values).astype(np.float32)):
@@ -221,7 +221,7 @@ def test_nan_mean_max_is_nanmean_nanmax():
 
 
 def test_people_csv_cells():
-    from rotavat_cli.align import PEOPLE_COLUMNS, _csv_rows
+    from rotavat_cli.alignment.align import PEOPLE_COLUMNS, _csv_rows
 
     cols = {c: np.array([1.0 / 3.0, np.nan]) for c in PEOPLE_COLUMNS}
     cols.update(frame=np.array(["a,b", "000001"], dtype=object), person_id=np.array([7, 8]),

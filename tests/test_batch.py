@@ -15,7 +15,7 @@ import pytest
 
 import _format_fixtures as F
 from conftest import invoke, tree_hash
-from rotavat_cli.align import align_sequence
+from rotavat_cli.alignment.align import align_sequence
 from rotavat_cli.batch import MARKER, aggregate_rows, discover_sequences
 from rotavat_cli.evaluate import evaluate
 from rotavat_cli.plain import to_plain

@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 import yaml
 
-from rotavat_cli.calibrate import CalibrationResult, calibrate, fit_camera, fit_per_frame
-from rotavat_cli.calibrate_uncertainty import jackknife_cov
-from rotavat_cli.calibrate_grid import (GridSpec, grid_costs, paper_grid_search, predict_heads_px,
-                                        reference_cell_costs)
-from rotavat_cli.camera import Camera
-from rotavat_cli.errors import DegenerateSceneError
+from rotavat_cli.calibration import (RESIDUAL_KINDS, RESIDUALS, CalibrateOptions, CalibrationResult, GridSpec,
+                                     calibrate, fit_camera, fit_per_frame, grid_costs, paper_grid_search,
+                                     predict_heads_px, reference_cell_costs, residual_kind)
+from rotavat_cli.calibration.objective import make_problem, profiled, whitened
+from rotavat_cli.calibration.params import FOCAL, HEIGHT, PITCH, ROLL, param_vector
+from rotavat_cli.calibration.uncertainty import jackknife_cov
+from rotavat_cli.camera import Camera, backproject_px_to_plane, project_cam_to_px, up_vector_cam
+from rotavat_cli.config import default_config
+from rotavat_cli.errors import DegenerateSceneError, InputError
 
 from _synthetic_pairs import box_points_px, synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
 
@@ -55,6 +58,13 @@ def test_grid_spec_defaults_are_the_papers():
         GridSpec(steps=(3, 0, 3))
 
 
+def heads_by_camera_functions(feet_px, focal_px, pitch_rad, roll_rad, height_m, principal_point, stature_m):
+    """The person model written plainly with camera.py: back-project the foot, add the stature along up, project."""
+    up = up_vector_cam(pitch_rad, roll_rad)
+    ground = backproject_px_to_plane(feet_px, focal_px, principal_point, up, height_m)
+    return project_cam_to_px(ground + stature_m * up, focal_px, principal_point)
+
+
 @pytest.mark.parametrize("residual", ["full", "vertical"])
 def test_grid_result_is_the_brute_force_best_cell(residual):
     rng = np.random.default_rng(3)
@@ -67,7 +77,7 @@ def test_grid_result_is_the_brute_force_best_cell(residual):
     for i, f in enumerate(focal):  # brute force: camera.py functions, one cell at a time
         for j, p in enumerate(pitch):
             for k, c in enumerate(height):
-                e = predict_heads_px(data.feet_px, f, p, 0.0, c, pp, 1.7) - data.heads_px
+                e = heads_by_camera_functions(data.feet_px, f, p, 0.0, c, pp, 1.7) - data.heads_px
                 cost = float(np.sum(e[:, 1] ** 2 if residual == "vertical" else e**2))
                 if math.isfinite(cost) and cost < best:
                     best, best_cell = cost, (i, j, k)
@@ -352,3 +362,84 @@ def test_bad_arguments(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         fit_camera(feet, feet - (0.0, 80.0), **args)
+
+
+# ---- options: one dataclass, defaults from the packaged YAML ------------------------------------------
+def test_options_defaults_are_the_packaged_config():
+    section = default_config()["calibrate"]
+    assert CalibrateOptions() == CalibrateOptions.from_config(section)  # the dataclass cannot drift from the YAML
+    assert set(CalibrateOptions.config_keys()) == set(section)  # every option of the section, no other
+
+
+def test_options_from_config_refuse_unknown_missing_and_bad_values():
+    section = default_config()["calibrate"]
+    with pytest.raises(InputError, match="unknown key.*noise_px"):
+        CalibrateOptions.from_config({**section, "noise_px": 1.0})  # Python-only: not a config key
+    with pytest.raises(InputError, match="missing key.*focal_px"):
+        CalibrateOptions.from_config({k: v for k, v in section.items() if k != "focal_px"})
+    with pytest.raises(InputError, match=r"calibrate: distortion and points='boxes' need method 'refine'"):
+        CalibrateOptions.from_config({**section, "method": "grid", "distortion": True})
+    with pytest.raises(InputError, match=r"calibrate\.grid: .*steps"):
+        CalibrateOptions.from_config({**section, "grid": {**section["grid"], "steps": [3, 0, 3]}})
+    opts = CalibrateOptions.from_config({**section, "principal_point": [600, 350], "focal_px": 900})
+    assert opts.principal_point == (600.0, 350.0) and opts.focal_px == 900.0
+
+
+def test_options_as_keywords_are_the_same_fit():
+    data = synthetic_pairs(np.random.default_rng(14), frames=4, people=10)
+    size = data.camera.image_size
+    a = fit_camera(data.feet_px, data.heads_px, size, CalibrateOptions(focal_px=data.camera.focal_px,
+                                                                      estimate_roll=False))
+    b = fit_camera(data.feet_px, data.heads_px, size, CalibrateOptions(estimate_roll=False),
+                   focal_px=data.camera.focal_px)
+    assert a.camera == b.camera and a.std == b.std
+    with pytest.raises(TypeError, match="unknown calibration option.*focal "):
+        fit_camera(data.feet_px, data.heads_px, size, focal=900.0)
+    with pytest.raises(TypeError, match="CalibrateOptions"):
+        fit_camera(data.feet_px, data.heads_px, size, {"focal_px": 900.0})
+
+
+def test_parameter_slots_are_named():
+    p = param_vector(focal=900.0, pitch=0.4, roll=-0.01, height=6.0)
+    assert (p[FOCAL], p[PITCH], p[ROLL], p[HEIGHT]) == (900.0, 0.4, -0.01, 6.0) and p.shape == (6,)
+
+
+# ---- residual kinds: a registry ----------------------------------------------------------------------------
+def test_the_registry_holds_the_residual_kinds():
+    assert RESIDUALS == ("full", "vertical") == tuple(RESIDUAL_KINDS)
+    assert residual_kind("full").dof == 2 and residual_kind("vertical").dof == 1
+    with pytest.raises(ValueError, match=r"residual must be one of \('full', 'vertical'\), got 'sideways'"):
+        residual_kind("sideways")
+    from rotavat_cli.config import _choices
+    from rotavat_cli.cli.calibrate import _RESIDUAL_HELP
+
+    assert _choices()["calibrate.residual"] == RESIDUALS  # the config's choices are the registry's
+    assert all(f"{name} (" in _RESIDUAL_HELP for name in RESIDUALS)  # and so is --residual's help
+
+
+@pytest.mark.parametrize("name", RESIDUALS)
+def test_every_residual_kind_keeps_the_contract(name):
+    """What the fit relies on, for any registered kind: whitened components whose first is along the
+    person, the grid's fast kernel equal to the model's cost, an exact fit on noise-free pairs."""
+    kind = residual_kind(name)
+    data = synthetic_pairs(np.random.default_rng(15), frames=3, people=12, noise_px=0.0, stature_sd_m=0.0,
+                           roll_deg=0.0)
+    cam = data.camera
+    W, H = cam.image_size
+    prob = make_problem(data.feet_px, data.heads_px, np.array([W / 2, H / 2]), 1.7, 0.07, 2.0, kind, (W, H), None,
+                        None)
+    params = param_vector(focal=cam.focal_px * 1.1, pitch=cam.pitch_rad, roll=0.0, height=cam.height_m)[None]
+    r, _, valid = whitened(prob, params)
+    assert r.shape == (1, len(data.feet_px), kind.dof) and valid.all()
+    e, _, _ = profiled(prob, params)
+    np.testing.assert_allclose(r[..., 0] * prob.sd_along, kind.along(e, prob.axis), rtol=1e-12)
+    spec = GridSpec(steps=(6, 7, 5))
+    focal, pitch, height = spec.focal_values_px(H), spec.pitch_values_rad(), spec.height_values_m()
+    fast = grid_costs(data.feet_px, data.heads_px, (W / 2, H / 2), focal, pitch, height, 1.7, name)
+    ff, pp_, cc = (a.ravel() for a in np.meshgrid(focal, pitch, height, indexing="ij"))
+    ref = reference_cell_costs(data.feet_px, data.heads_px, ff, pp_, cc, (W / 2, H / 2), 1.7, name)
+    assert np.array_equal(np.isinf(fast.ravel()), np.isinf(ref))
+    np.testing.assert_allclose(fast.ravel()[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=1e-4)
+    res = fit_camera(data.feet_px, data.heads_px, (W, H), residual=name, focal_px=cam.focal_px, estimate_roll=False)
+    assert res.residual == name
+    assert_close_camera(res.camera, cam, focal=1e-9, pitch=1e-3, roll=1e-9, height=1e-4)

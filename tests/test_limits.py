@@ -29,7 +29,7 @@ import pytest
 import _format_fixtures as F
 from conftest import invoke, tetra_frame
 from rotavat_cli import limits, safe_pickle
-from rotavat_cli.calibrate_grid import GridSpec
+from rotavat_cli.calibration import GridSpec
 from rotavat_cli.errors import InputError
 from rotavat_cli.limits import Limits
 from rotavat_cli.plain import to_plain

@@ -162,7 +162,7 @@ def test_thousands_of_jobs_start_no_more_workers_than_cores(scene, tmp_path):
 
 
 def test_integer_vertices_are_aligned_as_floats(scene, tmp_path):
-    from rotavat_cli.align import align_frame
+    from rotavat_cli.alignment.align import align_frame
     from rotavat_cli.sequence import Frame, open_sequence
 
     cam = open_sequence(scene / "gt").camera

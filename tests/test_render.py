@@ -13,12 +13,12 @@ from conftest import invoke, tree_hash
 from rotavat_cli.bodies import load_bodies
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import RotavatError
-from rotavat_cli.figure import parse_views, read_row, select_frames
-from rotavat_cli.render import (RenderStyle, RowFrame, clip_from_cam_perspective, fit_ortho_extent, front_view,
-                                horizontal_forward_world, ortho_basis_world, ortho_view, person_colors,
-                                project_view_px, render_grid, render_panel, scene_extents)
-from rotavat_cli.render_fallback import rasterize_numpy
-from rotavat_cli.render_gl import open_rasterizer
+from rotavat_cli.config import default_config
+from rotavat_cli.render import (REGISTRY, RENDERERS, VIEWS, FigureOptions, RenderStyle, RowFrame,
+                                clip_from_cam_perspective, fit_ortho_extent, front_view, horizontal_forward_world,
+                                open_rasterizer, ortho_basis_world, ortho_view, parse_views, person_colors,
+                                project_view_px, rasterize_numpy, read_row, render_grid, render_panel, scene_extents,
+                                select_frames)
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 
@@ -113,6 +113,35 @@ def test_fit_extent_is_isotropic_and_covers_bounds():
 
 def test_person_colors_by_id_modulo_palette():
     np.testing.assert_allclose(person_colors(np.array([0, 4, -1, 2]), RGB), [RGB[0], RGB[1], RGB[2], RGB[2]])
+
+
+def test_options_defaults_are_the_packaged_config():
+    render = default_config()["render"]
+    assert FigureOptions() == FigureOptions.from_config(render)  # configs/default.yaml is the one source
+    assert RenderStyle() == RenderStyle.from_config(render)
+    assert FigureOptions().style == RenderStyle()
+
+
+def test_registry_views_are_the_valid_views():
+    assert VIEWS == tuple(REGISTRY) and all(REGISTRY[name].name == name and REGISTRY[name].title for name in VIEWS)
+    assert parse_views(",".join(VIEWS)) == VIEWS
+    assert set(parse_views(default_config()["render"]["views"])) <= set(VIEWS)
+    with pytest.raises(ValueError, match=f"unknown view\\(s\\) back; choose from {', '.join(VIEWS)}$"):
+        parse_views("front,back")
+    cam = _camera()
+    for view in REGISTRY.values():  # every orthographic entry: orthonormal, right-handed axes
+        if view.ortho is not None:
+            B = ortho_basis_world(view.name, cam)
+            np.testing.assert_allclose(B @ B.T, np.eye(3), atol=1e-12)
+            np.testing.assert_allclose(B[2], np.cross(B[1], B[0]), atol=1e-12)
+            assert view.needs_camera
+
+
+def test_open_rasterizer_refuses_unknown_renderers():
+    with pytest.raises(ValueError, match=", ".join(RENDERERS)):
+        open_rasterizer("vulkan")
+    with open_rasterizer("fallback") as r:
+        assert (r.name, r.note, r.rasterize) == ("fallback", "requested", rasterize_numpy)
 
 
 def test_select_frames_and_views():
@@ -339,3 +368,17 @@ def test_cli_render_front_only_needs_no_camera(runner, scene, tmp_path):
     summary = _json(invoke(runner, "render", scene / "pred", "--views", "front", "--out", tmp_path / "fig",
                            "--size", "160", "90", "--json"))
     assert Path(summary["files"][0]).exists()
+
+
+@pytest.mark.parametrize("name", VIEWS)
+def test_cli_renders_every_registry_view(runner, scene, tmp_path, name):
+    summary = _json(invoke(runner, "render", scene / "gt", "--views", name, "--renderer", "fallback", "--out",
+                           tmp_path / "fig", "--size", "64", "36", "--json"))
+    assert summary["views"] == [name]
+    with Image.open(summary["files"][0]) as img:
+        assert img.size == (26 + 64, 26 + 36)
+
+
+def test_cli_refuses_an_unknown_view_listing_the_registry(runner, scene, tmp_path):
+    result = invoke(runner, "render", scene / "gt", "--views", "back", "--out", tmp_path / "fig")
+    assert result.exit_code == 2 and f"choose from {', '.join(VIEWS)}" in " ".join(result.stderr.split())

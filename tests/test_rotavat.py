@@ -9,7 +9,7 @@ import pytest
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.landmarks import foot_head_points
-from rotavat_cli.rotavat import FLAGS, apply_transforms, rotavat_transforms
+from rotavat_cli.alignment.transform import FLAGS, apply_transforms, rotavat_transforms
 
 TOL = 1e-6  # relative, per the issue: geometry is float64, errors are ~1e-12 in practice
 
@@ -139,7 +139,7 @@ def test_float32_points_are_transformed_in_float64_then_stored():
 
 
 def test_blocks_of_people_do_not_change_the_result(monkeypatch):
-    import rotavat_cli.rotavat as rotavat
+    import rotavat_cli.alignment.transform as rotavat
 
     _, T, mesh = _leaning_people(7, 7, 300)
     whole = apply_transforms(mesh, T, np.float32)

@@ -12,7 +12,7 @@ from typing import Any
 from ..config import default_config
 from ..errors import InputError, input_errors
 from ..evaluate import MATCHES
-from ..figure import FigureOptions
+from ..render import FigureOptions
 from ..plain import to_plain
 from .discover import discover_sequences, fingerprint, frames_hint
 

@@ -9,7 +9,6 @@ task per chunk and side, and ``finish`` (metrics merged, reports, render, the ma
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import socket
@@ -22,10 +21,10 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
+from ..camera import camera_parameters
 from ..errors import InputError, RotavatError, TaskError
 from ..limits import Limits, configure as configure_limits
 from ..plain import to_plain
@@ -81,9 +80,7 @@ def _chunks(n: int, size: int) -> list[tuple[int, int]]:
 def _camera_summary(camera_file: Path, image_size: tuple[int, int] | None, origin: str) -> dict:
     """Camera parameters in report units, with a few fit figures when estimated."""
     camera, fit = read_camera_yaml(camera_file, image_size)
-    summary = {"origin": origin, "file": str(camera_file), "focal_px": camera.focal_px,
-               "pitch_deg": math.degrees(camera.pitch_rad), "roll_deg": math.degrees(camera.roll_rad),
-               "height_m": camera.height_m}
+    summary = {"origin": origin, "file": str(camera_file), **camera_parameters(camera)}
     summary.update({k: fit[k] for k in ("method", "focal_policy", "pairs", "inliers", "rmse_px") if k in fit})
     return summary
 
@@ -111,10 +108,10 @@ def task_prepare(job: dict, plan: dict) -> dict:
     result["frames"] = len(seq)
     camera_file, origin = None, None
     if "calibrate" in steps or ("align" in steps and not (seq_dir / "camera.yaml").exists()):
-        from ..autocalib import calibrate_sequence
+        from ..calibration import CalibrateOptions, calibrate_sequence
 
         start = time.perf_counter()
-        calib = calibrate_sequence(seq, plan["config"]["calibrate"])
+        calib = calibrate_sequence(seq, CalibrateOptions.from_config(plan["config"]["calibrate"]))
         camera_file, origin = out / "camera.yaml", "calibrated"
         write_camera_yaml(camera_file, calib.result.camera, calib.fit_dict())
         result["warnings"] += list(calib.result.warnings)
@@ -142,7 +139,7 @@ def _chunk_dir(job: dict, index: int) -> Path:
 def task_align_chunk(job: dict, plan: dict, camera_file: str, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
     _apply_limits(plan)
-    from ..align import align_sequence
+    from ..alignment import align_sequence
 
     seq = open_sequence(job["seq"], read_camera=False)
     camera, fit = read_camera_yaml(camera_file, seq.intrinsics.image_size)
@@ -178,7 +175,7 @@ def task_align_merge(job: dict, plan: dict, n_chunks: int) -> dict:
 
 def _people_summary(people_csv: Path) -> dict:
     """What align did, from its people.csv (the same numbers whatever the chunking)."""
-    from ..align import summarize_people_csv
+    from ..alignment import summarize_people_csv
 
     summary = summarize_people_csv(people_csv)
     return {k: v for k, v in vars(summary).items() if k not in ("out", "frames") and not k.startswith("_")}
@@ -201,7 +198,8 @@ def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> 
     _apply_limits(plan)
     from ..evaluate import evaluate
 
-    part = evaluate(_eval_pred_dir(job, side), job["gt"], _eval_options(plan), frames=(start, stop))
+    part = evaluate(open_sequence(_eval_pred_dir(job, side)), open_sequence(job["gt"]), _eval_options(plan),
+                    frames=(start, stop))
     return {"part": part, "frames": stop - start}
 
 
@@ -229,7 +227,7 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
     if row["people"] is None and state["camera"] and state["camera"].get("pairs") is not None:
         row["people"] = state["camera"]["pairs"]  # calibrate only: the foot/head pairs offered
     if "render" in steps:
-        from ..figure import FigureOptions, render_sequences
+        from ..render import FigureOptions, render_sequences
 
         start = time.perf_counter()
         paths = [Path(job["seq"])] + ([out / "aligned"] if "align" in steps else []) + ([Path(job["gt"])] if job["gt"] else [])

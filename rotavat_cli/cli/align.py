@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ..align import align_sequence
+from ..alignment import align_sequence
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import read_camera_yaml

@@ -10,7 +10,8 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..autocalib import SequenceCalibration, calibrate_sequence
+from ..calibration import RESIDUAL_KINDS, CalibrateOptions, SequenceCalibration, calibrate_sequence
+from ..camera import camera_parameters
 from ..errors import InputError
 from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
@@ -20,13 +21,17 @@ from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, Quiet
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
-    """Calibrate with defaults < config file < flags, printing warnings unless quiet."""
-    calib = calibrate_sequence(seq, config_for(config, "calibrate", **flags))
+    """Calibrate with defaults < config file < flags (named by their ``calibrate`` config key), printing
+    notes and warnings unless quiet."""
+    calib = calibrate_sequence(seq, CalibrateOptions.from_config(config_for(config, "calibrate", **flags)))
     for note in calib.result.notes:
         info(f"note: {escape(note)}", quiet)
     for warning in calib.result.warnings:
         info(f"[yellow]warning:[/] {escape(warning)}", quiet)
     return calib
+
+
+_RESIDUAL_HELP = " or ".join(f"{kind.name} ({kind.summary})" for kind in RESIDUAL_KINDS.values()) + "."
 
 
 @app.command()
@@ -41,7 +46,7 @@ def calibrate(
     principal_point: Annotated[tuple[float, float] | None, typer.Option(help="Known principal point cx cy (px).")] = None,
     person_height: Annotated[float | None, typer.Option(help="Mean stature sole->crown (m).")] = None,
     height_sd: Annotated[float | None, typer.Option(help="Spread of the stature prior (m).")] = None,
-    residual: Annotated[str | None, typer.Option(help="full (head u and v) or vertical (head row only).")] = None,
+    residual: Annotated[str | None, typer.Option(help=_RESIDUAL_HELP)] = None,
     points: Annotated[str | None, typer.Option(help="auto (boxes when every head is in its foot's column), landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
     box_depth: Annotated[float | None, typer.Option(help="With --points boxes: box top's extra distance from the camera over the box bottom (m).")] = None,
     distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
@@ -70,9 +75,8 @@ def calibrate(
     fit = calib.fit_dict()
     write_camera_yaml(target, calib.result.camera, fit)
     cam = calib.result.camera
-    summary = {"camera_yaml": str(target), "focal_px": cam.focal_px, "pitch_deg": float(np.rad2deg(cam.pitch_rad)),
-               "roll_deg": float(np.rad2deg(cam.roll_rad)), "height_m": cam.height_m,
-               "person_height_m": calib.result.person_height_m, "fit": fit, "per_frame": calib.per_frame}
+    summary = {"camera_yaml": str(target), **camera_parameters(cam), "person_height_m": calib.result.person_height_m,
+               "fit": fit, "per_frame": calib.per_frame}
     if as_json:
         print_json(summary)
         return

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ..figure import FigureOptions, render_sequences
+from ..render import VIEWS, FigureOptions, render_sequences
 from . import app
 from ..atomic import staged_directory
 from ..outputs import beside, check_output_dir
@@ -21,7 +21,7 @@ def render(
     camera: Annotated[Path | None, typer.Option(help="camera.yaml for every row; default each SEQ/camera.yaml.", dir_okay=False)] = None,
     frames: Annotated[str | None, typer.Option(help="Frame indices, comma-separated (e.g. 0,10,-1); default the first.")] = None,
     every: Annotated[int | None, typer.Option(help="Render every N-th frame instead.", min=1)] = None,
-    views: Annotated[str | None, typer.Option(help="Columns, comma-separated: front, side, top.")] = None,
+    views: Annotated[str | None, typer.Option(help=f"Columns, comma-separated: {', '.join(VIEWS)}.")] = None,
     image: Annotated[Path | None, typer.Option(help="Folder of video frames (matched by frame name) under the front view.", file_okay=False, exists=True)] = None,
     out: Annotated[Path | None, typer.Option(help="Output folder; default <first SEQ>_render beside it.", file_okay=False)] = None,
     size: Annotated[tuple[int, int] | None, typer.Option(help="One panel's width and height (px).")] = None,

@@ -5,9 +5,12 @@ people unless it is known:
 
 - ``focal_px`` given (``--focal``): fixed to it ("given");
 - the sequence's focal is the camera's own (meta.yaml ``focal_kind: camera``: ground truth, a
-  calibrated camera, rotavat's aligned output): fixed to it ("declared"), unless ``estimate_focal``;
+  calibrated camera, rotavat's aligned output): fixed to it ("declared"), unless ``estimate_focal``
+  (the paper grid always grids it);
 - otherwise estimated ("estimated"). A focal an HPS method assumed is never taken for the
   camera's: it is only the focal the meshes were made with (reported as ``mesh_focal_px``).
+
+A sequence whose focal is the camera's own also lends its principal point, unless one is given.
 """
 
 from __future__ import annotations
@@ -16,13 +19,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .calibrate import CalibrationResult, GridSpec, fit_camera, fit_per_frame
-from .errors import DegenerateSceneError, InputError
-from .focal import CAMERA
-from .people import FootHeadPairs, gather_pairs
-from .sequence import Sequence
+from ..errors import DegenerateSceneError, InputError
+from ..focal import CAMERA
+from ..people import FootHeadPairs, gather_pairs
+from ..sequence import Sequence
+from .fit import CalibrationResult, fit_camera, fit_per_frame
+from .options import CalibrateOptions
 
-__all__ = ["SequenceCalibration", "declared_focal", "grid_from_config", "calibrate_sequence"]
+__all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence"]
+
+FOCAL_POLICIES = ("given", "declared", "estimated")
 
 
 @dataclass(frozen=True)
@@ -31,7 +37,7 @@ class SequenceCalibration:
 
     result: CalibrationResult
     pairs: FootHeadPairs
-    focal_policy: str  # "given" | "declared" | "estimated"
+    focal_policy: str  # one of FOCAL_POLICIES
     per_frame: dict | None = None  # spread of per-frame estimates when asked
     mesh_focal_px: float | None = None  # the focal the sequence's meshes were made with (median over people)
     mesh_focal_kind: str | None = None  # "camera" | "assumed" (None: no focal stated)
@@ -60,49 +66,37 @@ def declared_focal(seq: Sequence) -> float | None:
     return None
 
 
-def grid_from_config(grid: dict) -> GridSpec:
-    """GridSpec from the ``calibrate.grid`` config section; InputError (exit 2) when it is invalid or
-    larger than ``limits.max_grid_cells`` (checked before anything is allocated)."""
-    try:
-        return GridSpec(**grid)
-    except (TypeError, ValueError) as exc:
-        raise InputError(str(exc) if "calibrate.grid" in str(exc) else f"calibrate.grid: {exc}") from None
+def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCalibration:
+    """Calibrate a sequence from its people (``CalibrateOptions.from_config(section)`` for a config section).
 
-
-def calibrate_sequence(seq: Sequence, options: dict) -> SequenceCalibration:
-    """Calibrate a sequence from its people with the ``calibrate`` config section ``options``."""
+    Errors name the sequence: InputError for unusable input, DegenerateSceneError when the people
+    cannot determine a camera.
+    """
+    if not isinstance(options, CalibrateOptions):
+        raise TypeError(f"options must be a CalibrateOptions (CalibrateOptions.from_config(section) for a config "
+                        f"section), got {type(options).__name__}")
     image_size = seq.require_image_size()
-    try:
-        grid = grid_from_config(options["grid"])  # checked before any frame is read
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"calibrate.grid: {exc}") from None
     pairs = gather_pairs(seq)
     mesh_focal = declared_focal(seq)
     mesh_kind = seq.focal_kind if mesh_focal is not None else None
-    if options["focal_px"] is not None:
-        focal, policy = float(options["focal_px"]), "given"
-    elif mesh_kind == CAMERA and not options["estimate_focal"] and options["method"] != "grid":
+    if options.focal_px is not None:
+        focal, policy = options.focal_px, "given"
+    elif mesh_kind == CAMERA and not options.estimate_focal and options.method != "grid":
         focal, policy = mesh_focal, "declared"
     else:
         focal, policy = None, "estimated"
-    pp = options["principal_point"]
+    pp = options.principal_point
     if pp is None and seq.intrinsics.principal_point is not None and mesh_kind == CAMERA:
         pp = seq.intrinsics.principal_point
-    kwargs = dict(
-        method=options["method"], frame_index=pairs.frame_index,
-        track_id=pairs.person_ids if pairs.tracked else None, focal_px=focal,
-        estimate_roll=options["estimate_roll"], principal_point=tuple(pp) if pp is not None else None,
-        person_height_m=options["person_height_m"], person_height_sd_m=options["person_height_sd_m"],
-        camera_height_m=options["camera_height_m"],
-        residual=options["residual"], points=options["points"], box_depth_m=options["box_depth_m"],
-        distortion=options["distortion"], fov_prior_deg=options["fov_prior_deg"], grid=grid,
-    )
+    tracks = pairs.person_ids if pairs.tracked else None
     try:
-        result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, **kwargs)
+        fit_options = replace(options, focal_px=focal, principal_point=pp)
+        result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, fit_options, frame_index=pairs.frame_index,
+                            track_id=tracks)
         per_frame = None
-        if options["per_frame"]:
-            per_frame_kwargs = {k: v for k, v in kwargs.items() if k != "frame_index"}
-            spread = fit_per_frame(pairs.feet_px, pairs.heads_px, image_size, pairs.frame_index, **per_frame_kwargs)
+        if options.per_frame:
+            spread = fit_per_frame(pairs.feet_px, pairs.heads_px, image_size, pairs.frame_index, fit_options,
+                                   track_id=tracks)
             per_frame = {"frames_fitted": len(spread.frame_ids), "frames_skipped": len(spread.skipped),
                          "median": spread.median, "iqr": spread.iqr}
     except DegenerateSceneError as exc:

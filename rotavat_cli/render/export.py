@@ -1,5 +1,7 @@
 """A frame as a glTF 2.0 binary scene (``.glb``): people, a ground quad, the camera frustum and a glTF camera.
 
+What ``rotavat export`` runs (:func:`export_frame`) and ``rotavat render --glb`` writes per frame.
+
 World frame = the contract's world (docs/conventions.md) (origin on the ground below the camera, ``Y`` up, right-handed),
 which is glTF's own convention (``+Y`` up, metres), so vertices go in untouched. The glTF camera
 looks along its local ``-Z`` with ``+Y`` up, while the OpenCV camera looks along ``+z`` with
@@ -25,12 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
-from .atomic import atomic_open
-from .camera import Camera
-from .render import RowFrame, person_colors
+from .. import __version__
+from ..atomic import atomic_open
+from ..camera import Camera
+from ..sequence import open_sequence
+from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
+from .style import RGB, RenderStyle, person_colors
+from .views import RowFrame
 
 __all__ = [
+    "export_frame",
     "R_CV_FROM_GL",
     "world_from_gl_camera",
     "frustum_segments_world",
@@ -92,7 +98,7 @@ def _material(rgba: tuple[int, int, int, int]) -> Any:
     return PBRMaterial(baseColorFactor=list(rgba), metallicFactor=0.0, roughnessFactor=0.8, doubleSided=True)
 
 
-def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[tuple[float, float, float], ...],
+def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[RGB, ...],
                 frustum_depth_m: float | None = None) -> Any:
     """trimesh.Scene of rows' people (world frame, coloured by id), ground quad, frustum and camera node.
 
@@ -166,3 +172,21 @@ def read_glb_json(path: str | Path) -> dict:
     if chunk_type != b"JSON":
         raise ValueError(f"{path}: first chunk is {chunk_type!r}, not JSON")
     return json.loads(data[20:20 + chunk_len].decode("utf-8"))
+
+
+def export_frame(path: Path, out: Path, frame: int = 0, camera_path: Path | None = None,
+                 palette: tuple[RGB, ...] | None = None) -> dict:
+    """Write frame ``frame`` (index; negative from the end) of a sequence as a ``.glb`` scene; returns a summary.
+
+    palette: person colours (default the packaged ``render.palette``).
+    """
+    seq = open_sequence(path)
+    camera = sequence_camera(seq, camera_path)
+    if camera is None:
+        raise no_camera(seq, "GLB's world frame")
+    name = frame_names(seq, str(frame), None)[0]
+    row = read_row(seq, name, row_labels([path])[0], camera)
+    write_glb(out, build_scene([row], camera, RenderStyle().palette if palette is None else palette), camera)
+    return {"out": str(out), "sequence": str(path), "frame": name, "people": int(np.asarray(row.verts_cam).shape[0]),
+            "image_size": list(camera.image_size), "aspect_ratio": camera.image_size[0] / camera.image_size[1],
+            "yfov_deg": float(np.rad2deg(camera.vertical_fov_rad))}

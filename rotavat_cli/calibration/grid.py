@@ -1,25 +1,25 @@
-"""The seed paper's calibration grid: focal, pitch and camera height from foot/head pixels.
+"""The seed paper's calibration grid, its fast kernel, and the refinement's robust seeding grid.
 
-Model (roll 0 in the paper, principal point ``pp``, stature ``S``): back-project each foot pixel
-onto the ground, put the head ``S`` metres above it along world up ``n``, project it, and sum the
-squared pixel distances to the observed heads. :func:`predict_heads_px` is that model written with
-:mod:`rotavat_cli.camera`'s functions; :func:`grid_costs` evaluates it on every cell of the grid
-fast, using its structure:
+The paper: focal, pitch and camera height on a grid (roll 0, principal point ``pp``, stature
+``S``), the summed squared head error of the person model (:mod:`.model`) per cell, the best cell
+wins. :func:`reference_cell_costs` scores cells with the model itself (:func:`.model.head_errors`);
+:func:`grid_costs` is the fast form of the same model on every cell:
 
-- with ``F`` the foot and ``Hd`` the observed head (pixels relative to ``pp``), ``k = S / c``
-  (``c`` the camera height) and ``d = -n . (F/f, 1)`` (foot ray against up), the predicted head is
-  ``F + M / (1/k - g)`` with ``g = -n_z d`` and ``M = d (f n_xy - n_z F)``. ``d``, ``g`` and ``M``
-  depend on the focal and pitch only, never on ``c``;
-- so the head residual is ``e = D + w M`` with ``D = F - Hd`` and ``w = 1 / (c/S - g)``, and the
-  cost of a cell is ``sum|D|^2 + 2 w.(D.M) + (w*w).|M|^2``: one subtraction, one reciprocal and
-  one square per cell and pair (float32, cache-sized blocks of pairs), and two matrix-vector
-  products. The sum is re-evaluated exactly (float64, :func:`predict_heads_px`) on the cells
-  within the float32 error of the minimum, so :func:`paper_grid_search` returns the grid's true
-  best cell;
+- with ``D = F - Hd`` (foot minus observed head) and ``d``, ``M`` of :func:`.model.foot_terms`
+  (focal and pitch only, never the height ``c``), the model's ``k / z`` is ``w = 1 / (c/S - g)``
+  with ``g = -n_z d``, so the head error is ``e = D + w M`` and a cell's cost is
+  ``sum|D|^2 + 2 w.(D.M) + (w*w).|M|^2`` over the residual kind's pixel axes: one subtraction,
+  one reciprocal and one square per cell and pair (float32, cache-sized blocks of pairs), and two
+  matrix-vector products. The cells within the float32 error of the minimum are re-scored with
+  the model in float64, so :func:`paper_grid_search` returns the grid's true best cell (a test
+  checks it against a cell-by-cell brute force);
 - a cell is invalid (cost ``inf``, skipped) when a foot ray misses the ground (``d <= 0``) or a
-  head lands behind the camera (``c/S <= g``); both are per-(focal, pitch) maxima, no extra pass.
+  head lands behind the camera (``c/S <= g``, the model's ``z <= 0``); both are per-(focal, pitch)
+  maxima, no extra pass.
 
 Memory is bounded by the block size, whatever the number of pairs (a few MB per worker thread).
+The refinement's seeds (:func:`seed_params`) come from a truncated, log-spaced variant of the same
+kernel (:func:`robust_grid_costs`) on an order-independent subsample (:func:`order_invariant_subset`).
 """
 
 from __future__ import annotations
@@ -31,33 +31,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import backproject_px_to_plane, project_cam_to_px, up_vector_cam
+from ..camera import up_vector_cam
+from ..limits import current as current_limits
+from .model import RAY_EPS, foot_terms, head_errors
+from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector
+from .residuals import ResidualKind, residual_kind
 
-__all__ = [
-    "GridSpec",
-    "GridFit",
-    "predict_heads_px",
-    "head_residuals_px",
-    "reference_cell_costs",
-    "grid_costs",
-    "robust_grid_costs",
-    "paper_grid_search",
-    "order_invariant_subset",
-    "seed_cells",
-]
+__all__ = ["GridSpec", "GridFit", "SEED_STEPS", "reference_cell_costs", "grid_costs", "robust_grid_costs",
+           "paper_grid_search", "order_invariant_subset", "seed_cells", "seed_params"]
 
-_RAY_EPS = 1e-12  # same "ray parallel to the ground" threshold as camera.backproject_px_to_plane
 _BLOCK_ELEMS = 200_000  # float32 cells x pairs per block: ~0.8 MB, stays in L2
 _RECHECK_REL = 2e-3  # float32 costs are trusted to this relative error; closer cells are re-checked ...
 _RECHECK_ABS = 1e-5  # ... plus this fraction of sum|foot - head|^2 (float32 cancellation; measured ~1e-7)
 _RECHECK_MAX = 4096  # at most this many cells are re-evaluated in float64
 # Row-wise dot product without BLAS gemv (OpenBLAS worker threads spin and starve the grid's threads).
 _DOT = getattr(np, "vecdot", lambda a, b: np.einsum("ij,j->i", a, b))
+SEED_STEPS = (40, 30)  # robust seeding grid: log-spaced focal and height values over the GridSpec ranges
+_SEED_PAIRS = 600  # the seeding grid and the multi-start run on at most this many pairs
+_SEED_TRUNCATE = 0.25  # seeding grid: head errors beyond 25% of the person's pixel length are outliers
+_SEED_MAX_PITCH = np.deg2rad(89.0)  # seeds stay below straight down (the refinement's bound is 89.9 deg)
 
 
 @dataclass(frozen=True)
 class GridSpec:
-    """The paper's search grid, inclusive and evenly spaced (defaults = the paper's)."""
+    """The paper's search grid, inclusive and evenly spaced (defaults = the paper's = ``calibrate.grid``)."""
 
     focal_range_h: tuple[float, float] = (0.1, 6.0)  # times the image height H
     pitch_range_deg: tuple[float, float] = (-45.0, 90.0)
@@ -82,19 +79,16 @@ class GridSpec:
         """ValueError naming ``calibrate.grid.steps`` when a search over this grid would be larger than
         ``limits.max_grid_cells``: the paper's grid (steps[0] x steps[1] x steps[2] cells, float64 costs),
         or the refine method's seeding grid (its own focal and height counts x steps[1] pitches)."""
-        from .calibrate_model import _INIT_STEPS  # noqa: PLC0415 -- calibrate_model imports this module
-        from .limits import current
-
-        limit = current().max_grid_cells
+        limit = current_limits().max_grid_cells
         cells = math.prod(self.steps)
-        seeding = _INIT_STEPS[0] * self.steps[1] * _INIT_STEPS[1]
+        seeding = SEED_STEPS[0] * self.steps[1] * SEED_STEPS[1]
         if cells > limit:
             raise ValueError(f"calibrate.grid.steps {list(self.steps)} make {cells:,} grid cells "
                              f"(limit {limit:,}: limits.max_grid_cells)")
         if seeding > limit:
             raise ValueError(f"calibrate.grid.steps {list(self.steps)}: {self.steps[1]:,} pitch steps make the refine "
-                             f"method's seeding grid {seeding:,} cells ({_INIT_STEPS[0]} x {self.steps[1]} x "
-                             f"{_INIT_STEPS[1]}; limit {limit:,}: limits.max_grid_cells)")
+                             f"method's seeding grid {seeding:,} cells ({SEED_STEPS[0]} x {self.steps[1]} x "
+                             f"{SEED_STEPS[1]}; limit {limit:,}: limits.max_grid_cells)")
 
     def focal_values_px(self, image_height_px: float) -> np.ndarray:
         """(F,) candidate focal lengths in pixels."""
@@ -122,49 +116,28 @@ class GridFit:
     costs: np.ndarray  # (F, P, C) float64 costs (float32 accuracy away from the minimum)
 
 
-# ---- the model, written plainly (reference for the fast kernel and for refinement) ---------------
-def predict_heads_px(feet_px: np.ndarray, focal_px: np.ndarray | float, pitch_rad: np.ndarray | float,
-                     roll_rad: np.ndarray | float, height_m: np.ndarray | float, principal_point: tuple | np.ndarray,
-                     person_height_m: np.ndarray | float) -> np.ndarray:
-    """Predicted head pixels (..., N, 2) of people standing on feet_px (N, 2); NaN where invalid.
-
-    Camera parameters broadcast over leading dimensions ``(...)``; ``person_height_m`` is a
-    scalar or (N,). Invalid: the foot ray misses the ground or the head is behind the camera.
-    """
-    f = np.asarray(focal_px, dtype=np.float64)[..., None]
-    h = np.asarray(height_m, dtype=np.float64)[..., None]
-    n = up_vector_cam(pitch_rad, roll_rad)[..., None, :]
-    feet_cam = backproject_px_to_plane(feet_px, f, principal_point, n, h)
-    heads_cam = feet_cam + np.asarray(person_height_m, dtype=np.float64)[..., None] * n
-    return project_cam_to_px(heads_cam, f, principal_point)
-
-
-def head_residuals_px(feet_px: np.ndarray, heads_px: np.ndarray, focal_px, pitch_rad, roll_rad, height_m,
-                      principal_point, person_height_m) -> np.ndarray:
-    """Predicted minus observed head pixels (..., N, 2); NaN where the model is invalid."""
-    pred = predict_heads_px(feet_px, focal_px, pitch_rad, roll_rad, height_m, principal_point, person_height_m)
-    return pred - np.asarray(heads_px, dtype=np.float64)
-
-
+# ---- the model, cell by cell (reference for the fast kernel) ----------------------------------------
 def reference_cell_costs(feet_px: np.ndarray, heads_px: np.ndarray, focal_px: np.ndarray, pitch_rad: np.ndarray,
                          height_m: np.ndarray, principal_point, person_height_m: float, residual: str = "full",
                          roll_rad: float = 0.0) -> np.ndarray:
     """Exact float64 cost (G,) of cells given as (G,) parameter arrays; ``inf`` if any pair is invalid."""
-    e = head_residuals_px(feet_px, heads_px, focal_px, pitch_rad, roll_rad, height_m, principal_point,
-                          person_height_m)
-    sq = e[..., 1] ** 2 if residual == "vertical" else np.sum(e**2, axis=-1)
-    cost = np.sum(sq, axis=-1)
-    return np.where(np.isfinite(cost), cost, np.inf)
+    kind = residual_kind(residual)
+    feet, heads = _check_pairs(feet_px, heads_px)
+    focal, pitch, roll, height = np.broadcast_arrays(*(np.asarray(v, np.float64).ravel()
+                                                       for v in (focal_px, pitch_rad, roll_rad, height_m)))
+    params = np.zeros((len(focal), N_PARAMS))
+    params[:, FOCAL], params[:, PITCH], params[:, ROLL], params[:, HEIGHT] = focal, pitch, roll, height
+    e, _, valid = head_errors(feet - np.asarray(principal_point, np.float64), feet - heads, params,
+                              float(person_height_m), z_min=0.0)
+    cost = np.sum(kind.squared_px(e), axis=-1)
+    return np.where(np.all(valid, axis=-1) & np.isfinite(cost), cost, np.inf)
 
 
 # ---- fast kernel -----------------------------------------------------------------------------------
 def _pair_terms(rel_feet_px: np.ndarray, focal_px: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per (focal, pair) terms d, g, M_u, M_v, each (F, B), for one up vector (3,)."""
-    f = focal_px[:, None]
-    u, v = rel_feet_px[None, :, 0], rel_feet_px[None, :, 1]
-    d = -(up[0] * u + up[1] * v) / f - up[2]
-    g = -up[2] * d
-    return d, g, d * (f * up[0] - up[2] * u), d * (f * up[1] - up[2] * v)
+    """Per (focal, pair) terms d, g, M_u, M_v, each (F, B), for one up vector (3,) (:func:`.model.foot_terms`)."""
+    d, m_u, m_v = foot_terms(rel_feet_px[None, :, 0], rel_feet_px[None, :, 1], focal_px[:, None], *up)
+    return d, -up[2] * d, m_u, m_v
 
 
 def _blocks(n: int, cells_per_pair: int) -> list[slice]:
@@ -174,7 +147,7 @@ def _blocks(n: int, cells_per_pair: int) -> list[slice]:
 
 
 def _paper_costs_one_pitch(rel_feet: np.ndarray, diff: np.ndarray, focal_px: np.ndarray, up: np.ndarray,
-                           inv_k: np.ndarray, vertical: bool) -> np.ndarray:
+                           inv_k: np.ndarray, kind: ResidualKind) -> np.ndarray:
     """Costs (F, C) for one up vector; ``inv_k = c / S`` (C,), diff = foot - head (N, 2)."""
     n_pairs, C = len(rel_feet), len(inv_k)
     costs = np.zeros((len(focal_px), C))
@@ -185,15 +158,12 @@ def _paper_costs_one_pitch(rel_feet: np.ndarray, diff: np.ndarray, focal_px: np.
     work = np.empty((C, max((blk.stop - blk.start for blk in blocks), default=0)), np.float32)
     for blk in blocks:
         d, g, m_u, m_v = _pair_terms(rel_feet[blk], focal_px, up)
-        ray_ok &= np.all(d > _RAY_EPS, axis=1)
+        ray_ok &= np.all(d > RAY_EPS, axis=1)
         g_max = np.maximum(g_max, g.max(axis=1))
-        du, dv = diff[blk, 0], diff[blk, 1]
-        if vertical:
-            base, dm, mm = float(dv @ dv), (dv * m_v).astype(np.float32), (m_v * m_v).astype(np.float32)
-        else:
-            base = float(du @ du + dv @ dv)
-            dm = (du * m_u + dv * m_v).astype(np.float32)
-            mm = (m_u * m_u + m_v * m_v).astype(np.float32)
+        big_d, m = (diff[blk, 0], diff[blk, 1]), (m_u, m_v)
+        base = float(sum(big_d[a] @ big_d[a] for a in kind.pixel_axes))
+        dm = _axes_sum(big_d[a] * m[a] for a in kind.pixel_axes).astype(np.float32)
+        mm = _axes_sum(m[a] * m[a] for a in kind.pixel_axes).astype(np.float32)
         g32 = g.astype(np.float32)
         z = work[:, : blk.stop - blk.start]
         for i in range(len(focal_px)):
@@ -204,6 +174,15 @@ def _paper_costs_one_pitch(rel_feet: np.ndarray, diff: np.ndarray, focal_px: np.
             costs[i] += base + 2.0 * lin.astype(np.float64) + _DOT(z, mm[i]).astype(np.float64)
     valid = ray_ok[:, None] & (inv_k[None, :] > g_max[:, None])
     return np.where(valid, costs, np.inf)
+
+
+def _axes_sum(terms) -> np.ndarray:
+    """Sum of per-axis arrays, in axis order."""
+    terms = iter(terms)
+    total = next(terms)
+    for term in terms:
+        total = total + term
+    return total
 
 
 def _check_pairs(feet_px: np.ndarray, heads_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -228,6 +207,7 @@ def grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point, focal
 
     feet_px, heads_px: (N, 2) px; focal_values_px (F,), pitch_values_rad (P,), height_values_m (C,).
     """
+    kind = residual_kind(residual)
     feet, heads = _check_pairs(feet_px, heads_px)
     pp = np.asarray(principal_point, np.float64)
     rel_feet, diff = feet - pp, feet - heads
@@ -235,11 +215,10 @@ def grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point, focal
     pitches = np.asarray(pitch_values_rad, np.float64)
     inv_k = np.asarray(height_values_m, np.float64) / float(person_height_m)
     ups = up_vector_cam(pitches, roll_rad)
-    vertical = residual == "vertical"
 
     def one(j: int) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # per thread
-            return _paper_costs_one_pitch(rel_feet, diff, focal, ups[j], inv_k, vertical)
+            return _paper_costs_one_pitch(rel_feet, diff, focal, ups[j], inv_k, kind)
 
     n_threads = _workers(len(pitches), float(len(feet)) * len(focal) * len(pitches) * len(inv_k), workers)
     if n_threads == 1:
@@ -264,7 +243,7 @@ def paper_grid_search(feet_px: np.ndarray, heads_px: np.ndarray, principal_point
         return None
     best = float(costs[finite].min())
     diff = np.asarray(feet_px, np.float64) - np.asarray(heads_px, np.float64)
-    scale = float(np.sum(diff[:, 1] ** 2 if residual == "vertical" else diff**2))  # size of the cancelling terms
+    scale = float(np.sum(residual_kind(residual).squared_px((diff[:, 0], diff[:, 1]))))  # the cancelling terms' size
     near = np.flatnonzero(costs.ravel() <= best * (1.0 + _RECHECK_REL) + _RECHECK_ABS * scale + 1e-9)
     near = near[np.argsort(costs.ravel()[near])][:_RECHECK_MAX]
     i, j, k = np.unravel_index(near, costs.shape)
@@ -285,7 +264,7 @@ def _chunks(n: int, size: int) -> list[slice]:
     return [slice(i, min(n, i + size)) for i in range(0, n, size)]
 
 
-# ---- robust variant (initialisation of the refinement) --------------------------------------------
+# ---- robust variant (seeds of the refinement) -----------------------------------------------------
 def robust_grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point, focal_values_px: np.ndarray,
                       pitch_values_rad: np.ndarray, height_values_m: np.ndarray, person_height_m: float,
                       residual: str = "full", truncate: float = 0.25) -> np.ndarray:
@@ -294,6 +273,7 @@ def robust_grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point
     ``L`` is the pair's observed foot-head pixel length; a pair whose foot ray misses the ground or
     whose head lands behind the camera counts as ``truncate^2`` (an outlier), so no cell is invalid.
     """
+    kind = residual_kind(residual)
     feet, heads = _check_pairs(feet_px, heads_px)
     pp = np.asarray(principal_point, np.float64)
     rel_feet = feet - pp
@@ -309,26 +289,23 @@ def robust_grid_costs(feet_px: np.ndarray, heads_px: np.ndarray, principal_point
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for j, up in enumerate(ups):
             d, g, m_u, m_v = _pair_terms(rel_feet, focal, up)
-            bad = d <= _RAY_EPS
+            bad = d <= RAY_EPS
             m_u, m_v = (m / length for m in (m_u, m_v))
-            du = np.where(bad, 1e3, diff[:, 0]).astype(np.float32)[:, None, :]
-            dv = np.where(bad, 1e3, diff[:, 1]).astype(np.float32)[:, None, :]
-            m_u, m_v = (np.where(bad, 0.0, m).astype(np.float32)[:, None, :] for m in (m_u, m_v))
+            big_d = {a: np.where(bad, 1e3, diff[:, a]).astype(np.float32)[:, None, :] for a in kind.pixel_axes}
+            m = {a: np.where(bad, 0.0, (m_u, m_v)[a]).astype(np.float32)[:, None, :] for a in kind.pixel_axes}
             g32 = g.astype(np.float32)[:, None, :]
             for fb in fs:
                 z = inv_k - g32[fb]
                 np.maximum(z, np.float32(1e-9), out=z)  # head behind the camera -> huge error
                 np.reciprocal(z, out=z)
-                ev = z * m_v[fb]
-                ev += dv[fb]
-                ev *= ev
-                if residual != "vertical":
-                    eu = z * m_u[fb]
-                    eu += du[fb]
-                    eu *= eu
-                    ev += eu
-                np.minimum(ev, t2, out=ev)
-                out[fb, j] = ev.sum(axis=-1, dtype=np.float64)
+                sq = None
+                for a in kind.pixel_axes:
+                    e = z * m[a][fb]
+                    e += big_d[a][fb]
+                    e *= e
+                    sq = e if sq is None else np.add(sq, e, out=sq)
+                np.minimum(sq, t2, out=sq)
+                out[fb, j] = sq.sum(axis=-1, dtype=np.float64)
     return out
 
 
@@ -367,3 +344,23 @@ def seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list
         cell.insert(ax, int(i))
         cells.append(tuple(cell))
     return cells
+
+
+def seed_params(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_height_px: float, focal_px: float | None,
+                grid: GridSpec, person_height_m: float, residual: str, box_depth_m: float
+                ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The refinement's starts: (indices of the subsample they were found on, (6,) params per seed).
+
+    A robust grid (log-spaced focal and height values over ``grid``'s ranges, roll 0, the given
+    focal when fixed) on at most 600 pairs chosen independently of their order; the seeds are its
+    best cells along the focal/pitch valley (:func:`seed_cells`), pitch kept below 89 deg.
+    """
+    sub_idx = order_invariant_subset(feet, heads, _SEED_PAIRS)
+    lo, hi = (v * image_height_px for v in grid.focal_range_h)
+    focal = np.geomspace(lo, hi, SEED_STEPS[0]) if focal_px is None else np.array([float(focal_px)])
+    pitch, height = grid.pitch_values_rad(), np.geomspace(*grid.height_range_m, SEED_STEPS[1])
+    costs = robust_grid_costs(feet[sub_idx], heads[sub_idx], pp, focal, pitch, height, person_height_m, residual,
+                              _SEED_TRUNCATE)
+    seeds = [param_vector(focal=focal[i], pitch=min(pitch[j], _SEED_MAX_PITCH), roll=0.0, height=height[c],
+                          box_depth=box_depth_m) for i, j, c in seed_cells(costs, focal)]
+    return sub_idx, seeds

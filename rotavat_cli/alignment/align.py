@@ -7,7 +7,7 @@ The meshes of the input were made with the focal its HPS method assumed (per fra
 person); the output lives in the camera (the calibrated or given one) and says so: its frames'
 ``focal_length``/``K``/``principal_point`` and its meta.yaml are the camera's, with
 ``focal_kind: camera``. Each person keeps the foot and crown pixels the method drew
-(:func:`rotavat_cli.rotavat.method_rays_cam`).
+(:func:`rotavat_cli.alignment.transform.method_rays_cam`).
 """
 
 from __future__ import annotations
@@ -22,16 +22,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_open, staged_directory
-from .outputs import check_output_dir
-from .parallel import cap_workers, ordered_map
-from .camera import Camera, project_cam_to_px
-from .errors import InputError
-from .landmarks import foot_head_points
-from .rotavat import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, points_from_coords, rotavat_transforms, transformed_blocks
-from .plain import csv_cell
-from .focal import CAMERA
-from .sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
+from ..atomic import atomic_open, staged_directory
+from ..outputs import check_output_dir
+from ..parallel import cap_workers, ordered_map
+from ..camera import Camera, project_cam_to_px
+from ..errors import InputError
+from ..landmarks import foot_head_points
+from .transform import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, points_from_coords, rotavat_transforms, transformed_blocks
+from ..plain import csv_cell
+from ..focal import CAMERA
+from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 
 __all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "STATURE_RANGE_M", "HEIGHT_FROM", "MeshIntrinsics", "AlignSummary",
            "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]

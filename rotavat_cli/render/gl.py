@@ -1,27 +1,24 @@
-"""OpenGL rasteriser (moderngl, headless EGL; Mesa's llvmpipe on a CPU-only machine) and the renderer choice.
+"""OpenGL rasteriser: moderngl with a headless EGL context (Mesa's llvmpipe on a CPU-only machine).
 
-Contract shared with :func:`rotavat_cli.render_fallback.rasterize_numpy`: points ``(N, 3)``,
+Contract shared with :func:`rotavat_cli.render.fallback.rasterize_numpy`: points ``(N, 3)``,
 triangles ``(F, 3)`` and per-vertex colours go through one ``clip_from_points`` 4x4 matrix
 (OpenGL clip space); the result is an ``(H, W, 4)`` float32 image, row 0 at the top, alpha =
 coverage (4x multisampled, so edges are anti-aliased).
 
-``moderngl`` is imported inside :func:`open_gl_rasterizer` only; :func:`open_rasterizer` with
-``kind="auto"`` tries it and falls back to the NumPy rasteriser, recording why.
+``moderngl`` is imported inside :func:`open_gl_context` only, which raises :class:`RotavatError`
+saying what is missing; choosing a renderer (and falling back) is :mod:`rotavat_cli.render.raster`'s.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
-from .errors import RotavatError
-from .render_fallback import rasterize_numpy
+from ..errors import RotavatError
 
-__all__ = ["Rasterizer", "open_rasterizer", "open_gl_rasterizer", "RENDERERS", "GL_SYSTEM_PACKAGES"]
+__all__ = ["GLContext", "open_gl_context", "GL_SYSTEM_PACKAGES"]
 
-RENDERERS = ("auto", "gl", "fallback")
 GL_SYSTEM_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"  # Debian packages moderngl's EGL backend needs
 _SAMPLES = 4  # multisample count (anti-aliasing); 0 if the driver refuses
 
@@ -46,30 +43,7 @@ void main() {
 """
 
 
-@dataclass
-class Rasterizer:
-    """A rasterise function plus which renderer it is (``gl`` or ``fallback``) and why, if it fell back."""
-
-    name: str
-    rasterize: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[int, int]], np.ndarray]
-    note: str = ""
-    detail: str = ""  # e.g. the GL renderer string
-    _release: Callable[[], None] | None = field(default=None, repr=False)
-
-    def release(self) -> None:
-        """Free the GL context, if any."""
-        if self._release is not None:
-            self._release()
-            self._release = None
-
-    def __enter__(self) -> "Rasterizer":
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.release()
-
-
-class _GLState:
+class GLContext:
     """A standalone moderngl context with one program and framebuffers resized on demand."""
 
     def __init__(self, moderngl: Any) -> None:
@@ -130,31 +104,21 @@ class _GLState:
         self.ctx.release()
 
 
-def open_gl_rasterizer() -> Rasterizer:
-    """The moderngl/EGL rasteriser; raises RotavatError (exit 2) saying what is missing."""
+    @property
+    def renderer_name(self) -> str:
+        """The driver's GL_RENDERER string (e.g. llvmpipe)."""
+        return str(self.ctx.info.get("GL_RENDERER", ""))
+
+
+def open_gl_context() -> GLContext:
+    """A moderngl/EGL context; raises RotavatError (exit 2) saying what is missing."""
     try:
         import moderngl
     except ImportError as exc:
         raise RotavatError(f"OpenGL renderer unavailable: moderngl is not installed ({exc}); "
                            "pip install 'moderngl>=5.13' or use --renderer fallback") from None
     try:
-        state = _GLState(moderngl)
+        return GLContext(moderngl)
     except Exception as exc:  # glcontext raises plain Exception when EGL/Mesa is missing
         raise RotavatError(f"OpenGL renderer unavailable: no EGL context ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "
                            f"install the system packages {GL_SYSTEM_PACKAGES} or use --renderer fallback") from None
-    detail = str(state.ctx.info.get("GL_RENDERER", ""))
-    return Rasterizer("gl", state.rasterize, detail=detail, _release=state.release)
-
-
-def open_rasterizer(kind: str = "auto") -> Rasterizer:
-    """``gl`` (moderngl via EGL), ``fallback`` (NumPy z-buffer), or ``auto``: gl if it starts, else fallback."""
-    if kind not in RENDERERS:
-        raise ValueError(f"unknown renderer {kind!r} (expected one of {', '.join(RENDERERS)})")
-    if kind == "fallback":
-        return Rasterizer("fallback", rasterize_numpy, note="requested", detail="numpy z-buffer")
-    if kind == "gl":
-        return open_gl_rasterizer()
-    try:
-        return open_gl_rasterizer()
-    except RotavatError as exc:
-        return Rasterizer("fallback", rasterize_numpy, note=str(exc), detail="numpy z-buffer")

@@ -1,6 +1,6 @@
 """NumPy z-buffer rasteriser: the renderer that always works (no OpenGL, no EGL).
 
-Same contract as :mod:`rotavat_cli.render_gl`: points ``(N, 3)``, triangles ``(F, 3)`` and
+Same contract as :mod:`rotavat_cli.render.gl`: points ``(N, 3)``, triangles ``(F, 3)`` and
 per-vertex colours go through one ``clip_from_points`` 4x4 matrix (OpenGL clip space: NDC ``x``
 right, ``y`` up, ``z`` in [-1, 1], nearer = smaller); the result is an ``(H, W, 4)`` float image,
 row 0 at the top, alpha = coverage.
@@ -19,17 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rasterize_numpy", "ndc_to_px"]
+from .geometry import ndc_to_px
+
+__all__ = ["rasterize_numpy"]
 
 _MAX_CANDIDATES = 1 << 22  # candidate pixels per batch (~4M: ~200 MB of float64 temporaries at peak)
 _MIN_AREA_PX2 = 1e-12  # twice-area below this: a degenerate (zero-area) triangle
-
-
-def ndc_to_px(ndc_xy: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """NDC (..., 2) (x right, y up, [-1, 1]) -> pixels (..., 2) (u right, v down, edges at 0 and W/H)."""
-    W, H = size
-    ndc = np.asarray(ndc_xy, dtype=np.float64)
-    return np.stack([(ndc[..., 0] + 1.0) * (0.5 * W), (1.0 - ndc[..., 1]) * (0.5 * H)], axis=-1)
 
 
 def _screen_triangles(points: np.ndarray, faces: np.ndarray, clip_from_points: np.ndarray,

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import pixel_rays_cam, project_cam_to_px
-from .rotations import axis_angle_to_matrix
+from ..camera import pixel_rays_cam, project_cam_to_px
+from ..rotations import axis_angle_to_matrix
 
 __all__ = [
     "FLAGS", "UPRIGHT", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",

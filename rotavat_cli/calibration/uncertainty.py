@@ -1,5 +1,9 @@
 """Uncertainty of a calibration: covariances (statistical, cluster jackknife, assumed systematics,
 the head-column test), standard deviations and correlations, and warnings in plain words.
+
+Covariances are over the internal parameters (:mod:`.params`: log focal, pitch, roll, log height,
+distortion, box depth), ``(6, 6)`` with zeros for the fixed slots; :func:`std_and_corr` turns
+them into report units.
 """
 
 from __future__ import annotations
@@ -9,10 +13,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .calibrate_grid import order_invariant_subset
-from .camera import Camera, horizon_v_px
-from .calibrate_model import (MODEL_NAMES, PARAM_NAMES, Problem, model_residual, pair_chi2, residual_and_jacobian,
-                              robust_least_squares, robust_scale, to_internal, undistort)
+from ..camera import Camera, horizon_v_px
+from .grid import order_invariant_subset
+from .model import undistort
+from .objective import Problem, model_residual, pair_chi2, residual_and_jacobian, robust_scale
+from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, to_internal
+from .refine import robust_least_squares
+from .residuals import RESIDUAL_KINDS
 
 __all__ = ["WARN_FOCAL_REL_SD", "WARN_FOCAL_PITCH_CORR", "WARN_PITCH_SD_DEG", "WARN_HEIGHT_REL_SD",
            "WARN_INLIER_FRACTION", "Systematics", "covariances", "jackknife_cov", "std_and_corr", "fit_warnings"]
@@ -105,14 +112,14 @@ def _column_shift(prob: Problem, params: np.ndarray, free: np.ndarray, scale: fl
                   cov_full: np.ndarray) -> tuple[np.ndarray, float, int]:
     """How far the head rows alone move the full fit, and a Hausman test of that move.
 
-    Refits the inliers on the head rows only (``vertical``) from the full fit and returns the
-    shift ``d`` (n_free,) of the internal parameters, the statistic ``d^T V^+ d`` with
-    ``V = cov_rows - cov_full`` (the rows-only fit is the less efficient of two consistent
-    estimates), and V's rank. Under a right model the two agree to within V; head columns that
-    do not follow the person's vertical (drawn straight above the foot, as boxes are) make them
-    disagree.
+    Refits the inliers with the residual kind's ``test_against`` kind (the head rows only) from the
+    full fit and returns the shift ``d`` (n_free,) of the internal parameters, the statistic
+    ``d^T V^+ d`` with ``V = cov_rows - cov_full`` (the rows-only fit is the less efficient of two
+    consistent estimates), and V's rank. Under a right model the two agree to within V; head
+    columns that do not follow the person's vertical (drawn straight above the foot, as boxes
+    are) make them disagree.
     """
-    rows = replace(prob, vertical=True)
+    rows = replace(prob, residual=RESIDUAL_KINDS[prob.residual.test_against])
     scale_rows = robust_scale(pair_chi2(rows, params), rows)
     refit = robust_least_squares(rows, params, free, scale_rows, "soft_l1", 3.0)
     cov_rows = _statistical_cov(rows, refit, free, scale_rows, clusters)[0]
@@ -149,7 +156,7 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
             continue
         step = 0.1 * sd
         if name == "box":  # a fixed parameter of the model
-            r_moved = model_residual(prob, (params + step * np.eye(len(params))[5])[None], free, scale)[0]
+            r_moved = model_residual(prob, (params + step * np.eye(len(params))[BOX_DEPTH])[None], free, scale)[0]
         else:
             r_moved = model_residual(_perturbed(prob, name, step), params[None], free, scale)[0]
         shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
@@ -161,15 +168,16 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
                  assumed: Systematics, test_columns: bool) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """(total, statistical) covariances (6, 6) of the internal parameters (zero for fixed ones), warnings.
 
-    With ``test_columns`` (full residual), when the head rows alone disagree with the joint fit
-    beyond their noise (:func:`_column_shift`, 99% chi-square), the total adds the disagreement:
-    the head columns do not follow the model (box-derived heads, principal point, distortion).
+    With ``test_columns`` and a residual kind that has a ``test_against`` kind (full: the head
+    rows), when the head rows alone disagree with the joint fit beyond their noise
+    (:func:`_column_shift`, 99% chi-square), the total adds the disagreement: the head columns do
+    not follow the model (box-derived heads, principal point, distortion).
     """
     from scipy.stats import chi2 as chi2_dist  # imported when used: keeps `rotavat --help` fast
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
     total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
     warns = []
-    if test_columns and prob.dof == 2:
+    if test_columns and prob.residual.test_against is not None:
         sub = order_invariant_subset(prob.rel_feet, prob.rel_feet - prob.diff, _COLUMN_TEST_PAIRS)
         sub_clusters = None if clusters is None else clusters[sub]
         sub_prob = prob.subset(sub)
@@ -201,13 +209,17 @@ def _undetermined(J: np.ndarray) -> np.ndarray:
 
 
 def std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple[dict[str, float], float]:
-    """Standard deviations (px, deg, deg, m; NaN if fixed; then the fitted point-model ones) and corr(focal, pitch)."""
+    """Standard deviations (px, deg, deg, m; NaN if fixed; then the fitted point-model ones) and corr(focal, pitch).
+
+    params: (6,); cov: (6, 6) internal; free: (6,) bool.
+    """
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    values = [params[0] * sd[0], math.degrees(sd[1]), math.degrees(sd[2]), params[3] * sd[3], sd[4]]
-    std = {k: (float(v) if free[i] else math.nan) for i, (k, v) in enumerate(zip(MODEL_NAMES, values))
+    values = {FOCAL: params[FOCAL] * sd[FOCAL], PITCH: math.degrees(sd[PITCH]), ROLL: math.degrees(sd[ROLL]),
+              HEIGHT: params[HEIGHT] * sd[HEIGHT], DISTORTION: sd[DISTORTION]}  # slot -> std in MODEL_NAMES' units
+    std = {k: (float(values[i]) if free[i] else math.nan) for k, i in zip(MODEL_NAMES, values)
            if k in PARAM_NAMES or free[i]}
-    ok = free[0] and free[1] and 0 < sd[0] < math.inf and 0 < sd[1] < math.inf
-    corr = float(np.clip(cov[0, 1] / (sd[0] * sd[1]), -1.0, 1.0)) if ok else math.nan
+    ok = free[FOCAL] and free[PITCH] and 0 < sd[FOCAL] < math.inf and 0 < sd[PITCH] < math.inf
+    corr = float(np.clip(cov[FOCAL, PITCH] / (sd[FOCAL] * sd[PITCH]), -1.0, 1.0)) if ok else math.nan
     return std, corr
 
 

@@ -1,0 +1,334 @@
+"""Calibrate a static camera from the people it sees: foot (mid-sole) and head (crown) pixels only.
+
+Two methods (conventions: docs/conventions.md; the model: :mod:`.model`, the grid: :mod:`.grid`):
+
+- ``"grid"``: the seed paper exactly. Focal, pitch and camera height on a 50^3 grid, roll 0,
+  principal point at the image centre, stature 1.70 m, least squares on the head pixels; the
+  result is the grid's best cell.
+- ``"refine"`` (default): a robust (truncated) grid on an order-independent subsample seeds a few
+  starts along the focal/pitch valley; each is refined continuously (:mod:`.refine`) over
+  log-focal, pitch, roll and log-height, with rounds of outlier rejection; the best start is
+  refined on all pairs. The residual kind (:mod:`.residuals`; default ``full``: along and across
+  each person's image axis) says what is compared. The stature prior ``N(S, sd_S)`` enters in two
+  ways: a tracked person (track id >= 0) has its own stature, profiled out with that prior, so a
+  person walking through the scene constrains the perspective whatever their height; an untracked
+  pair carries the spread in its along-the-person weight ``sqrt(noise^2 + (L sd_S / S)^2)`` (``L``
+  its pixel length). Optional: known principal point, fixed focal, no roll, a weak prior on the
+  vertical field of view, radial lens distortion (one-parameter division model, fitted), and
+  box-derived points (``points="boxes"``: the box top stands a box depth, 0.25 m, farther from the
+  camera than the bottom; the head row only, since a box's two centres share one column).
+
+From upright people on a plane the horizon (~ f tan(pitch)) and the camera height are well
+determined, but focal and pitch slide along a valley. :class:`CalibrationResult` reports standard
+deviations and warnings in plain words (:mod:`.uncertainty`). Every option is a field of
+:class:`~.options.CalibrateOptions`.
+
+Examples
+--------
+>>> cam = Camera((640, 480), 500.0, None, np.deg2rad(30.0), 0.0, 5.0)
+>>> feet_px = np.array([[100.0, 300.0], [320.0, 400.0], [500.0, 350.0], [250.0, 460.0], [600.0, 420.0]])
+>>> heads_px = cam.project(cam.backproject_px_to_ground(feet_px) + 1.7 * cam.up_cam)
+>>> res = fit_camera(feet_px, heads_px, (640, 480), CalibrateOptions(focal_px=500.0))
+>>> round(float(np.rad2deg(res.camera.pitch_rad)), 4), round(res.camera.height_m, 4), res.inliers
+(30.0, 5.0, 5)
+>>> fit_camera(feet_px, heads_px, (640, 480), focal_px=500.0).camera == res.camera  # options as keywords
+True
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..camera import Camera, camera_parameters, horizon_v_px
+from ..errors import DegenerateSceneError
+from .grid import paper_grid_search
+from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
+from .objective import MIN_NOISE_PX, Problem, make_problem, profiled
+from .options import CalibrateOptions
+from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, SLOT_LABELS,
+                     describe, param_bounds, param_vector, to_internal)
+from .refine import refine_fit
+from .uncertainty import Systematics, covariances, fit_warnings, std_and_corr
+
+__all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "fit_per_frame"]
+
+# A refined parameter closer than this to its start (internal units: log f, rad, rad, log h, ...)
+# did not move: the pairs did not constrain the refinement.
+_UNMOVED_TOL = 1e-4
+_BOUND_TOL = 1e-3  # a refined parameter this close to its search bound (internal units) "ran to the end"
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """An estimated camera with the diagnostics of its fit (never a silent default camera)."""
+
+    camera: Camera
+    method: str  # "grid" | "refine"
+    person_height_m: float
+    pairs: int  # foot-head pairs offered
+    inliers: int  # pairs kept by the fit
+    frames: int  # distinct frames among the pairs
+    rmse_px: float  # head reprojection residual over the inliers (the residual kind's pixel axes)
+    std: dict[str, float]  # focal_px, pitch_deg, roll_deg, height_m (and distortion when fitted); NaN when fixed
+    corr_focal_pitch: float  # NaN when either is fixed
+    inlier_mask: np.ndarray  # (N,) bool
+    warnings: tuple[str, ...] = ()
+    residual: str = "full"  # the residual kind used (residuals.RESIDUALS)
+    std_statistical: dict[str, float] = field(default_factory=dict)  # the fit's own part of ``std``
+    points: str = "landmarks"  # "landmarks" (mid-sole, crown) | "boxes" (box bottom- and top-centre)
+    distortion: float = math.nan  # fitted division-model coefficient (NaN: not fitted)
+    box_depth_m: float = 0.0  # assumed box depth, m (boxes only; 0 for landmarks)
+    fixed: dict[str, str] = field(default_factory=dict)  # parameter -> why it was not estimated
+    notes: tuple[str, ...] = ()  # what rotavat decided on its own (e.g. box-derived points detected)
+    person_height_estimated: bool = False  # the mean stature was estimated (camera height given), not assumed
+    person_height_std_m: float = math.nan  # its std when estimated
+
+    @property
+    def horizon_v_px(self) -> float:
+        """Image row of the horizon at the image's centre column."""
+        cam = self.camera
+        return float(horizon_v_px(cam.image_size[0] / 2.0, cam.focal_px, cam.principal_point, cam.up_cam))
+
+    def fit_dict(self) -> dict:
+        """Plain-typed ``fit:`` block of camera.yaml (docs/conventions.md); NaN becomes None."""
+        return {
+            "method": self.method,
+            "residual": self.residual,
+            "person_height_m": float(self.person_height_m),
+            "pairs": int(self.pairs),
+            "inliers": int(self.inliers),
+            "frames": int(self.frames),
+            "rmse_px": _plain(self.rmse_px),
+            "std": {**{k: _plain(self.std.get(k, math.nan)) for k in MODEL_NAMES if k in PARAM_NAMES or k in self.std},
+                    **({"person_height_m": _plain(self.person_height_std_m)} if self.person_height_estimated else {})},
+            "fixed": dict(self.fixed),
+            "person_height": "estimated" if self.person_height_estimated else "assumed",
+            "corr_focal_pitch": _plain(self.corr_focal_pitch),
+            "horizon_v_px": _plain(self.horizon_v_px),
+            "warnings": list(self.warnings),
+            "notes": list(self.notes),
+            "points": self.points,
+            **({"distortion": float(self.distortion)} if math.isfinite(self.distortion) else {}),
+            **({"box_depth_m": float(self.box_depth_m)} if self.points == "boxes" else {}),
+        }
+
+
+def _plain(x: float) -> float | None:
+    """Float for YAML, None for NaN (a fixed parameter); an undetermined std stays inf (YAML .inf)."""
+    x = float(x)
+    return None if math.isnan(x) else x
+
+
+@dataclass(frozen=True)
+class PerFrameSummary:
+    """Every frame calibrated alone: per-frame results and the spread of each parameter."""
+
+    frame_ids: tuple[int, ...]  # frames that were fitted
+    results: tuple[CalibrationResult, ...]
+    skipped: dict[int, str]  # frame id -> why it could not be fitted
+    median: dict[str, float]  # per parameter (PARAM_NAMES), over the fitted frames
+    iqr: dict[str, float]  # 75th minus 25th percentile
+
+
+# ---- public API -----------------------------------------------------------------------------------
+def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
+               options: CalibrateOptions | None = None, *, frame_index: np.ndarray | None = None,
+               track_id: np.ndarray | None = None, workers: int | None = None, **changes) -> CalibrationResult:
+    """Estimate the static camera from foot/head pixel pairs pooled over all frames.
+
+    feet_px, heads_px: (N, 2) px, mid-sole and crown; image_size: (W, H) px.
+    options: :class:`CalibrateOptions` (default: the defaults), with ``changes`` (any of its
+    fields as keywords, e.g. ``focal_px=900.0``) applied on top.
+    frame_index, track_id: (N,) int, optional (frame count; clusters for the uncertainty; a track's
+    stature is its own). workers: grid threads (None = auto).
+    A refinement that ends where it started (the pairs did not move it) falls back to the paper
+    grid's best cell, with a warning. With ``camera_height_m`` the fit is the same (the model sees
+    stature and height only through their ratio) and the scale moves to the people's mean stature,
+    which is estimated (``person_height_m`` with ``person_height_std_m``).
+    Raises ValueError for malformed input and DegenerateSceneError when the pairs cannot
+    determine a camera (fewer than 3 usable pairs, people at one depth, a parameter running to its
+    search bound, or no candidate camera is valid).
+    """
+    options = _with_changes(options, changes)
+    method = options.method
+    points, notes = resolve_points(feet_px, heads_px, options.points, method)
+    with _naming_the_chosen_model(notes, points):
+        inp = check_inputs(feet_px, heads_px, image_size, options, points, frame_index, track_id)
+        idx = np.flatnonzero(inp.usable)
+        n_frames = 1 if inp.frames is None else len(np.unique(inp.frames[inp.usable]))
+        prob = make_problem(inp.feet[idx], inp.heads[idx], inp.pp, options.person_height_m,
+                            options.person_height_sd_m, options.noise_px, inp.residual, inp.size, inp.fov_prior,
+                            None if inp.tracks is None or method == "grid" else inp.tracks[idx])
+        extra: list[str] = []
+        if method == "refine":
+            free = free_slots(options, method)
+            box = options.box_depth_m if points == "boxes" else 0.0
+            params, mask_u, scale, start = refine_fit(prob, inp.feet[idx], inp.heads[idx], inp.pp, inp.size,
+                                                      options.focal_px, free, box, options.grid, options.max_rounds)
+            if _unmoved(params, start, free):
+                method = "grid"
+                extra = [f"the refinement ended where it started (pitch {math.degrees(params[PITCH]):.5f} deg, "
+                         f"height {params[HEIGHT]:.5f} m): the pairs do not constrain it; falling back to the paper "
+                         "grid's best cell"]
+            else:
+                _refuse_bounds(params, free, inp.size[1])
+        if method == "grid":
+            params, mask_u, free, scale, prob = _grid_fit(inp, idx, options, workers, prob)
+        return _result(inp, idx, options, method, points, notes, extra, prob, params, free, mask_u, scale,
+                       n_frames)
+
+
+def calibrate(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
+              options: CalibrateOptions | None = None, **kwargs) -> Camera:
+    """The camera of :func:`fit_camera` (same arguments), without the diagnostics."""
+    return fit_camera(feet_px, heads_px, image_size, options, **kwargs).camera
+
+
+def fit_per_frame(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int], frame_index: np.ndarray,
+                  options: CalibrateOptions | None = None, *, track_id: np.ndarray | None = None,
+                  workers: int | None = None, **changes) -> PerFrameSummary:
+    """Calibrate every frame alone (options as for :func:`fit_camera`) and summarise the spread.
+
+    feet_px, heads_px: (N, 2) px; frame_index, track_id: (N,) int.
+    """
+    options = _with_changes(options, changes)
+    feet, heads = np.asarray(feet_px, np.float64), np.asarray(heads_px, np.float64)
+    frames = check_index(frame_index, len(feet), "frame_index")
+    if frames is None:
+        raise ValueError("fit_per_frame needs frame_index")
+    ids, results, skipped = [], [], {}
+    for t in np.unique(frames):
+        sel = frames == t
+        try:
+            res = fit_camera(feet[sel], heads[sel], image_size, options, frame_index=frames[sel],
+                             track_id=None if track_id is None else np.asarray(track_id)[sel], workers=workers)
+        except DegenerateSceneError as err:
+            skipped[int(t)] = str(err)
+            continue
+        ids.append(int(t))
+        results.append(res)
+    values = {k: np.array([camera_parameters(r.camera)[k] for r in results]) for k in PARAM_NAMES}
+    median = {k: float(np.median(v)) if len(v) else math.nan for k, v in values.items()}
+    iqr = {k: float(np.subtract(*np.percentile(v, [75, 25]))) if len(v) else math.nan for k, v in values.items()}
+    return PerFrameSummary(tuple(ids), tuple(results), skipped, median, iqr)
+
+
+# ---- the steps ------------------------------------------------------------------------------------
+def _with_changes(options: CalibrateOptions | None, changes: dict) -> CalibrateOptions:
+    """``options`` (or the defaults) with keyword changes applied; TypeError for anything else."""
+    if options is None:
+        options = CalibrateOptions()
+    elif not isinstance(options, CalibrateOptions):
+        raise TypeError(f"options must be a CalibrateOptions (CalibrateOptions.from_config(section) for a config "
+                        f"section), got {type(options).__name__}")
+    return options.replace(**changes) if changes else options
+
+
+@contextlib.contextmanager
+def _naming_the_chosen_model(notes: list[str], points: str) -> Iterator[None]:
+    """A DegenerateSceneError says so when rotavat chose the box model by itself."""
+    try:
+        yield
+    except DegenerateSceneError as exc:
+        if notes and points == "boxes":
+            raise DegenerateSceneError(f"{exc} (with the box model: the points were recognised as box-derived; "
+                                       "--points landmarks to override)") from None
+        raise
+
+
+def _unmoved(params: np.ndarray, start: np.ndarray, free: np.ndarray) -> bool:
+    """True when every refined parameter is still at its start (internal units)."""
+    moved = np.abs(to_internal(params) - to_internal(start))[free]
+    return bool(moved.size) and bool(np.all(moved < _UNMOVED_TOL))
+
+
+def _refuse_bounds(params: np.ndarray, free: np.ndarray, image_height_px: float) -> None:
+    """DegenerateSceneError when a refined parameter ran to its search bound: the pairs do not
+    determine it, and a camera at the bound would be a confident wrong answer."""
+    lo, hi = param_bounds(image_height_px)
+    x = to_internal(params)
+    values = describe(params)
+    hit = [i for i in range(len(SLOT_LABELS)) if free[i] and min(x[i] - lo[i], hi[i] - x[i]) < _BOUND_TOL]
+    if hit:
+        what = ", ".join(f"the {SLOT_LABELS[i]} ({values[i]})" for i in hit)
+        raise DegenerateSceneError(f"the pairs cannot determine {what}: the fit ran to the end of its search "
+                                   "range; give what is known (--focal, --camera-height, --no-roll) or more people "
+                                   "at different depths")
+
+
+def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, workers: int | None, prob: Problem
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Problem]:
+    """The paper's grid on the usable pairs ``idx``: (params (6,), all-inlier mask, free (6,), scale,
+    unweighted problem)."""
+    feet, heads, grid = inp.feet[idx], inp.heads[idx], options.grid
+    focal = grid.focal_values_px(inp.size[1]) if options.focal_px is None else np.array([options.focal_px])
+    fit = paper_grid_search(feet, heads, inp.pp, focal, grid.pitch_values_rad(), grid.height_values_m(),
+                            options.person_height_m, inp.residual.name, 0.0, workers)
+    if fit is None:
+        raise DegenerateSceneError("no grid cell explains the pairs: every candidate camera puts a foot above the "
+                                   "horizon or a head behind the camera (are these pixels of this image?)")
+    params = param_vector(focal=fit.focal_px, pitch=fit.pitch_rad, roll=0.0, height=fit.height_m)
+    free = free_slots(options, "grid")
+    names = ("focal", "pitch", "height")
+    edges = [names[axis] for axis, (i, n) in enumerate(zip(fit.index, fit.costs.shape)) if n > 1 and i in (0, n - 1)]
+    if edges:
+        raise DegenerateSceneError(f"the paper grid's best {', '.join(edges)} lies on the edge of its search range: "
+                                   "the camera is outside it or the pairs do not determine it (calibrate.grid in "
+                                   "the config sets the ranges)")
+    # Unweighted residuals for the paper's uncertainty: equal weights, scale from the residual sum.
+    flat = replace(prob, sd_along=np.ones(len(feet)), sd_across=1.0, track=np.full(len(feet), -1), n_tracks=0,
+                   fov_prior=None)
+    dof_total = max(1, len(feet) * flat.dof - int(free.sum()))
+    scale = max(math.sqrt(fit.cost / dof_total), MIN_NOISE_PX)
+    return params, np.ones(len(feet), bool), free, scale, flat
+
+
+def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method: str, points: str, notes: list[str],
+            extra: list[str], prob: Problem, params: np.ndarray, free: np.ndarray, mask_u: np.ndarray, scale: float,
+            n_frames: int) -> CalibrationResult:
+    """The camera of a fit ``params (6,)`` with its uncertainty, rmse, warnings and what was fixed."""
+    if options.focal_px is not None:
+        params[FOCAL] = options.focal_px  # exactly as given (no log/exp round trip)
+    camera = Camera(inp.size, params[FOCAL], tuple(inp.pp), params[PITCH], params[ROLL], params[HEIGHT])
+    inlier_mask = np.zeros(len(inp.feet), bool)
+    inlier_mask[idx[mask_u]] = True
+    clusters = inp.tracks if inp.tracks is not None else inp.frames
+    inl = prob.subset(np.flatnonzero(mask_u))
+    pp_sd = (0.02 * max(inp.size) if options.principal_point is None else 0.0) \
+        if options.principal_point_sd_px is None else options.principal_point_sd_px
+    stature_mean_sd = 0.0 if options.camera_height_m is not None else options.person_height_mean_sd_m
+    assumed = Systematics(pp_sd, 0.0 if options.distortion else options.distortion_sd, stature_mean_sd,
+                          options.box_depth_sd_m if points == "boxes" else 0.0)
+    cov, cov_stat, cov_warns = covariances(inl, params, free, scale,
+                                           None if clusters is None else clusters[idx[mask_u]], assumed,
+                                           method == "refine")
+    std, corr = std_and_corr(params, cov, free)
+    std_stat, _ = std_and_corr(params, cov_stat, free)
+    (eu, ev), _, _ = profiled(inl, params[None], scale)
+    sq = inp.residual.squared_px((eu[0], ev[0]))
+    rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
+    warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), inp.n_usable, len(inp.feet))
+    if method == "refine" and inp.tracks is None and n_frames > 1:
+        warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
+                     "is too small when people persist (give the person ids)")
+    fixed = {name: reason for name, reason, free_ in (
+        ("focal_px", "given", free[FOCAL]), ("roll_deg", "0 (not estimated)", free[ROLL]),
+        ("distortion", "none", free[DISTORTION] or not options.distortion)) if not free_}
+    stature, stature_sd = options.person_height_m, math.nan
+    if options.camera_height_m is not None:  # the same fit at the known scale: the stature carries it
+        ratio = options.camera_height_m / camera.height_m
+        stature, stature_sd = stature * ratio, stature * ratio * std["height_m"] / camera.height_m
+        camera = camera.replace(height_m=options.camera_height_m)
+        std = {**std, "height_m": math.nan}
+        std_stat = {**std_stat, "height_m": math.nan}
+        fixed["height_m"] = "given"
+    return CalibrationResult(camera, method, stature, len(inp.feet), int(mask_u.sum()), n_frames, rmse,
+                             std, corr, inlier_mask, tuple(warns), inp.residual.name, std_stat, points,
+                             float(params[DISTORTION]) if options.distortion else math.nan,
+                             float(params[BOX_DEPTH]), fixed, tuple(notes), options.camera_height_m is not None,
+                             stature_sd)

@@ -1,0 +1,125 @@
+"""The person model of calibration: a head pixel predicted in closed form from its foot pixel.
+
+A person stands upright on the ground (conventions: docs/conventions.md). For a camera (focal
+``f``, pitch, roll, height ``h``; up vector ``n`` in the camera frame) back-project the foot pixel
+onto the ground, put the head ``S`` metres above it along ``n`` and project it. With ``F`` the foot
+pixel relative to the principal point:
+
+- ``d = -n . (F/f, 1)``: the foot ray against up (``d > 0``: the ray meets the ground in front);
+- ``M = d (f n_xy - n_z F)``: the direction the head moves from the foot, in pixels;
+- ``k = S / h`` and ``z = 1 + k n_z d``: the head's depth over the foot's (``z > 0``: in front);
+- the predicted head is ``F + (k / z) M``.
+
+``d`` and ``M`` depend on the focal and the pitch/roll only (:func:`foot_terms`), which is what
+makes the paper grid fast (:mod:`.grid`: the same model with ``k / z = 1 / (h/S - g)``,
+``g = -n_z d``). Optional parts: a division-model lens distortion undistorts both points first,
+and box-derived points put the head ``b`` metres beyond the foot (``k = (S rho + b) / (h rho + b)``).
+
+:func:`head_errors` is the one implementation: the paper grid's exact re-scoring, the
+refinement and the uncertainty all call it, over ``Q`` parameter sets at once.
+
+>>> from rotavat_cli.camera import Camera
+>>> cam = Camera((640, 480), 500.0, None, 0.5, 0.02, 4.0)
+>>> feet = np.array([[100.0, 300.0], [500.0, 420.0]])
+>>> heads = predict_heads_px(feet, 500.0, 0.5, 0.02, 4.0, (320.0, 240.0), 1.7)
+>>> bool(np.allclose(heads, cam.project(cam.backproject_px_to_ground(feet) + 1.7 * cam.up_cam)))
+True
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..camera import up_vector_cam
+from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, slot
+
+__all__ = ["RAY_EPS", "Z_MIN", "foot_terms", "undistort", "head_errors", "predict_heads_px"]
+
+RAY_EPS = 1e-12  # foot ray "parallel to the ground" (as camera.backproject_px_to_plane)
+Z_MIN = 0.05  # refinement: head depth / foot depth below this -> head (nearly) behind the camera, invalid pair
+_Z_FLOOR = 1e-12  # z is clamped here when an invalid pair's error is still computed (no division by zero)
+
+
+def foot_terms(u: np.ndarray, v: np.ndarray, f: np.ndarray, nx, ny, nz) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``d``, ``M_u``, ``M_v`` of the model (module docstring), broadcast.
+
+    u, v: foot pixels relative to the principal point; f: focal px; nx, ny, nz: world up in the
+    camera frame. Shapes broadcast: ``(N,)`` pairs against ``(Q, 1)`` parameter sets (refinement)
+    or ``(1, B)`` against ``(F, 1)`` focals and scalar ``n`` (the grid's kernel).
+    """
+    d = -(nx * u + ny * v) / f - nz
+    return d, d * (f * nx - nz * u), d * (f * ny - nz * v)
+
+
+def undistort(rel_feet: np.ndarray, diff: np.ndarray, lam: np.ndarray, radius_px: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Division-model undistortion ``p / (1 + lam |p|^2 / R^2)`` of feet and heads -> (Q, N, 2) each.
+
+    rel_feet, diff: (N, 2) px about the principal point; lam: (Q, 1); radius_px: R, the half-diagonal.
+    """
+    def one(p: np.ndarray) -> np.ndarray:
+        return p / (1.0 + lam[..., None] * (np.sum(p * p, axis=-1) / radius_px**2)[None, :, None])
+
+    feet = one(rel_feet)
+    return feet, feet - one(rel_feet - diff)
+
+
+def head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, stature_m: float | np.ndarray,
+                radius_px: float = 1.0, z_min: float = Z_MIN
+                ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Head errors (u, v), their derivatives by the stature (u, v), each (Q, N), and validity (Q, N).
+
+    rel_feet = feet - principal point and diff = feet - observed heads, (N, 2) px; params (Q, 6)
+    (:mod:`.params` slots); stature_m: scalar, (N,) or (Q, N); radius_px: the distortion's radius
+    (half-diagonal). Errors are predicted minus observed heads, px; derivatives px/m. A pair is
+    valid when its foot ray meets the ground and its head depth ratio ``z`` exceeds ``z_min``.
+    """
+    f, pitch, roll, h = (slot(params, i) for i in (FOCAL, PITCH, ROLL, HEIGHT))
+    lam, box = slot(params, DISTORTION), slot(params, BOX_DEPTH)
+    if np.any(lam):
+        rel_feet, diff = undistort(rel_feet, diff, lam, radius_px)
+    n = up_vector_cam(pitch[:, 0], roll[:, 0])
+    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
+    u, v = rel_feet[..., 0], rel_feet[..., 1]
+    d, m_u, m_v = foot_terms(u, v, f, nx, ny, nz)
+    k, dk, ok = _box_k(u, v, f, h, d, box, stature_m) if np.any(box) else (stature_m / h, 1.0 / h, True)
+    z = 1.0 + k * nz * d
+    valid = (d > RAY_EPS) & (z > z_min) & ok
+    z = np.maximum(z, max(z_min, _Z_FLOOR))
+    coef, dcoef = k / z, dk / (z * z)
+    return (diff[..., 0] + coef * m_u, diff[..., 1] + coef * m_v), (dcoef * m_u, dcoef * m_v), valid
+
+
+def _box_k(u: np.ndarray, v: np.ndarray, f: np.ndarray, h: np.ndarray, d: np.ndarray, box: np.ndarray,
+           stature_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``k``, ``dk/dS`` and validity (Q, N) when the head stands ``box`` m beyond the foot, away from the camera.
+
+    With ``rho`` the foot's ground distance over the camera height, the head point
+    ``G + b e + S n`` (``e`` the horizontal direction away from the camera) projects like an
+    upright person with ``k = (S rho + b) / (h rho + b)`` (``k = S / h`` when ``b = 0``).
+    """
+    rho = np.sqrt(np.maximum(((u * u + v * v) / (f * f) + 1.0) / np.maximum(d, RAY_EPS) ** 2 - 1.0, 0.0))
+    denom = h * rho + box
+    safe = np.where(denom > 0, denom, 1.0)
+    return (stature_m * rho + box) / safe, rho / safe, denom > 0
+
+
+def predict_heads_px(feet_px: np.ndarray, focal_px: np.ndarray | float, pitch_rad: np.ndarray | float,
+                     roll_rad: np.ndarray | float, height_m: np.ndarray | float, principal_point: tuple | np.ndarray,
+                     person_height_m: np.ndarray | float) -> np.ndarray:
+    """Predicted head pixels (..., N, 2) of people standing on feet_px (N, 2); NaN where invalid.
+
+    Camera parameters broadcast over leading dimensions ``(...)``; ``person_height_m`` is a
+    scalar or (N,). Invalid: the foot ray misses the ground or the head is behind the camera.
+    """
+    feet = np.asarray(feet_px, dtype=np.float64)
+    f, pitch, roll, h = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64)
+                                              for v in (focal_px, pitch_rad, roll_rad, height_m)))
+    params = np.zeros((f.size, N_PARAMS))
+    for index, value in ((FOCAL, f), (PITCH, pitch), (ROLL, roll), (HEIGHT, h)):
+        params[:, index] = value.ravel()
+    rel_feet = feet - np.asarray(principal_point, dtype=np.float64)
+    (e_u, e_v), _, valid = head_errors(rel_feet, np.zeros_like(feet), params,
+                                       np.asarray(person_height_m, dtype=np.float64), z_min=0.0)
+    heads = np.where(valid[..., None], feet + np.stack([e_u, e_v], axis=-1), np.nan)
+    return heads.reshape(f.shape + feet.shape)

@@ -1,0 +1,163 @@
+"""Every option of a calibration, validated in one place: :class:`CalibrateOptions`.
+
+The first fields are the ``calibrate`` section of ``configs/default.yaml``, one field per key and
+named like it; the YAML is the source of their defaults, and a test checks
+``CalibrateOptions() == CalibrateOptions.from_config(default_config()["calibrate"])`` so the
+dataclass cannot drift from it. The last fields are not in the config: the model's pixel noise
+and the sds of what it assumes without fitting (Python callers and tests set them).
+
+>>> from rotavat_cli.config import default_config
+>>> CalibrateOptions.from_config(default_config()["calibrate"]) == CalibrateOptions()
+True
+>>> CalibrateOptions(method="grid", distortion=True)
+Traceback (most recent call last):
+...
+ValueError: distortion and points='boxes' need method 'refine' (the grid is the paper's model)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+
+from ..errors import InputError
+from .grid import GridSpec
+from .residuals import residual_kind
+
+__all__ = ["METHODS", "POINTS", "CalibrateOptions"]
+
+METHODS = ("grid", "refine")
+POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
+_NOT_IN_CONFIG = {"config": False}  # field metadata: an option Python sets, absent from configs/default.yaml
+# Numeric options: (test, what the value must be); each is stored as a float.
+_NUMBERS = {
+    **{name: (lambda x: x > 0, "a positive number") for name in ("person_height_m", "noise_px", "fov_prior_sd_deg")},
+    **{name: (lambda x: x >= 0, ">= 0")
+       for name in ("person_height_sd_m", "distortion_sd", "person_height_mean_sd_m", "principal_point_sd_px")},
+    "focal_px": (lambda x: x > 0, "a positive number of pixels"),
+    "camera_height_m": (lambda x: x > 0, "a positive number of metres"),
+    "fov_prior_deg": (lambda x: 0 < x < 180, "in (0, 180) with a positive sd"),
+    "box_depth_m": (lambda x: True, "finite"),
+    "box_depth_sd_m": (lambda x: x >= 0, ">= 0"),
+}
+_OPTIONAL = {"focal_px", "camera_height_m", "principal_point_sd_px", "fov_prior_deg"}  # None: not given
+
+
+@dataclass(frozen=True)
+class CalibrateOptions:
+    """How to calibrate (docs/calibration.md). Sequence-level options (``estimate_focal``,
+    ``per_frame``) are read by :func:`~rotavat_cli.calibration.calibrate_sequence` only."""
+
+    # ---- the ``calibrate`` config section (defaults: configs/default.yaml) ----
+    method: str = "refine"  # grid (the paper, exactly) | refine (grid seeds + robust refinement)
+    person_height_m: float = 1.70  # mean stature sole -> crown
+    person_height_sd_m: float = 0.07  # spread of the stature prior (refine)
+    residual: str = "full"  # a registered residual kind (residuals.RESIDUALS); boxes always use the row
+    points: str = "auto"  # auto | landmarks (mid-sole, crown) | boxes (bottom-/top-centre of person boxes)
+    # Box depth, m: a box's bottom is the walker's lowest image point, the nearest foot's toe or heel
+    # (half a foot length, 0.13 m, plus on average ~0.1 m of stride toward the camera); its top is the
+    # head's silhouette, ~0.03 m beyond the crown for a camera looking down.
+    box_depth_m: float = 0.25
+    distortion: bool = False  # refine: also fit one-parameter (division model) radial lens distortion
+    estimate_roll: bool = True  # refine only; the paper fixes roll at 0
+    estimate_focal: bool = False  # sequences: estimate f even when the sequence's focal is the camera's own
+    focal_px: float | None = None  # fix the focal length (px); None: estimated
+    camera_height_m: float | None = None  # known camera height (m): fixes the scale, the mean stature is estimated
+    principal_point: tuple[float, float] | None = None  # (cx, cy) px; None = image centre
+    fov_prior_deg: float | None = None  # mean of a weak prior on the vertical field of view (refine, f estimated)
+    per_frame: bool = False  # sequences: also calibrate every frame alone and report the spread
+    grid: GridSpec = GridSpec()  # the paper's search grid (calibrate.grid)
+    # ---- not in the config ----
+    noise_px: float = field(default=2.0, metadata=_NOT_IN_CONFIG)  # pixel noise of the points (refine weights)
+    fov_prior_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
+    # Assumed-but-unknown quantities, propagated into the reported std: the principal point per axis
+    # (None: 2% of the larger image side, or 0 when principal_point is given), radial distortion unless
+    # fitted (corner displacement over the half-diagonal), the people's mean stature (not when
+    # camera_height_m is given) and the box depth (the sd spans standing people, 0.15 m, to long
+    # strides, 0.35 m).
+    principal_point_sd_px: float | None = field(default=None, metadata=_NOT_IN_CONFIG)
+    distortion_sd: float = field(default=0.01, metadata=_NOT_IN_CONFIG)
+    person_height_mean_sd_m: float = field(default=0.04, metadata=_NOT_IN_CONFIG)
+    box_depth_sd_m: float = field(default=0.10, metadata=_NOT_IN_CONFIG)
+    max_rounds: int = field(default=6, metadata=_NOT_IN_CONFIG)  # rejection rounds of the full refinement
+
+    def __post_init__(self) -> None:
+        """Normalise numbers to float, flags to bool, the principal point to a tuple; ValueError for a bad option."""
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        residual_kind(self.residual)  # ValueError listing the registered kinds
+        if self.points not in POINTS:
+            raise ValueError(f"points must be one of {POINTS}, got {self.points!r}")
+        if self.method == "grid" and (self.distortion or self.points == "boxes"):
+            raise ValueError("distortion and points='boxes' need method 'refine' (the grid is the paper's model)")
+        if not isinstance(self.grid, GridSpec):
+            raise TypeError(f"grid must be a GridSpec, got {type(self.grid).__name__}")
+        if not (_finite(self.box_depth_m) and _finite(self.box_depth_sd_m) and self.box_depth_sd_m >= 0):
+            raise ValueError(f"box_depth_m must be finite and box_depth_sd_m >= 0, got {self.box_depth_m}, "
+                             f"{self.box_depth_sd_m}")
+        for name, (ok, need) in _NUMBERS.items():
+            value = getattr(self, name)
+            if value is None and name in _OPTIONAL:
+                continue
+            if not (_finite(value) and ok(float(value))):
+                raise ValueError(f"{name} must be {need}, got {value}")
+            object.__setattr__(self, name, float(value))
+        if self.principal_point is not None:
+            try:
+                pp = np.asarray(self.principal_point, dtype=np.float64)
+            except (TypeError, ValueError):
+                pp = np.full(0, np.nan)
+            if pp.shape != (2,) or not np.all(np.isfinite(pp)):
+                raise ValueError(f"principal_point must be (cx, cy) in pixels, got {self.principal_point!r}")
+            object.__setattr__(self, "principal_point", (float(pp[0]), float(pp[1])))
+        rounds = self.max_rounds
+        if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
+            raise ValueError(f"max_rounds must be a positive integer, got {self.max_rounds!r}")
+        object.__setattr__(self, "max_rounds", int(self.max_rounds))
+        for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame"):
+            object.__setattr__(self, name, bool(getattr(self, name)))
+
+    def replace(self, **changes) -> CalibrateOptions:
+        """A copy with some options changed (validated); TypeError naming an unknown option."""
+        unknown = sorted(set(changes) - {f.name for f in fields(self)})
+        if unknown:
+            raise TypeError(f"unknown calibration option(s) {', '.join(unknown)} (options: "
+                            f"{', '.join(f.name for f in fields(self))})")
+        return replace(self, **changes)
+
+    @classmethod
+    def config_keys(cls) -> tuple[str, ...]:
+        """The fields read from the ``calibrate`` config section, in order."""
+        return tuple(f.name for f in fields(cls) if f.metadata.get("config", True))
+
+    @classmethod
+    def from_config(cls, section: Mapping) -> CalibrateOptions:
+        """Options from a whole ``calibrate`` config section (every key of it, no other);
+        InputError (exit 2) naming the key or the problem."""
+        keys = cls.config_keys()
+        unknown, missing = sorted(set(section) - set(keys)), [k for k in keys if k not in section]
+        if unknown or missing:
+            raise InputError("calibrate: " + "; ".join(
+                ([f"unknown key(s) {', '.join(unknown)}"] if unknown else [])
+                + ([f"missing key(s) {', '.join(missing)}"] if missing else [])))
+        try:
+            grid = GridSpec(**section["grid"])
+        except (TypeError, ValueError) as exc:
+            raise InputError(str(exc) if "calibrate.grid" in str(exc) else f"calibrate.grid: {exc}") from None
+        try:
+            return cls(**{**section, "grid": grid})
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"calibrate: {exc}") from None
+
+
+def _finite(value) -> bool:
+    """True for a finite real number (not a flag)."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False

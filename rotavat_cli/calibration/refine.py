@@ -1,0 +1,113 @@
+"""The robust refinement: least squares with rounds of outlier rejection, from several starts.
+
+Seeds come from the robust grid (:func:`.grid.seed_params`) on an order-independent subsample;
+each start is refined there (``scipy.optimize.least_squares`` over the internal parameters of
+:mod:`.params`, Cauchy then soft-L1 loss) with rounds of rejection (each pair's whitened residual
+against the 99% chi-square quantile of its residual kind, scale from the median); the best start
+by a common truncated cost is then refined on all pairs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import DegenerateSceneError
+from .grid import GridSpec, seed_params
+from .objective import Problem, pair_chi2, residual_and_jacobian, robust_scale
+from .params import from_internal, param_bounds, to_internal
+
+__all__ = ["robust_least_squares", "fit_with_rejection", "refine_fit"]
+
+_SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
+_FULL_START_WIDEN = 4.0  # the full fit starts from the pairs within 4x the 99% chi-square of the best start
+
+
+def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, scale: float, loss: str,
+                         f_scale: float) -> np.ndarray:
+    """Robust least squares over the free slots from params0 (6,); returns the params (6,)."""
+    from scipy.optimize import least_squares  # imported when used: keeps `rotavat --help` fast
+
+    cache: dict = {}
+
+    def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = x.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = residual_and_jacobian(prob, x, params0, free, scale)
+        return cache[key]
+
+    lo, hi = param_bounds(prob.image_height_px)
+    x0 = np.clip(to_internal(params0), lo + 1e-6, hi - 1e-6)[free]
+    sol = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo[free], hi[free]),
+                        loss=loss, f_scale=f_scale, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
+                        gtol=1e-10, max_nfev=200)
+    return from_internal(sol.x[None], params0, free)[0]
+
+
+def fit_with_rejection(prob: Problem, params0: np.ndarray, free: np.ndarray, mask0: np.ndarray,
+                       max_rounds: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Alternate robust fits and chi-square rejection from params0 (6,) on pairs mask0 (N,);
+    returns (params (6,), inlier mask (N,), scale)."""
+    n_free = int(free.sum())
+    need = max(3, math.ceil(n_free / prob.dof))
+    params, mask = params0, mask0.copy()
+    scale = robust_scale(pair_chi2(prob, params)[mask], prob)
+    scale = robust_scale(pair_chi2(prob, params, scale)[mask], prob)
+    thr = prob.residual.chi2_99
+    for round_ in range(max_rounds):
+        sub = prob.subset(np.flatnonzero(mask))
+        loss, f_scale = ("cauchy", 2.0) if round_ == 0 else ("soft_l1", 3.0)
+        params = robust_least_squares(sub, params, free, scale, loss, f_scale)
+        chi2 = pair_chi2(prob, params, scale)
+        scale = robust_scale(chi2[mask], prob)
+        new_mask = chi2 <= thr * scale**2
+        if new_mask.sum() < need:
+            break
+        if np.array_equal(new_mask, mask) and round_ > 0:
+            break
+        mask = new_mask
+    scale = robust_scale(pair_chi2(prob, params, scale)[mask], prob)
+    return params, mask, scale
+
+
+def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_size: tuple[int, int],
+               focal_px: float | None, free: np.ndarray, box_depth_m: float, grid: GridSpec, max_rounds: int
+               ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Grid seeds, multi-start on a subsample, then the full fit.
+
+    feet, heads: (N, 2) px, the pairs of ``prob``; free: (6,) bool slots to refine. Returns
+    (params (6,), inlier mask (N,), scale, the seed (6,) the best start came from).
+    """
+    sub_idx, seeds = seed_params(feet, heads, pp, image_size[1], focal_px, grid, prob.person_height_m,
+                                 prob.residual.name, box_depth_m)
+    sub = prob.subset(sub_idx)
+    best = None
+    for seed in seeds:
+        chi2 = pair_chi2(sub, seed)
+        mask0 = np.isfinite(chi2)
+        if mask0.sum() < 3:
+            continue
+        params, mask, scale = fit_with_rejection(sub, seed, free, mask0, max_rounds=_SEED_ROUNDS)
+        best = _better(sub, best, (params, mask, scale, seed))
+    if best is None:
+        raise DegenerateSceneError("no camera explains the pairs: every start put the feet above the horizon "
+                                   "or the heads behind the camera (are these pixels of this image?)")
+    start = best[0]
+    chi2 = pair_chi2(prob, start, best[2])
+    mask0 = chi2 <= prob.residual.chi2_99 * best[2] ** 2 * _FULL_START_WIDEN
+    if mask0.sum() < 3:
+        mask0 = np.isfinite(chi2)
+    params, mask, scale = fit_with_rejection(prob, start, free, mask0, max_rounds)
+    return params, mask, scale, best[3]
+
+
+def _better(prob: Problem, a, b):
+    """The better of two (params, mask, scale, seed) fits by a common truncated chi-square cost."""
+    if a is None:
+        return b
+    ref = min(a[2], b[2])
+    thr = prob.residual.chi2_99
+    cost = [np.minimum(pair_chi2(prob, fit[0], ref) / ref**2, thr).sum() for fit in (a, b)]
+    return b if cost[1] < cost[0] else a

@@ -1,0 +1,138 @@
+"""Residual kinds: which components of a head's pixel error the calibration compares.
+
+The person model (:mod:`.model`) predicts each head pixel; its error ``e = (e_u, e_v)`` (predicted
+minus observed, px) is what a residual kind turns into numbers:
+
+- ``pixel_axes``: the image axes (0 = u, 1 = v) whose squared errors the *unweighted* cost sums:
+  the paper grid and its fast kernel, the refinement's robust seeding grid, the reported rmse.
+  Keep the kind linear in ``e``, so the grid's closed form (:mod:`.grid`) holds;
+- :meth:`ResidualKind.along`: the component along the person's image axis (the one the stature
+  moves; for the head row, the row itself), used to profile each track's stature;
+- :meth:`ResidualKind.whitened`: the refinement's components per pair, divided by their noise
+  (``sd_along`` for the first, ``sd_across`` for any other); ``dof`` of them;
+- ``test_against``: a kind using a subset of these components (the head rows alone) against
+  which the head-column (Hausman) test checks the fit, or None.
+
+The registry holds every kind by name; the config's ``calibrate.residual`` choices, the CLI's
+help and :func:`residual_kind` read it. Adding a kind is one class here (decorated with
+:func:`register`), its test, and a row in docs/calibration.md.
+
+>>> RESIDUALS
+('full', 'vertical')
+>>> residual_kind("vertical").dof, residual_kind("full").test_against
+(1, 'vertical')
+"""
+
+from __future__ import annotations
+
+import functools
+import operator
+
+import numpy as np
+
+__all__ = ["ResidualKind", "RESIDUAL_KINDS", "RESIDUALS", "register", "residual_kind"]
+
+# Chi-square quantiles by components per pair: (99% quantile: outlier test, median: robust scale).
+_CHI2 = {1: (6.6349, 0.4549), 2: (9.2103, 1.3863)}
+
+
+class ResidualKind:
+    """One way of comparing predicted and observed heads (subclass, set the attributes, register)."""
+
+    name: str  # config and CLI value
+    summary: str  # a few words for --help and the docs
+    pixel_axes: tuple[int, ...]  # image axes of the head error in the unweighted cost (0 = u, 1 = v)
+    test_against: str | None = None  # kind holding a subset of the components: the head-column test
+
+    @property
+    def dof(self) -> int:
+        """Residual components per pair."""
+        return len(self.pixel_axes)
+
+    @property
+    def chi2_99(self) -> float:
+        """99% quantile of a pair's squared whitened residual norm (outlier rejection)."""
+        return _CHI2[self.dof][0]
+
+    @property
+    def chi2_median(self) -> float:
+        """Median of a pair's squared whitened residual norm (robust scale)."""
+        return _CHI2[self.dof][1]
+
+    def squared_px(self, e: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """Unweighted squared error (...) px^2 of head errors ``e = (e_u, e_v)``, each (...)."""
+        return functools.reduce(operator.add, (e[axis] ** 2 for axis in self.pixel_axes))
+
+    def along(self, e: tuple[np.ndarray, np.ndarray], axis: np.ndarray) -> np.ndarray:
+        """Component (Q, N) of pixel vectors ``e`` ((Q, N) each) along the person; ``axis`` (N, 2) unit foot->head."""
+        raise NotImplementedError
+
+    def whitened(self, e: tuple[np.ndarray, np.ndarray], axis: np.ndarray, sd_along: np.ndarray,
+                 sd_across: float) -> np.ndarray:
+        """Whitened components (Q, N, dof): along / sd_along (N,), then any across / sd_across."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<residual {self.name!r}>"
+
+
+RESIDUAL_KINDS: dict[str, ResidualKind] = {}
+
+
+def register(cls: type[ResidualKind]) -> type[ResidualKind]:
+    """Class decorator: add one instance of the kind to the registry under its name."""
+    if cls.name in RESIDUAL_KINDS:
+        raise ValueError(f"residual kind {cls.name!r} is registered twice")
+    RESIDUAL_KINDS[cls.name] = cls()
+    return cls
+
+
+def residual_kind(name: str) -> ResidualKind:
+    """The registered kind called ``name``; ValueError listing the kinds otherwise.
+
+    >>> residual_kind("sideways")
+    Traceback (most recent call last):
+    ...
+    ValueError: residual must be one of ('full', 'vertical'), got 'sideways'
+    """
+    try:
+        return RESIDUAL_KINDS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"residual must be one of {tuple(RESIDUAL_KINDS)}, got {name!r}") from None
+
+
+# ---- the kinds ------------------------------------------------------------------------------------------
+@register
+class Full(ResidualKind):
+    """Head u and v: along the person (its stature) and across it (how verticals converge)."""
+
+    name = "full"
+    summary = "head u and v"
+    pixel_axes = (0, 1)
+    test_against = "vertical"
+
+    def along(self, e, axis):
+        return e[0] * axis[:, 0] + e[1] * axis[:, 1]
+
+    def whitened(self, e, axis, sd_along, sd_across):
+        along = self.along(e, axis) / sd_along
+        across = (e[1] * axis[:, 0] - e[0] * axis[:, 1]) / sd_across
+        return np.stack([along, across], axis=-1)
+
+
+@register
+class Vertical(ResidualKind):
+    """The head row only (robust to head columns that do not follow the person's vertical)."""
+
+    name = "vertical"
+    summary = "head row only"
+    pixel_axes = (1,)
+
+    def along(self, e, axis):
+        return e[1]
+
+    def whitened(self, e, axis, sd_along, sd_across):
+        return (self.along(e, axis) / sd_along)[..., None]
+
+
+RESIDUALS = tuple(RESIDUAL_KINDS)  # the names, in registration order (config choices)

@@ -1,0 +1,118 @@
+"""Rows of a figure read from sequences on disk: which frames, which camera, which intrinsics.
+
+Which camera places a row in the world (orthographic views, GLB): ``camera_path`` if given
+(shared by every row), else the sequence's own ``camera.yaml``, else an :class:`InputError` saying
+to run ``rotavat calibrate`` or pass ``--camera``. The front view uses the intrinsics the meshes
+were made with (the frame's ``focal_length``/``K``, else ``meta.yaml``), falling back to the camera's.
+Frames are chosen by index in the first sequence and matched by name in the others.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera, reexpress_cam
+from ..errors import InputError
+from ..sequence import Sequence, read_camera_yaml
+from .views import RowFrame
+
+__all__ = ["IMAGE_SUFFIXES", "select_frames", "frame_names", "row_labels", "sequence_camera", "no_camera", "read_row"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
+
+
+def select_frames(n_frames: int, frames: str | None, every: int | None) -> list[int]:
+    """Frame indices from '0,10,-1' (negative = from the end) or every N-th; default the first frame."""
+    if frames is not None and every is not None:
+        raise ValueError("give --frames or --every, not both")
+    if every is not None:
+        if every < 1:
+            raise ValueError(f"--every must be >= 1, got {every}")
+        return list(range(0, n_frames, every))
+    if frames is None:
+        return [0]
+    picked = []
+    for part in str(frames).split(","):
+        try:
+            index = int(part.strip())
+        except ValueError:
+            raise ValueError(f"--frames must be comma-separated integers, got {frames!r}") from None
+        if not -n_frames <= index < n_frames:
+            raise ValueError(f"frame index {index} out of range: the sequence has {n_frames} frames")
+        picked.append(index % n_frames)
+    return picked
+
+
+def frame_names(seq: Sequence, frames: str | None, every: int | None) -> list[str]:
+    """Names of the frames :func:`select_frames` picks in ``seq``; InputError naming the sequence."""
+    try:
+        return [seq.frame_names[i] for i in select_frames(len(seq), frames, every)]
+    except ValueError as exc:
+        raise InputError(f"{seq.path}: {exc}") from None
+
+
+def row_labels(paths: list[Path]) -> list[str]:
+    """Directory names, made unique by their parents when two sequences share a name."""
+    labels = [p.resolve().name or str(p) for p in paths]
+    if len(set(labels)) < len(labels):
+        labels = [f"{p.resolve().parent.name}/{p.resolve().name}" for p in paths]
+    if len(set(labels)) < len(labels):
+        labels = [str(p) for p in paths]
+    return labels
+
+
+def sequence_camera(seq: Sequence, camera_path: Path | None) -> Camera | None:
+    """``camera_path`` if given, else the sequence's camera.yaml, else None."""
+    if camera_path is not None:
+        return read_camera_yaml(camera_path, seq.image_size)[0]
+    return seq.camera
+
+
+def no_camera(seq: Sequence, what: str) -> InputError:
+    """The error for a view that needs a camera the sequence does not have."""
+    return InputError(f"{seq.path}: no camera.yaml for the {what}: run `rotavat calibrate {seq.path}` "
+                      "or pass --camera camera.yaml")
+
+
+def _frame_image(image_dir: Path, name: str) -> np.ndarray:
+    """The video frame ``image_dir/<name>.<png|jpg|...>`` as (H, W, 3) uint8."""
+    from PIL import Image, UnidentifiedImageError
+
+    for path in sorted(image_dir.glob(f"{name}.*")):
+        if path.suffix.lower() in IMAGE_SUFFIXES:
+            try:
+                with Image.open(path) as img:
+                    return np.asarray(img.convert("RGB"))
+            except (OSError, UnidentifiedImageError) as exc:
+                raise InputError(f"{path}: not a readable image ({exc})") from None
+    raise InputError(f"{image_dir}: no image named {name}.png/.jpg (images are matched to frames by name)")
+
+
+def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_dir: Path | None = None) -> RowFrame:
+    """One row of a figure: frame ``name`` of ``seq`` with its intrinsics, camera and video frame."""
+    if name not in seq.frame_names:
+        raise InputError(f"{seq.path}: has no frame named {name} (frames are matched by name across sequences)")
+    frame = seq.read_frame(name)
+    verts = frame.get("vertices")
+    faces = frame.get("faces")
+    if frame.n_people and verts is None:
+        raise InputError(f"{frame.source}: no 'vertices': rendering needs meshes")
+    if frame.n_people and faces is None:
+        raise InputError(f"{frame.source}: no 'faces': rendering needs the triangle list")
+    intr = seq.frame_intrinsics(frame)
+    size = intr.image_size or (camera.image_size if camera else None)
+    focals = intr.focals_px(frame.n_people)
+    focal = float(np.median(focals)) if focals is not None and len(focals) else (intr.focal_px or (camera.focal_px if camera else None))
+    if size is None or focal is None:
+        raise InputError(f"{frame.source}: unknown {'image size' if size is None else 'focal length'} for the front view: "
+                         "add image_size and focal_length to meta.yaml or pass --camera")
+    pp = intr.principal_point or (camera.principal_point if camera and camera.image_size == size else (size[0] / 2, size[1] / 2))
+    if verts is not None and focals is not None and frame.n_people and np.any(focals != focal):
+        # one focal per person (HybrIK): the front view shows each body re-expressed in one camera
+        verts = reexpress_cam(verts, verts.mean(axis=1), focals, pp, focal, pp).astype(verts.dtype)
+    image = _frame_image(image_dir, name) if image_dir is not None else None
+    return RowFrame(label, np.zeros((0, 0, 3)) if verts is None else verts,
+                    np.zeros((0, 3), np.int64) if faces is None else faces, frame.person_ids,
+                    size, float(focal), pp, camera, image)

@@ -1,0 +1,118 @@
+"""Colours, palette, shading and fonts of the pictures.
+
+Defaults: the packaged ``configs/default.yaml``, section ``render``, is their one source:
+``RenderStyle()`` is ``RenderStyle.from_config(default_config()["render"])`` (each field's default
+is read from it, see :func:`packaged_default`). Every person has the colour
+``palette[person_id mod len(palette)]``, the same in every frame, row and view.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = ["RGB", "RenderStyle", "parse_color", "person_colors", "vertex_normals", "shade_vertices", "packaged_default"]
+
+RGB = tuple[float, float, float]  # in [0, 1]
+_AMBIENT = 0.35  # shading: light that reaches every surface
+
+
+def parse_color(text: str) -> RGB:
+    """'#rrggbb' -> (r, g, b) in [0, 1]; raises ValueError otherwise.
+
+    >>> parse_color("#ff0000")
+    (1.0, 0.0, 0.0)
+    """
+    s = str(text).strip().lstrip("#")
+    if len(s) != 6 or any(ch not in "0123456789abcdefABCDEF" for ch in s):
+        raise ValueError(f"colour {text!r} must be '#rrggbb'")
+    return tuple(int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
+
+
+def packaged_default(packaged: Callable[[], Any], name: str) -> Any:
+    """A dataclass field defaulting to attribute ``name`` of ``packaged()``: the instance built from the
+    packaged configs/default.yaml, so the YAML stays the one source of the default."""
+    return field(default_factory=lambda: getattr(packaged(), name))
+
+
+@functools.lru_cache(maxsize=1)
+def _packaged_style() -> "RenderStyle":
+    """RenderStyle of the packaged ``render:`` section (read once)."""
+    from ..config import default_config
+
+    return RenderStyle.from_config(default_config()["render"])
+
+
+@dataclass(frozen=True)
+class RenderStyle:
+    """Colours (RGB in [0, 1]) and the margin around people in orthographic views."""
+
+    background: RGB = packaged_default(_packaged_style, "background")
+    ground: RGB = packaged_default(_packaged_style, "ground")
+    grid: RGB = packaged_default(_packaged_style, "grid")
+    camera: RGB = packaged_default(_packaged_style, "camera")
+    text: RGB = packaged_default(_packaged_style, "text")
+    palette: tuple[RGB, ...] = packaged_default(_packaged_style, "palette")
+    margin: float = packaged_default(_packaged_style, "margin")  # orthographic views: fraction of the people's extent added
+
+    @classmethod
+    def from_config(cls, opts: dict) -> "RenderStyle":
+        """Style from a ``render:`` config section (hex colours, palette as comma-separated hex)."""
+        palette = tuple(parse_color(c) for c in str(opts["palette"]).split(",") if c.strip())
+        if not palette:
+            raise ValueError("palette must list at least one colour")
+        if not 0.0 <= float(opts["margin"]) <= 10.0:
+            raise ValueError(f"render.margin must be in [0, 10], got {opts['margin']}")
+        return cls(parse_color(opts["background"]), parse_color(opts["ground"]), parse_color(opts["grid"]),
+                   parse_color(opts["camera_color"]), parse_color(opts["text"]), palette, float(opts["margin"]))
+
+
+def person_colors(person_ids: np.ndarray, palette: tuple[RGB, ...]) -> np.ndarray:
+    """(P,) ids -> (P, 3) colours: ``palette[id mod len(palette)]``, stable across frames and rows."""
+    pal = np.asarray(palette, dtype=np.float64).reshape(-1, 3)
+    return pal[np.mod(np.asarray(person_ids, dtype=np.int64), len(pal))]
+
+
+def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(P, V, 3) vertices, (F, 3) faces -> (P, V, 3) unit area-weighted normals (0 where undefined)."""
+    from scipy.sparse import csr_matrix
+
+    v = np.asarray(verts, dtype=np.float64)
+    P, V = v.shape[:2]
+    f = np.asarray(faces, dtype=np.int64)
+    a, b = v[:, f[:, 1]] - v[:, f[:, 0]], v[:, f[:, 2]] - v[:, f[:, 0]]
+    face_n = np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                       a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)  # (P, F, 3), |n| = 2 area
+    incidence = csr_matrix((np.ones(f.size), (f.reshape(-1), np.repeat(np.arange(f.shape[0]), 3))), shape=(V, f.shape[0]))
+    n = (incidence @ face_n.transpose(1, 0, 2).reshape(f.shape[0], P * 3)).reshape(V, P, 3).transpose(1, 0, 2)
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
+def shade_vertices(colors: np.ndarray, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
+    """Two-sided Lambert: colours and unit normals (..., 3) (broadcast), light (3,) -> lit colours (..., 3)."""
+    lambert = np.abs(np.asarray(normals, dtype=np.float64) @ np.asarray(light, dtype=np.float64))
+    return np.asarray(colors, dtype=np.float64) * (_AMBIENT + (1.0 - _AMBIENT) * lambert)[..., None]
+
+
+def rgb8(color: RGB) -> tuple[int, int, int]:
+    """Colour in [0, 1] -> 8-bit tuple."""
+    return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in color)  # type: ignore[return-value]
+
+
+def mix(a: RGB, b: RGB, t: float) -> RGB:
+    """(1 - t) a + t b."""
+    return tuple((1 - t) * x + t * y for x, y in zip(a, b))  # type: ignore[return-value]
+
+
+def font(size_px: int) -> Any:
+    """Pillow's default font at a size (bitmap default on Pillow builds without FreeType)."""
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size_px)
+    except (TypeError, OSError, ImportError):
+        return ImageFont.load_default()
