@@ -28,10 +28,16 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from _synthetic_pairs import random_surveillance_camera, synthetic_pairs  # noqa: E402
 
-from rotavat_cli.calibration import (CalibrateOptions, CalibrationResult, GridSpec, calibrate_sequence,  # noqa: E402
-                                     fit_camera, fit_per_frame, paper_grid_search)
-from rotavat_cli.camera import (Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px,  # noqa: E402
-                                up_vector_cam)
+from rotavat_cli.calibration import (  # noqa: E402
+    CalibrateOptions,
+    CalibrationResult,
+    GridSpec,
+    calibrate_sequence,
+    fit_camera,
+    fit_per_frame,
+    paper_grid_search,
+)
+from rotavat_cli.camera import Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px, up_vector_cam  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
 
 REALDATA = ROOT.parent / "shared" / "realdata"

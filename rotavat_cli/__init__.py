@@ -12,26 +12,33 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .alignment import (AlignSummary, AlignTransform, align_frame, align_sequence, apply_transforms, rotavat_transforms,
-                        track_statures)
+from .alignment import (
+                        AlignSummary,
+                        AlignTransform,
+                        align_frame,
+                        align_sequence,
+                        apply_transforms,
+                        rotavat_transforms,
+                        track_statures,
+)
 from .calibration import CalibrateOptions, CalibrationResult, calibrate_sequence, fit_camera
+from .calibration.pairs import gather_pairs
 from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .config import default_config, load_config
 from .errors import DegenerateSceneError, GateError, InputError, RotavatError
-from .evaluate import EvalOptions, EvalResult, evaluate
 from .formats import available_formats, detect_format, import_sequence, imported_sequence
 from .landmarks import foot_head_points
 from .metrics import mpjpe, procrustes_align, pve
-from .people import gather_pairs
+from .metrics.evaluate import EvalOptions, EvalResult, evaluate
 from .render import FigureOptions, export_frame, render_sequences
 from .sequence import (
-    Frame,
-    Intrinsics,
-    Sequence,
-    open_sequence,
-    read_camera_yaml,
-    write_camera_yaml,
-    write_frame,
+                        Frame,
+                        Intrinsics,
+                        Sequence,
+                        open_sequence,
+                        read_camera_yaml,
+                        write_camera_yaml,
+                        write_frame,
 )
 from .synth import SynthOptions, write_synth_scene
 

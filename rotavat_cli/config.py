@@ -88,12 +88,12 @@ _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 4
 def _choices() -> dict[str, tuple[str, ...]]:
     """Keys whose value is one of a few names: each list lives beside the code that uses it."""
     from .alignment.align import HEIGHT_FROM
+    from .alignment.transform import UPRIGHT
     from .batch.plan import EXECUTORS
     from .calibration import METHODS, POINTS, RESIDUALS
-    from .evaluate import MATCHES
     from .metrics import ENGINES
+    from .metrics.evaluate import MATCHES
     from .render import RENDERERS
-    from .alignment.transform import UPRIGHT
 
     return {"calibrate.method": METHODS, "calibrate.residual": RESIDUALS, "calibrate.points": POINTS,
             "align.upright": UPRIGHT, "align.height_from": HEIGHT_FROM, "eval.match": MATCHES, "eval.engine": ENGINES,

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "SMPL_JOINT_NAMES",
     "Topology",
     "SMPL",
     "SMPLX",
@@ -53,6 +54,14 @@ __all__ = [
     "foot_head_points",
     "DEFAULT_UP_HINT_CAM",
 ]
+
+# SMPL's 24 joints in order (joint 0, the pelvis, is the root of every metric; docs/conventions.md).
+SMPL_JOINT_NAMES = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
+    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
+    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist", "left_hand", "right_hand",
+)
 
 # "Up in the image" in the OpenCV camera frame: people in surveillance views stand roughly upright.
 DEFAULT_UP_HINT_CAM = np.array([0.0, -1.0, 0.0])

@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 import yaml
 
+from . import limits
 from .atomic import atomic_open, atomic_write_text
 from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict
 from .errors import InputError, input_errors
-from . import limits
 from .focal import focal_kind_or_default
 from .outputs import TEXT_HEADER
 from .safe_pickle import load_npz

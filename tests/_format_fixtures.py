@@ -20,10 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rotavat_cli.bodies import BODIES_PATH
 from rotavat_cli.camera import Camera
+from rotavat_cli.formats.smpl import SMPL_PARENTS, BodyModel, load_body_model
 from rotavat_cli.rotations import axis_angle_to_matrix
-from rotavat_cli.smpl import SMPL_PARENTS, BodyModel, load_body_model
+from rotavat_cli.synth.bodies import BODIES_PATH
+
 
 # ---- synthetic SMPL-format model --------------------------------------------------------------
 def write_synthetic_smpl(path: Path, n_betas: int = 10, seed: int = 0, dtype=np.float32) -> Path:

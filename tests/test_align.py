@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import invoke, tree_hash
+
 from rotavat_cli.alignment.align import align_frame, align_sequence, aligned_meta
 from rotavat_cli.camera import Camera
 from rotavat_cli.sequence import Frame, open_sequence, write_frame

@@ -10,14 +10,14 @@ import sys
 import zipfile
 from pathlib import Path
 
+import _format_fixtures as F
 import numpy as np
 import pytest
-
-import _format_fixtures as F
 from conftest import invoke, tree_hash
+
 from rotavat_cli.alignment.align import align_sequence
 from rotavat_cli.batch import MARKER, aggregate_rows, discover_sequences
-from rotavat_cli.evaluate import evaluate
+from rotavat_cli.metrics.evaluate import evaluate
 from rotavat_cli.plain import to_plain
 from rotavat_cli.sequence import open_sequence, read_camera_yaml
 from rotavat_cli.synth import SynthOptions, write_synth_scene

@@ -7,18 +7,29 @@ import math
 import numpy as np
 import pytest
 import yaml
+from _synthetic_pairs import box_points_px, synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
 
-from rotavat_cli.calibration import (RESIDUAL_KINDS, RESIDUALS, CalibrateOptions, CalibrationResult, GridSpec,
-                                     calibrate, fit_camera, fit_per_frame, grid_costs, paper_grid_search,
-                                     predict_heads_px, reference_cell_costs, residual_kind)
+from rotavat_cli.calibration import (
+    RESIDUAL_KINDS,
+    RESIDUALS,
+    CalibrateOptions,
+    CalibrationResult,
+    GridSpec,
+    calibrate,
+    fit_camera,
+    fit_per_frame,
+    grid_costs,
+    paper_grid_search,
+    predict_heads_px,
+    reference_cell_costs,
+    residual_kind,
+)
 from rotavat_cli.calibration.objective import make_problem, profiled, whitened
 from rotavat_cli.calibration.params import FOCAL, HEIGHT, PITCH, ROLL, param_vector
 from rotavat_cli.calibration.uncertainty import jackknife_cov
 from rotavat_cli.camera import Camera, backproject_px_to_plane, project_cam_to_px, up_vector_cam
 from rotavat_cli.config import default_config
 from rotavat_cli.errors import DegenerateSceneError, InputError
-
-from _synthetic_pairs import box_points_px, synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
 
 # Tolerances (why): 100 frames x 20 walking people, 2 px noise, stature sd 0.07 m -> the camera is
 # limited by the 20 statures' sampling; the benchmark's medians are ~5x below these.
@@ -410,8 +421,8 @@ def test_the_registry_holds_the_residual_kinds():
     assert residual_kind("full").dof == 2 and residual_kind("vertical").dof == 1
     with pytest.raises(ValueError, match=r"residual must be one of \('full', 'vertical'\), got 'sideways'"):
         residual_kind("sideways")
-    from rotavat_cli.config import _choices
     from rotavat_cli.cli.calibrate import _RESIDUAL_HELP
+    from rotavat_cli.config import _choices
 
     assert _choices()["calibrate.residual"] == RESIDUALS  # the config's choices are the registry's
     assert all(f"{name} (" in _RESIDUAL_HELP for name in RESIDUALS)  # and so is --residual's help

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from conftest import invoke, tree_hash
 
 
@@ -132,6 +131,7 @@ def box_seq(path: Path) -> tuple[Path, dict]:
     import math
 
     from _synthetic_pairs import synthetic_pairs
+
     from rotavat_cli.camera import Camera
 
     cam = Camera((1280, 720), 1800.0, None, math.radians(18.0), math.radians(1.0), 6.5)

@@ -135,6 +135,7 @@ def test_yaml_errors_name_the_key():
 
 def test_realdata_camera_gt_is_self_consistent():
     from pathlib import Path
+
     import yaml
 
     path = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "towncentre" / "camera_gt.yaml"

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import invoke
+
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError
-from rotavat_cli.evaluate import EvalOptions, evaluate, parse_joints
-from rotavat_cli.report import parse_gate
+from rotavat_cli.metrics.evaluate import EvalOptions, evaluate, parse_joints
+from rotavat_cli.metrics.report import parse_gate
 from rotavat_cli.sequence import open_sequence, write_camera_yaml
 
 JOINTS = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [0.0, -0.5, 0.0], [0.0, 0.0, 0.3]])
@@ -163,7 +163,7 @@ def test_paper_point_on_synth(tmp_path, runner):
 
 def test_frame_ranges_merge_into_the_whole_result(tmp_path):
     """evaluate(frames=(a, b)) over consecutive ranges + merge_results == one evaluate call, exactly."""
-    from rotavat_cli.evaluate import merge_results
+    from rotavat_cli.metrics.evaluate import merge_results
     from rotavat_cli.synth import SynthOptions, write_synth_scene
 
     write_synth_scene(tmp_path / "s", SynthOptions(seed=5, frames=5, people=3))
@@ -213,7 +213,7 @@ def test_pairs_are_scored_in_batches_across_frames(tmp_path, monkeypatch):
 
     from rotavat_cli.synth import SynthOptions, write_synth_scene
 
-    ev = importlib.import_module("rotavat_cli.evaluate")  # the package exports a function of that name
+    ev = importlib.import_module("rotavat_cli.metrics.evaluate")  # the package exports a function of that name
     write_synth_scene(tmp_path / "s", SynthOptions(seed=4, frames=5, people=3))
     pred, gt = tmp_path / "s" / "pred", tmp_path / "s" / "gt"
     frame = dict(np.load(pred / "000002.npz", allow_pickle=False))

@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from conftest import invoke
+
 from rotavat_cli.alignment.align import align_frame, align_sequence
+from rotavat_cli.alignment.transform import apply_transforms, method_rays_cam, rotavat_transforms
 from rotavat_cli.camera import Camera, reexpress_cam
 from rotavat_cli.errors import InputError
 from rotavat_cli.focal import focal_from_rule, hybrik_focal_px
 from rotavat_cli.landmarks import foot_head_points
-from rotavat_cli.alignment.transform import apply_transforms, method_rays_cam, rotavat_transforms
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta
 from rotavat_cli.synth import SynthOptions, synth_frames, write_synth_scene
 
@@ -31,7 +31,7 @@ def _scene(root: Path, rule: str, seed: int = 6, frames: int = 10, people: int =
 
 
 def _w_mpjpe_mm(pred: Path, gt: Path) -> float:
-    from rotavat_cli.evaluate import evaluate
+    from rotavat_cli.metrics.evaluate import evaluate
 
     return float(evaluate(open_sequence(pred), open_sequence(gt)).metrics["w_mpjpe"])
 
@@ -161,6 +161,7 @@ def test_chain_is_right_under_each_rule(rule, tmp_path, runner):
 # ---- calibrate: known height, box points, honest table, the unmoved refinement -------------------------
 def test_known_camera_height_estimates_the_mean_stature():
     from _synthetic_pairs import synthetic_pairs
+
     from rotavat_cli.calibration import fit_camera
 
     data = synthetic_pairs(np.random.default_rng(21), frames=40, people=15, stature_mean_m=1.80, roll_deg=None)
@@ -225,7 +226,7 @@ def test_box_derived_points_are_recognised():
 def test_real_box_annotations_are_recognised(tmp_path, runner):
     """PETS 2009: one box per person (Town Centre's head and foot come from two boxes: not recognised)."""
     from rotavat_cli.calibration import box_derived
-    from rotavat_cli.people import gather_pairs
+    from rotavat_cli.calibration.pairs import gather_pairs
 
     if not (REALDATA / "pets2009_s2l1").exists():
         pytest.skip("../shared/realdata not present")
@@ -260,6 +261,7 @@ def test_the_table_never_calls_an_estimated_parameter_fixed(tmp_path, runner):
 
 def test_an_unmoved_refinement_falls_back_to_the_grid(monkeypatch):
     from _synthetic_pairs import synthetic_pairs
+
     from rotavat_cli.calibration import fit as calibrate_module
 
     data = synthetic_pairs(np.random.default_rng(2), frames=5, people=8)

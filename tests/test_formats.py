@@ -7,11 +7,11 @@ import json
 import pickle
 from pathlib import Path
 
+import _format_fixtures as F
 import numpy as np
 import pytest
-
-import _format_fixtures as F
 from conftest import invoke, tree_hash
+
 from rotavat_cli import safe_pickle
 from rotavat_cli.camera import horizon_v_px
 from rotavat_cli.errors import InputError

@@ -294,7 +294,7 @@ def test_register_topology_switches_the_mesh_to_its_indices(monkeypatch):
 
 def test_packaged_synthetic_topology_is_built_in_and_loading_bodies_changes_nothing():
     """Every process finds the synthetic bodies' points by index, whether it has loaded them or not."""
-    from rotavat_cli.bodies import load_bodies
+    from rotavat_cli.synth.bodies import load_bodies
 
     registered = dict(landmarks._TOPOLOGIES)
     library = load_bodies()

@@ -23,11 +23,11 @@ import zipfile
 import zlib
 from pathlib import Path
 
+import _format_fixtures as F
 import numpy as np
 import pytest
-
-import _format_fixtures as F
 from conftest import invoke, tetra_frame
+
 from rotavat_cli import limits, safe_pickle
 from rotavat_cli.calibration import GridSpec
 from rotavat_cli.errors import InputError

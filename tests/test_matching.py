@@ -1,11 +1,11 @@
-"""Tests for rotavat_cli.matching: ids, Hungarian with a gate, AGORA's greedy protocol."""
+"""Tests for rotavat_cli.metrics.matching: ids, Hungarian with a gate, AGORA's greedy protocol."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rotavat_cli.matching import (
+from rotavat_cli.metrics.matching import (
     box_iou,
     keypoint_boxes_px,
     match_agora,

@@ -6,8 +6,8 @@ import functools
 
 import numpy as np
 import pytest
-
 from _reference_metrics import reference_pa_errors_mm
+
 from rotavat_cli.camera import height_above_ground
 from rotavat_cli.metrics import (
     JOINT_ERROR_KEYS,

@@ -11,10 +11,10 @@ import zlib
 from collections import OrderedDict
 from pathlib import Path
 
+import _format_fixtures as F
 import numpy as np
 import pytest
 
-import _format_fixtures as F
 from rotavat_cli import limits, safe_pickle
 from rotavat_cli.errors import InputError
 

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import invoke, tetra_frame, tree_hash
-from rotavat_cli.errors import InputError
-from rotavat_cli.sequence import Frame, open_sequence, read_frame_npz, write_frame, write_camera_yaml, read_camera_yaml
+
 from rotavat_cli.camera import Camera
+from rotavat_cli.errors import InputError
+from rotavat_cli.sequence import Frame, open_sequence, read_camera_yaml, read_frame_npz, write_camera_yaml, write_frame
 
 
 def test_open_sequence_lists_frames_and_meta(npz_seq: Path):

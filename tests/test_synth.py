@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import invoke, tree_hash
-from rotavat_cli.bodies import load_bodies
+
 from rotavat_cli.landmarks import _points_by_geometry, foot_head_points
 from rotavat_cli.sequence import open_sequence
-from rotavat_cli.synth import SynthOptions, _pose_bodies, random_camera, synth_frames
+from rotavat_cli.synth.bodies import load_bodies
+from rotavat_cli.synth.scene import SynthOptions, _pose_bodies, random_camera, synth_frames
 
 
 def test_synth_is_deterministic(tmp_path, runner):

@@ -11,9 +11,9 @@ from typing import Any
 
 from ..config import default_config
 from ..errors import InputError, input_errors
-from ..evaluate import MATCHES
-from ..render import FigureOptions
+from ..metrics.evaluate import MATCHES
 from ..plain import to_plain
+from ..render import FigureOptions
 from .discover import discover_sequences, fingerprint, frames_hint
 
 __all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "BatchOptions", "parse_steps",

@@ -74,8 +74,8 @@ def aggregate_rows(rows: list[dict]) -> dict:
     precision, recall, F1, NMJE and NMVE are recomputed from the summed match counts; camera errors
     and estimated camera parameters get mean, people-weighted mean, median, min and max.
     """
-    from ..evaluate import PERSON_METRICS
     from ..metrics import detection_scores, normalize_by_f1
+    from ..metrics.evaluate import PERSON_METRICS
 
     ok = [r for r in rows if r["status"] in ("done", "skipped")]
     counts = {"sequences": len(rows), "done": sum(r["status"] == "done" for r in rows),
@@ -122,7 +122,7 @@ def _cell(value: Any, digits: int = 1) -> str:
 
 def markdown_batch_report(report: BatchReport) -> str:
     """batch_report.md: counts, the dataset aggregate (input vs aligned), cameras, one row per sequence."""
-    from ..report import REPORT_COLUMNS, format_value
+    from ..metrics.report import REPORT_COLUMNS, format_value
 
     agg, c = report.aggregate, report.aggregate["counts"]
     lines = [f"# rotavat batch of `{report.root}`", "",

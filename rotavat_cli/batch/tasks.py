@@ -21,12 +21,12 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
 from ..camera import camera_parameters
 from ..errors import InputError, RotavatError, TaskError
-from ..limits import Limits, configure as configure_limits
+from ..limits import Limits
+from ..limits import configure as configure_limits
 from ..plain import to_plain
 from ..sequence import open_sequence, read_camera_yaml, write_camera_yaml
 from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
@@ -183,7 +183,7 @@ def _people_summary(people_csv: Path) -> dict:
 
 def _eval_options(plan: dict) -> Any:
     """EvalOptions from the eval config section."""
-    from ..evaluate import EvalOptions
+    from ..metrics.evaluate import EvalOptions
 
     return EvalOptions.from_config(plan["config"]["eval"])
 
@@ -196,7 +196,7 @@ def _eval_pred_dir(job: dict, side: str) -> str:
 def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> dict:
     """Score frames [start, stop) of the sorted union of prediction and GT frame names, for one side."""
     _apply_limits(plan)
-    from ..evaluate import evaluate
+    from ..metrics.evaluate import evaluate
 
     part = evaluate(open_sequence(_eval_pred_dir(job, side)), open_sequence(job["gt"]), _eval_options(plan),
                     frames=(start, stop))
@@ -215,8 +215,8 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         row["align"] = state["align"]
         row["people"] = state["align"]["people"]
     if "eval" in steps:
-        from ..evaluate import merge_results
-        from ..report import write_reports
+        from ..metrics.evaluate import merge_results
+        from ..metrics.report import write_reports
 
         start = time.perf_counter()
         results = [merge_results(state["eval_parts"][side]) for side in ("before", "after") if side in state["eval_parts"]]

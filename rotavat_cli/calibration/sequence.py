@@ -21,10 +21,10 @@ import numpy as np
 
 from ..errors import DegenerateSceneError, InputError
 from ..focal import CAMERA
-from ..people import FootHeadPairs, gather_pairs
 from ..sequence import Sequence
 from .fit import CalibrationResult, fit_camera, fit_per_frame
 from .options import CalibrateOptions
+from .pairs import FootHeadPairs, gather_pairs
 
 __all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence"]
 

@@ -19,10 +19,11 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from typer.core import TyperGroup
 
 from ..config import load_config, merge_config
-from ..limits import Limits, configure as configure_limits
-from ..sequence import Sequence, open_sequence
 from ..errors import InputError, RotavatError
+from ..limits import Limits
+from ..limits import configure as configure_limits
 from ..plain import to_plain
+from ..sequence import Sequence, open_sequence
 
 console = Console(stderr=True)
 

@@ -16,8 +16,18 @@ from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
 from . import app
-from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json, progress_enabled,
-                      use_config)
+from ._common import (
+    ConfigOpt,
+    FromOpt,
+    ImageSizeOpt,
+    JsonOpt,
+    QuietOpt,
+    SmplModelOpt,
+    console,
+    print_json,
+    progress_enabled,
+    use_config,
+)
 
 
 @app.command()

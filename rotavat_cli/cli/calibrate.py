@@ -16,8 +16,20 @@ from ..errors import InputError
 from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
 from . import app
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console, info,
-                      input_sequence, print_json)
+from ._common import (
+    ConfigOpt,
+    ForceOpt,
+    FromOpt,
+    ImageSizeOpt,
+    JsonOpt,
+    QuietOpt,
+    SmplModelOpt,
+    config_for,
+    console,
+    info,
+    input_sequence,
+    print_json,
+)
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:

@@ -8,9 +8,9 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
+from ..outputs import beside, check_output_file
 from ..render import RenderStyle, export_frame
 from . import app
-from ..outputs import beside, check_output_file
 from ._common import ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json
 
 

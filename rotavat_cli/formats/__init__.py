@@ -29,9 +29,9 @@ from ..errors import InputError
 from ..outputs import check_output_dir
 from ..plain import to_plain
 from ..sequence import Sequence, open_sequence, write_camera_yaml, write_frame, write_meta
-from ..smpl import BodyModel, load_body_model
 from . import agora, bedlam, bev, cliff, fourdhumans, multihmr, spec
 from ._common import ImportedSequence, ImportOptions
+from .smpl import BodyModel, load_body_model
 
 __all__ = [
     "ImportOptions",

@@ -17,7 +17,7 @@ import numpy as np
 from ..camera import Camera, project_cam_to_px
 from ..errors import InputError
 from ..sequence import Frame, validate_frame
-from ..smpl import BodyModel
+from .smpl import BodyModel
 
 __all__ = ["ImportOptions", "ImportedSequence", "fail", "npz_has_keys", "single_file", "need_image_size", "as_array",
            "get", "padded_square", "project_px", "image_size_from_header", "people_frame", "frame_names",

@@ -6,8 +6,6 @@ import numpy as np
 
 from ._common import MM_PER_M
 
-
-
 # The vertex metrics are memory-bound (each pass over a (P, 6890, 3) array costs about as much
 # as the whole SVD part), so the kernels below avoid passes numpy makes slow: reductions and
 # broadcasts over the length-3 axis run a 3-element inner loop, ~2-5x slower than a flat pass.

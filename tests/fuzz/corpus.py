@@ -45,8 +45,9 @@ if str(TESTS_DIR) not in sys.path:
     sys.path.insert(0, str(TESTS_DIR))
 
 import _format_fixtures as F  # noqa: E402
+
 from rotavat_cli.camera import Camera, camera_to_yaml_dict  # noqa: E402
-from rotavat_cli.smpl import SMPL_PARENTS, load_body_model  # noqa: E402
+from rotavat_cli.formats.smpl import SMPL_PARENTS, load_body_model  # noqa: E402
 
 Content = Union[bytes, str, Callable[[Path], bytes]]
 Check = Callable[[Path, Any], "list[str]"]

@@ -21,24 +21,25 @@ from __future__ import annotations
 import csv
 import math
 import re
-from collections.abc import Callable, Sequence as Seq
+from collections.abc import Callable
+from collections.abc import Sequence as Seq
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from . import metrics as M
-from .atomic import atomic_open
-from .camera import Camera, camera_parameters, project_cam_to_px
-from .errors import InputError, input_errors
-from .plain import csv_cell
-from .landmarks import foot_head_points
+from .. import metrics as M
+from ..atomic import atomic_open
+from ..camera import Camera, camera_parameters, project_cam_to_px
+from ..errors import InputError, input_errors
+from ..landmarks import SMPL_JOINT_NAMES, foot_head_points
+from ..plain import csv_cell
+from ..sequence import Frame, Intrinsics, Sequence
 from .matching import match_agora, match_by_ids, match_hungarian
-from .sequence import Frame, Intrinsics, Sequence
 
 __all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PersonMetric", "EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
 
-PELVIS = 0  # root joint index (SMPL order); see bodies.SMPL_JOINT_NAMES
+PELVIS = 0  # root joint index (SMPL order); see landmarks.SMPL_JOINT_NAMES
 MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
 MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
 
@@ -88,7 +89,6 @@ def parse_joints(spec: str | None, n_joints: int | None = None) -> tuple[int, ..
     """``"0,1,2"`` or ``"0-23"`` or SMPL joint names -> joint indices."""
     if not spec:
         return None
-    from .bodies import SMPL_JOINT_NAMES
 
     out: list[int] = []
     for token in (t.strip() for t in spec.split(",") if t.strip()):

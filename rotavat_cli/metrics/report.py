@@ -10,10 +10,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from .atomic import atomic_write_text
-from .errors import InputError
+from ..atomic import atomic_write_text
+from ..errors import InputError
+from ..plain import to_plain
 from .evaluate import PERSON_METRICS, EvalResult
-from .plain import to_plain
 
 __all__ = ["REPORT_COLUMNS", "Gate", "parse_gate", "check_gates", "report_rows", "format_value", "metric_value",
            "markdown_report", "write_reports"]
@@ -125,7 +125,7 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
 
 def write_reports(out_dir: str | Path, results: Sequence[EvalResult], gt: str, options: dict) -> tuple[Path, Path]:
     """Write metrics.json and metrics.md atomically into ``out_dir``."""
-    from . import __version__
+    from .. import __version__
 
     json_path, md_path = report_paths(out_dir)
     payload = {"written_by": f"rotavat {__version__}", "gt": gt, "options": options,

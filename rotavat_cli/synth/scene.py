@@ -20,15 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..alignment.transform import closest_scale_on_line
+from ..atomic import staged_directory
+from ..camera import MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
+from ..focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
+from ..landmarks import foot_head_points
+from ..outputs import check_output_dir
+from ..rotations import axis_angle_to_matrix, rotation_between
+from ..sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 from .bodies import BodyLibrary, load_bodies
-from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
-from .focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
-from .atomic import staged_directory
-from .landmarks import foot_head_points
-from .outputs import check_output_dir
-from .rotations import axis_angle_to_matrix, rotation_between
-from .alignment.transform import closest_scale_on_line
-from .sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 
 __all__ = ["SynthOptions", "HPS_FOCAL_CHOICES", "random_camera", "hps_focal_px", "sample_walks", "synth_frames",
            "write_synth_scene"]

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import project_cam_to_px
-from .errors import InputError
-from .landmarks import foot_head_points
-from .sequence import Frame, Intrinsics, Sequence
+from ..camera import project_cam_to_px
+from ..errors import InputError
+from ..landmarks import foot_head_points
+from ..sequence import Frame, Intrinsics, Sequence
 
 __all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
 

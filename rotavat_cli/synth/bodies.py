@@ -12,18 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .landmarks import PACKAGED_BODIES, Topology, topology_from_npz
+from ..landmarks import PACKAGED_BODIES, Topology, topology_from_npz
 
-__all__ = ["BodyLibrary", "load_bodies", "BODIES_PATH", "SMPL_JOINT_NAMES"]
+__all__ = ["BodyLibrary", "load_bodies", "BODIES_PATH"]
 
 BODIES_PATH = PACKAGED_BODIES
-
-SMPL_JOINT_NAMES = (
-    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
-    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
-    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
-    "left_wrist", "right_wrist", "left_hand", "right_hand",
-)
 
 
 @dataclass(frozen=True)

@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import safe_pickle
-from .errors import InputError
-from .rotations import axis_angle_to_matrix
+from .. import safe_pickle
+from ..errors import InputError
+from ..rotations import axis_angle_to_matrix
 
 __all__ = [
     "BodyModel",
@@ -238,7 +238,7 @@ def joints_to_smpl24(joints: np.ndarray) -> tuple[np.ndarray, str]:
     raise ValueError(f"cannot map {n} joints to SMPL-24")
 
 
-# Parents of SMPL's 24 joints (``SMPL_JOINT_NAMES`` order; kinematic tree of the official model files).
+# Parents of SMPL's 24 joints (``landmarks.SMPL_JOINT_NAMES`` order; kinematic tree of the official model files).
 SMPL_PARENTS = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21)
 
 
