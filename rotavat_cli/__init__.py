@@ -21,6 +21,7 @@ from .alignment import (
                         rotavat_transforms,
                         track_statures,
 )
+from .batch import BatchOptions, run_batch
 from .calibration import CalibrateOptions, CalibrationResult, calibrate_sequence, fit_camera
 from .calibration.pairs import gather_pairs
 from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
@@ -46,6 +47,7 @@ __all__ = [
     "__version__",
     "AlignSummary",
     "AlignTransform",
+    "BatchOptions",
     "CalibrateOptions",
     "CalibrationResult",
     "Camera",
@@ -84,6 +86,7 @@ __all__ = [
     "read_camera_yaml",
     "render_sequences",
     "rotavat_transforms",
+    "run_batch",
     "track_statures",
     "write_camera_yaml",
     "write_frame",

@@ -55,3 +55,20 @@ def test_cli_config_error_exits_2(tmp_path: Path, runner):
     result = invoke(runner, "synth", tmp_path / "out", "--config", cfg)
     assert result.exit_code == 2 and "peeple" in result.stderr and "bad.yaml" in result.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_every_options_class_defaults_to_the_packaged_config():
+    """The packaged YAML is the one source of defaults: each options class built from it equals its own defaults."""
+    from rotavat_cli.batch import BatchOptions
+    from rotavat_cli.calibration import CalibrateOptions
+    from rotavat_cli.metrics.evaluate import EvalOptions
+    from rotavat_cli.render import FigureOptions, RenderStyle
+    from rotavat_cli.synth import SynthOptions
+
+    config = default_config()
+    assert CalibrateOptions() == CalibrateOptions.from_config(config["calibrate"])
+    assert EvalOptions() == EvalOptions.from_config(config["eval"])
+    assert SynthOptions() == SynthOptions.from_config(config["synth"])
+    assert FigureOptions() == FigureOptions.from_config(config["render"])
+    assert RenderStyle() == RenderStyle.from_config(config["render"])
+    assert BatchOptions() == BatchOptions.from_config(config)

@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
+from . import align, batch, calibrate, eval, export, import_, info, render, synth
 from ._common import RotavatGroup
 
 app = typer.Typer(
@@ -38,8 +39,16 @@ def _root(
     """rotavat: auto-calibrate a static camera from its people, re-seat HPS meshes on the ground, and score them."""
 
 
-# Commands register themselves on ``app`` when imported.
-from . import align, batch, calibrate, eval, export, import_, info, render, synth  # noqa: E402,F401
+# The commands, registered here in the order `rotavat --help` lists them (a new command: one module + one line).
+app.command()(info.info)
+app.command()(synth.synth)
+app.command()(calibrate.calibrate)
+app.command()(align.align)
+app.command("eval")(eval.eval_)
+app.command()(render.render)
+app.command()(export.export)
+app.command("import")(import_.import_)
+app.command()(batch.batch)
 
 
 def main() -> None:

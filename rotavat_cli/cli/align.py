@@ -11,7 +11,6 @@ from ..alignment import align_sequence
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import read_camera_yaml
-from . import app
 from ._common import (
     ConfigOpt,
     ForceOpt,
@@ -30,7 +29,6 @@ from ._common import (
 from .calibrate import run_calibration
 
 
-@app.command()
 def align(
     seq: Annotated[Path, typer.Option("--in", help="Input sequence directory (never modified).")],
     camera: Annotated[Path | None, typer.Option(help="camera.yaml to use; default SEQ/camera.yaml, else calibrate first.", dir_okay=False)] = None,

@@ -15,7 +15,6 @@ from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
 from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
-from . import app
 from ._common import (
     ConfigOpt,
     FromOpt,
@@ -30,7 +29,6 @@ from ._common import (
 )
 
 
-@app.command()
 def batch(
     root: Annotated[Path, typer.Argument(help="Dataset root: every folder of frames below it (or, with --from, every output of that tool) is a sequence.")],
     out: Annotated[Path | None, typer.Option(help="Output root mirroring ROOT's tree; default ROOT_batch beside ROOT.", file_okay=False)] = None,

@@ -15,7 +15,6 @@ from ..camera import camera_parameters
 from ..errors import InputError
 from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
-from . import app
 from ._common import (
     ConfigOpt,
     ForceOpt,
@@ -46,7 +45,6 @@ def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) ->
 _RESIDUAL_HELP = " or ".join(f"{kind.name} ({kind.summary})" for kind in RESIDUAL_KINDS.values()) + "."
 
 
-@app.command()
 def calibrate(
     seq: Annotated[Path, typer.Argument(help="Sequence directory (2D feet_2d/heads_2d, or meshes with their focal).")],
     out: Annotated[Path | None, typer.Option(help="Where to write camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,

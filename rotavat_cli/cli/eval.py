@@ -22,7 +22,6 @@ from ..metrics.report import (
     write_reports,
 )
 from ..outputs import check_output_file
-from . import app
 from ._common import (
     ConfigOpt,
     ForceOpt,
@@ -41,7 +40,6 @@ from ._common import (
 )
 
 
-@app.command("eval")
 def eval_(
     pred: Annotated[list[Path] | None, typer.Argument(help="Prediction sequence directories (default: the current directory).")] = None,
     gt: Annotated[Path, typer.Option("--gt", help="Ground-truth sequence directory (its camera.yaml enables ground-aware metrics).")] = ...,

@@ -10,11 +10,9 @@ import typer
 from ..errors import InputError
 from ..outputs import beside, check_output_file
 from ..render import RenderStyle, export_frame
-from . import app
 from ._common import ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json
 
 
-@app.command()
 def export(
     seq: Annotated[Path, typer.Argument(help="Sequence directory.", file_okay=False)],
     frame: Annotated[int, typer.Option(help="Frame index (negative counts from the end).")] = 0,

@@ -10,13 +10,11 @@ from rich.markup import escape
 
 from ..errors import InputError
 from ..formats import available_formats, detect_format, import_sequence
-from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled, use_config
 
 _FORMATS = ", ".join(available_formats())
 
 
-@app.command("import")
 def import_(
     src: Annotated[Path, typer.Argument(help="The method's output: a file or a folder (see docs/formats.md).")],
     out: Annotated[Path, typer.Argument(help="New sequence directory (npz frames + meta.yaml [+ camera.yaml]).", file_okay=False)],

@@ -9,11 +9,9 @@ import typer
 from rich.table import Table
 
 from ..sequence import open_sequence, summarize_sequence
-from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, console, print_json, use_config, warn_ignored
 
 
-@app.command()
 def info(
     seq: Annotated[Path, typer.Argument(help="Sequence directory (npz frames or folders of per-person OBJ).")],
     config: ConfigOpt = None,

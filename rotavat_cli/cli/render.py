@@ -11,7 +11,6 @@ from ..atomic import staged_directory
 from ..errors import InputError
 from ..outputs import beside, check_output_dir
 from ..render import VIEWS, FigureOptions, render_sequences
-from . import app
 from ._common import (
     ConfigOpt,
     ForceOpt,
@@ -25,7 +24,6 @@ from ._common import (
 )
 
 
-@app.command()
 def render(
     seqs: Annotated[list[Path], typer.Argument(help="Sequence directories: one grid row each (e.g. pred/ pred_aligned/).", file_okay=False)],
     camera: Annotated[Path | None, typer.Option(help="camera.yaml for every row; default each SEQ/camera.yaml.", dir_okay=False)] = None,

@@ -10,11 +10,9 @@ import typer
 
 from ..errors import input_errors
 from ..synth import SynthOptions, hps_focal_px, random_camera, write_synth_scene
-from . import app
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
 
 
-@app.command()
 def synth(
     out: Annotated[Path, typer.Argument(help="Output directory (gets gt/, pred/ and synth.yaml).", file_okay=False)],
     seed: Annotated[int | None, typer.Option(help="Random seed (same seed, same scene).")] = None,
@@ -36,7 +34,7 @@ def synth(
                       image_size=list(image_size) if image_size else None, roll_deg=roll, noise_px=noise_px,
                       outliers=outliers, hps_focal=hps_focal, depth_sd=depth_sd)
     with input_errors("synth"):
-        options = SynthOptions(**{**opts, "image_size": tuple(opts["image_size"])})
+        options = SynthOptions.from_config(opts)
     with input_errors("--hps-focal"):
         hps_focal_px(options.hps_focal, random_camera(np.random.default_rng(0), options.image_size))
     with input_errors(str(out)), progress_bar("synthesising", options.frames, progress_enabled(quiet, as_json)) as advance:

@@ -110,13 +110,13 @@ def _invalid(src: Path, fmt: str, exc: BaseException) -> InputError:
 
 def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: tuple[int, int] | None = None,
                     smpl_model: str | Path | BodyModel | None = None, fov_deg: float | None = None,
-                    progress: Callable[[int], Any] | None = None, overwrite: bool = False) -> dict:
+                    progress: Callable[[], None] | None = None, overwrite: bool = False) -> dict:
     """Convert ``src`` (format ``fmt``) into a contract sequence directory ``out``.
 
     Frames are written to a staging directory beside ``out`` and swapped in whole only when every
     frame converted, so a failed import leaves ``out`` untouched. An existing ``out`` is replaced
     only when it is empty or rotavat's own output, or with ``overwrite``; never when it is, holds or
-    lies inside ``src`` (:func:`rotavat_cli.outputs.check_output_dir`). ``progress(n)`` is called
+    lies inside ``src`` (:func:`rotavat_cli.outputs.check_output_dir`). ``progress()`` is called
     after each frame.
 
     Returns a summary: out, format, frames, people, empty_frames, image_size, focal_px,
@@ -139,7 +139,7 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
                 empty += frame.n_people == 0
                 has_vertices |= frame.n_people > 0 and frame.get("vertices") is not None
                 if progress is not None:
-                    progress(1)
+                    progress()
         except _READ_ERRORS as exc:
             raise _invalid(src, fmt, exc) from None
         if frames == 0:

@@ -58,6 +58,12 @@ class SynthOptions:
     pred_stature_sd_m: float = 0.03
     noise_3d_m: float = 0.005
 
+    @classmethod
+    def from_config(cls, section: dict) -> "SynthOptions":
+        """Options from the ``synth`` config section (its keys are the fields; the rest keep their defaults)."""
+        values = {**section, "image_size": tuple(section["image_size"])}
+        return cls(**values)
+
     def __post_init__(self) -> None:
         width, height = self.image_size
         if not (32 <= int(width) <= MAX_IMAGE_SIDE_PX and 32 <= int(height) <= MAX_IMAGE_SIDE_PX):
