@@ -43,14 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from _reference_metrics import reference_pa_errors_mm  # noqa: E402
 
-from rotavat_cli.metrics import (  # noqa: E402
-    compiled_kernels,
-    mpjpe,
-    person_errors_mm,
-    pve,
-    w_spec_mpjpe,
-    w_spec_pve,
-)
+from rotavat_cli.metrics import compiled_kernels, mpjpe, person_errors_mm, pve, w_spec_mpjpe, w_spec_pve  # noqa: E402
 from rotavat_cli.metrics.evaluate import SCORE_BATCH_PEOPLE  # noqa: E402
 
 N_JOINTS = 24

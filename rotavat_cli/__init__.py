@@ -12,15 +12,8 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .alignment import (
-                        AlignSummary,
-                        AlignTransform,
-                        align_frame,
-                        align_sequence,
-                        apply_transforms,
-                        rotavat_transforms,
-                        track_statures,
-)
+from .alignment import (AlignSummary, AlignTransform, align_frame, align_sequence, apply_transforms, rotavat_transforms,
+                        track_statures)
 from .batch import BatchOptions, run_batch
 from .calibration import CalibrateOptions, CalibrationResult, calibrate_sequence, fit_camera
 from .calibration.pairs import gather_pairs
@@ -32,15 +25,7 @@ from .landmarks import foot_head_points
 from .metrics import mpjpe, procrustes_align, pve
 from .metrics.evaluate import EvalOptions, EvalResult, evaluate
 from .render import FigureOptions, export_frame, render_sequences
-from .sequence import (
-                        Frame,
-                        Intrinsics,
-                        Sequence,
-                        open_sequence,
-                        read_camera_yaml,
-                        write_camera_yaml,
-                        write_frame,
-)
+from .sequence import Frame, Intrinsics, Sequence, open_sequence, read_camera_yaml, write_camera_yaml, write_frame
 from .synth import SynthOptions, write_synth_scene
 
 __all__ = [

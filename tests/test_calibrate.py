@@ -9,21 +9,9 @@ import pytest
 import yaml
 from _synthetic_pairs import box_points_px, synthetic_pairs  # tests/ is on sys.path (pytest rootdir-less import)
 
-from rotavat_cli.calibration import (
-    RESIDUAL_KINDS,
-    RESIDUALS,
-    CalibrateOptions,
-    CalibrationResult,
-    GridSpec,
-    calibrate,
-    fit_camera,
-    fit_per_frame,
-    grid_costs,
-    paper_grid_search,
-    predict_heads_px,
-    reference_cell_costs,
-    residual_kind,
-)
+from rotavat_cli.calibration import (RESIDUAL_KINDS, RESIDUALS, CalibrateOptions, CalibrationResult, GridSpec,
+                                     calibrate, fit_camera, fit_per_frame, grid_costs, paper_grid_search,
+                                     predict_heads_px, reference_cell_costs, residual_kind)
 from rotavat_cli.calibration.objective import make_problem, profiled, whitened
 from rotavat_cli.calibration.params import FOCAL, HEIGHT, PITCH, ROLL, param_vector
 from rotavat_cli.calibration.uncertainty import jackknife_cov

@@ -3,15 +3,8 @@
 import numpy as np
 import pytest
 
-from rotavat_cli.camera import (
-    Camera,
-    backproject_px_to_plane,
-    camera_from_yaml_dict,
-    camera_to_yaml_dict,
-    pitch_roll_from_up,
-    project_cam_to_px,
-    up_vector_cam,
-)
+from rotavat_cli.camera import (Camera, backproject_px_to_plane, camera_from_yaml_dict, camera_to_yaml_dict,
+                                pitch_roll_from_up, project_cam_to_px, up_vector_cam)
 
 
 def make_camera(pitch_deg=30.0, roll_deg=0.0, height=5.0, focal=1000.0, size=(1920, 1080), pp=None):

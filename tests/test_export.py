@@ -11,18 +11,8 @@ import trimesh
 from conftest import invoke, tree_hash
 
 from rotavat_cli.camera import Camera
-from rotavat_cli.render import (
-    R_CV_FROM_GL,
-    RenderStyle,
-    build_scene,
-    export_frame,
-    frustum_segments_world,
-    ground_quad_world,
-    read_glb_json,
-    read_row,
-    world_from_gl_camera,
-    write_glb,
-)
+from rotavat_cli.render import (R_CV_FROM_GL, RenderStyle, build_scene, export_frame, frustum_segments_world,
+                                ground_quad_world, read_glb_json, read_row, world_from_gl_camera, write_glb)
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 

@@ -5,14 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rotavat_cli.metrics.matching import (
-    box_iou,
-    keypoint_boxes_px,
-    match_agora,
-    match_by_ids,
-    match_hungarian,
-    mean_keypoint_distance_px,
-)
+from rotavat_cli.metrics.matching import (box_iou, keypoint_boxes_px, match_agora, match_by_ids, match_hungarian,
+                                          mean_keypoint_distance_px)
 
 # A 4-keypoint "person": corners of a 40 x 100 px box.
 BODY_PX = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 100.0], [0.0, 100.0]])

@@ -9,28 +9,10 @@ import pytest
 from _reference_metrics import reference_pa_errors_mm
 
 from rotavat_cli.camera import height_above_ground
-from rotavat_cli.metrics import (
-    JOINT_ERROR_KEYS,
-    VERTEX_ERROR_KEYS,
-    camera_errors,
-    compiled_kernels,
-    detection_scores,
-    lean_deg,
-    mpjpe,
-    normalize_by_f1,
-    person_errors_mm,
-    point_errors_mm,
-    procrustes_align,
-    pve,
-    root_err_mm,
-    stature_err_mm,
-    stature_m,
-    to_gravity_frame,
-    umeyama,
-    w_spec_errors_mm,
-    w_spec_mpjpe,
-    w_spec_pve,
-)
+from rotavat_cli.metrics import (JOINT_ERROR_KEYS, VERTEX_ERROR_KEYS, camera_errors, compiled_kernels, detection_scores,
+                                 lean_deg, mpjpe, normalize_by_f1, person_errors_mm, point_errors_mm, procrustes_align,
+                                 pve, root_err_mm, stature_err_mm, stature_m, to_gravity_frame, umeyama,
+                                 w_spec_errors_mm, w_spec_mpjpe, w_spec_pve)
 
 # Hand-computed cases are exact up to float64 rounding of a few operations on metre-scale
 # numbers, then x1000 to mm: 1e-6 mm (1 nm) is far above that noise and far below any error.

@@ -13,30 +13,11 @@ from PIL import Image
 from rotavat_cli.camera import Camera
 from rotavat_cli.config import default_config
 from rotavat_cli.errors import RotavatError
-from rotavat_cli.render import (
-    REGISTRY,
-    RENDERERS,
-    VIEWS,
-    FigureOptions,
-    RenderStyle,
-    RowFrame,
-    clip_from_cam_perspective,
-    fit_ortho_extent,
-    front_view,
-    horizontal_forward_world,
-    open_rasterizer,
-    ortho_basis_world,
-    ortho_view,
-    parse_views,
-    person_colors,
-    project_view_px,
-    rasterize_numpy,
-    read_row,
-    render_grid,
-    render_panel,
-    scene_extents,
-    select_frames,
-)
+from rotavat_cli.render import (REGISTRY, RENDERERS, VIEWS, FigureOptions, RenderStyle, RowFrame,
+                                clip_from_cam_perspective, fit_ortho_extent, front_view, horizontal_forward_world,
+                                open_rasterizer, ortho_basis_world, ortho_view, parse_views, person_colors,
+                                project_view_px, rasterize_numpy, read_row, render_grid, render_panel, scene_extents,
+                                select_frames)
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 from rotavat_cli.synth.bodies import load_bodies

@@ -31,16 +31,8 @@ from ..outputs import check_output_dir
 from ..parallel import cap_workers, ordered_map
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
-from .transform import (
-    FLAGS,
-    UPRIGHT,
-    AlignTransform,
-    apply_transforms,
-    method_rays_cam,
-    points_from_coords,
-    rotavat_transforms,
-    transformed_blocks,
-)
+from .transform import (FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
+                        rotavat_transforms, transformed_blocks)
 
 __all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "STATURE_RANGE_M", "HEIGHT_FROM", "MeshIntrinsics", "AlignSummary",
            "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]

@@ -50,21 +50,8 @@ from .grid import paper_grid_search
 from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
 from .objective import MIN_NOISE_PX, Problem, make_problem, profiled
 from .options import CalibrateOptions
-from .params import (
-    BOX_DEPTH,
-    DISTORTION,
-    FOCAL,
-    HEIGHT,
-    MODEL_NAMES,
-    PARAM_NAMES,
-    PITCH,
-    ROLL,
-    SLOT_LABELS,
-    describe,
-    param_bounds,
-    param_vector,
-    to_internal,
-)
+from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, SLOT_LABELS, describe,
+                     param_bounds, param_vector, to_internal)
 from .refine import refine_fit
 from .uncertainty import Systematics, covariances, fit_warnings, std_and_corr
 

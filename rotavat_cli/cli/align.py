@@ -11,21 +11,8 @@ from ..alignment import align_sequence
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import read_camera_yaml
-from ._common import (
-    ConfigOpt,
-    ForceOpt,
-    FromOpt,
-    ImageSizeOpt,
-    JsonOpt,
-    QuietOpt,
-    SmplModelOpt,
-    config_for,
-    info,
-    input_sequence,
-    print_json,
-    progress_bar,
-    progress_enabled,
-)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
+                      input_sequence, print_json, progress_bar, progress_enabled)
 from .calibrate import run_calibration
 
 

@@ -15,18 +15,8 @@ from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
 from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
-from ._common import (
-    ConfigOpt,
-    FromOpt,
-    ImageSizeOpt,
-    JsonOpt,
-    QuietOpt,
-    SmplModelOpt,
-    console,
-    print_json,
-    progress_enabled,
-    use_config,
-)
+from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json,
+                      progress_enabled, use_config)
 
 
 def batch(

@@ -15,20 +15,8 @@ from ..camera import camera_parameters
 from ..errors import InputError
 from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
-from ._common import (
-    ConfigOpt,
-    ForceOpt,
-    FromOpt,
-    ImageSizeOpt,
-    JsonOpt,
-    QuietOpt,
-    SmplModelOpt,
-    config_for,
-    console,
-    info,
-    input_sequence,
-    print_json,
-)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
+                      info, input_sequence, print_json)
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:

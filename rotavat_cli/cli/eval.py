@@ -12,32 +12,11 @@ from rich.table import Table
 
 from ..errors import GateError
 from ..metrics.evaluate import PER_PERSON_HEADER, EvalOptions, evaluate, parse_joints, write_per_person_csv
-from ..metrics.report import (
-    check_gates,
-    format_value,
-    metric_value,
-    parse_gate,
-    report_paths,
-    report_rows,
-    write_reports,
-)
+from ..metrics.report import (check_gates, format_value, metric_value, parse_gate, report_paths, report_rows,
+                              write_reports)
 from ..outputs import check_output_file
-from ._common import (
-    ConfigOpt,
-    ForceOpt,
-    FromOpt,
-    ImageSizeOpt,
-    JsonOpt,
-    QuietOpt,
-    SmplModelOpt,
-    config_for,
-    console,
-    info,
-    input_sequence,
-    print_json,
-    progress_bar,
-    progress_enabled,
-)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
+                      info, input_sequence, print_json, progress_bar, progress_enabled)
 
 
 def eval_(

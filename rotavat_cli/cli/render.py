@@ -11,17 +11,8 @@ from ..atomic import staged_directory
 from ..errors import InputError
 from ..outputs import beside, check_output_dir
 from ..render import VIEWS, FigureOptions, render_sequences
-from ._common import (
-    ConfigOpt,
-    ForceOpt,
-    JsonOpt,
-    QuietOpt,
-    config_for,
-    info,
-    print_json,
-    progress_bar,
-    progress_enabled,
-)
+from ._common import (ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar,
+                      progress_enabled)
 
 
 def render(

@@ -29,18 +29,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    fail,
-    frame_names,
-    get,
-    model_faces,
-    natural_key,
-    people_frame,
-)
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
+                      natural_key, people_frame)
 from .smpl import joints_to_smpl24, lbs
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width

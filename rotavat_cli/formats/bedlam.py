@@ -28,19 +28,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    fail,
-    frame_names,
-    model_faces,
-    natural_key,
-    npz_has_keys,
-    people_frame,
-    single_file,
-)
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
+                      npz_has_keys, people_frame, single_file)
 from .smpl import joints_to_smpl24, lbs
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}

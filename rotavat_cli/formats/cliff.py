@@ -27,20 +27,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    fail,
-    frame_names,
-    image_size_from_header,
-    model_faces,
-    no_model_warning,
-    npz_has_keys,
-    people_frame,
-    single_file,
-)
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
+                      model_faces, no_model_warning, npz_has_keys, people_frame, single_file)
 from .smpl import joints_to_smpl24, lbs
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}

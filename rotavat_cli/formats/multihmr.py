@@ -33,19 +33,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    fail,
-    frame_names,
-    model_faces,
-    natural_key,
-    need_image_size,
-    people_frame,
-    project_px,
-)
+from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
+                      need_image_size, people_frame, project_px)
 from .smpl import joints_to_smpl24
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default

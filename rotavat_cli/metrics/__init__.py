@@ -25,34 +25,10 @@ Modules: :mod:`.points` (the single-metric functions, float64), :mod:`.fused`
 """
 
 from ._common import ALIGNMENTS, CAMERA_KEYS, Alignment
-from .fused import (
-    ENGINES,
-    JOINT_ERROR_KEYS,
-    VERTEX_ERROR_KEYS,
-    compiled_kernels,
-    person_errors_mm,
-    resolve_engine,
-)
-from .points import (
-    mpjpe,
-    point_errors_mm,
-    procrustes_align,
-    pve,
-    to_gravity_frame,
-    umeyama,
-    w_spec_errors_mm,
-    w_spec_mpjpe,
-    w_spec_pve,
-)
-from .scene import (
-    camera_errors,
-    detection_scores,
-    lean_deg,
-    normalize_by_f1,
-    root_err_mm,
-    stature_err_mm,
-    stature_m,
-)
+from .fused import ENGINES, JOINT_ERROR_KEYS, VERTEX_ERROR_KEYS, compiled_kernels, person_errors_mm, resolve_engine
+from .points import (mpjpe, point_errors_mm, procrustes_align, pve, to_gravity_frame, umeyama, w_spec_errors_mm,
+                     w_spec_mpjpe, w_spec_pve)
+from .scene import camera_errors, detection_scores, lean_deg, normalize_by_f1, root_err_mm, stature_err_mm, stature_m
 
 __all__ = [
     "ALIGNMENTS",

@@ -14,50 +14,19 @@ Modules (docs/render.md):
 
 from __future__ import annotations
 
-from .export import (
-                     R_CV_FROM_GL,
-                     build_scene,
-                     export_frame,
-                     frustum_segments_world,
-                     glb_bytes,
-                     gltf_camera,
-                     ground_quad_world,
-                     read_glb_json,
-                     world_from_gl_camera,
-                     write_glb,
-)
+from .export import (R_CV_FROM_GL, build_scene, export_frame, frustum_segments_world, glb_bytes, gltf_camera,
+                     ground_quad_world, read_glb_json, world_from_gl_camera, write_glb)
 from .fallback import rasterize_numpy
-from .geometry import (
-                     OrthoExtent,
-                     PanelView,
-                     clip_from_cam_perspective,
-                     clip_from_world_ortho,
-                     fit_ortho_extent,
-                     horizontal_forward_world,
-                     ndc_to_px,
-                     nice_length_m,
-                     project_view_px,
-)
+from .geometry import (OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho, fit_ortho_extent,
+                       horizontal_forward_world, ndc_to_px, nice_length_m, project_view_px)
 from .gl import GL_SYSTEM_PACKAGES
 from .grid import render_grid, render_panel
 from .raster import RENDERERS, Rasterizer, open_rasterizer
 from .rows import IMAGE_SUFFIXES, read_row, row_labels, select_frames, sequence_camera
 from .sequences import FigureOptions, FigureSummary, render_sequences
 from .style import RenderStyle, parse_color, person_colors, shade_vertices, vertex_normals
-from .views import (
-                     REGISTRY,
-                     VIEWS,
-                     Ortho,
-                     RowFrame,
-                     View,
-                     front_view,
-                     ortho_basis_world,
-                     ortho_bounds,
-                     ortho_view,
-                     parse_views,
-                     scene_extents,
-                     view_specs,
-)
+from .views import (REGISTRY, VIEWS, Ortho, RowFrame, View, front_view, ortho_basis_world, ortho_bounds, ortho_view,
+                    parse_views, scene_extents, view_specs)
 
 __all__ = [
     # views

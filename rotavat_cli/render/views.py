@@ -27,19 +27,9 @@ from typing import Any
 import numpy as np
 
 from ..camera import Camera
-from .geometry import (
-    UP_WORLD,
-    OrthoExtent,
-    PanelView,
-    clip_from_cam_perspective,
-    clip_from_world_ortho,
-    fit_ortho_extent,
-    horizontal_forward_world,
-    nice_length_m,
-    project_view_px,
-    unit,
-    world_from_cam_h,
-)
+from .geometry import (UP_WORLD, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
+                       fit_ortho_extent, horizontal_forward_world, nice_length_m, project_view_px, unit,
+                       world_from_cam_h)
 from .style import RenderStyle, font, mix, rgb8
 
 __all__ = ["RowFrame", "Ortho", "View", "REGISTRY", "VIEWS", "view_specs", "parse_views", "ortho_basis_world",

@@ -2,15 +2,8 @@
 packaged library of realistic bodies (:mod:`.bodies`)."""
 
 from .bodies import BODIES_PATH, BodyLibrary, load_bodies
-from .scene import (
-                    HPS_FOCAL_CHOICES,
-                    SynthOptions,
-                    hps_focal_px,
-                    random_camera,
-                    sample_walks,
-                    synth_frames,
-                    write_synth_scene,
-)
+from .scene import (HPS_FOCAL_CHOICES, SynthOptions, hps_focal_px, random_camera, sample_walks, synth_frames,
+                    write_synth_scene)
 
 __all__ = ["BODIES_PATH", "BodyLibrary", "load_bodies", "HPS_FOCAL_CHOICES", "SynthOptions", "hps_focal_px",
            "random_camera", "sample_walks", "synth_frames", "write_synth_scene"]
