@@ -251,6 +251,20 @@ def test_eval_is_dropped_from_the_default_steps_without_ground_truth(data, tmp_p
     assert (tmp_path / "out" / "b" / "render" / "000000.png").exists() and not (tmp_path / "out" / "b" / "eval").exists()
 
 
+def test_align_without_the_calibrate_step_uses_each_sequence_s_own_camera(data, tmp_path, runner):
+    """A sequence with its camera.yaml is aligned into that camera, read once and handed to every chunk."""
+    for rel in RELS:
+        shutil.copy(data / "gt" / rel / "camera.yaml", data / "pred" / rel / "camera.yaml")
+    result = batch(runner, data / "pred", tmp_path / "out", "--jobs", "1", "--chunk-frames", "2", "--steps", "align")
+    assert result.exit_code == 0, result.stderr
+    report = json.loads((tmp_path / "out" / "batch_report.json").read_text())
+    for row in report["rows"]:
+        assert row["camera"]["origin"] == "given"
+        given = open_sequence(data / "pred" / row["sequence"]).camera
+        aligned = open_sequence(tmp_path / "out" / row["sequence"] / "aligned").camera
+        assert aligned == given
+
+
 def test_import_format_sequences_are_converted_into_the_output_tree(tmp_path, runner):
     model_path = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
     model = F.load_model(model_path)

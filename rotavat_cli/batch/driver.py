@@ -103,7 +103,7 @@ class _Driver:
                                    + per_frame * value["frames"] - per_frame * hint})
         if align:
             for i, (a, b) in enumerate(value["align_chunks"]):
-                self.push(rel, "align", task_align_chunk, job, self.plan, value["camera_file"], i, a, b, chunk=i)
+                self.push(rel, "align", task_align_chunk, job, self.plan, value["camera_yaml"], i, a, b, chunk=i)
         if evals:
             self.push_eval(rel, "before")
 

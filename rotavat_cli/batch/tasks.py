@@ -23,7 +23,7 @@ from typing import Any
 
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
-from ..camera import camera_parameters
+from ..camera import Camera, camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
 from ..errors import InputError, RotavatError, TaskError
 from ..limits import Limits
 from ..limits import configure as configure_limits
@@ -77,9 +77,8 @@ def _chunks(n: int, size: int) -> list[tuple[int, int]]:
     return [(a, min(a + size, n)) for a in range(0, n, max(1, size))]
 
 
-def _camera_summary(camera_file: Path, image_size: tuple[int, int] | None, origin: str) -> dict:
+def _camera_summary(camera: Camera, fit: dict, camera_file: Path, origin: str) -> dict:
     """Camera parameters in report units, with a few fit figures when estimated."""
-    camera, fit = read_camera_yaml(camera_file, image_size)
     summary = {"origin": origin, "file": str(camera_file), **camera_parameters(camera)}
     summary.update({k: fit[k] for k in ("method", "focal_policy", "pairs", "inliers", "rmse_px") if k in fit})
     return summary
@@ -93,7 +92,8 @@ def task_prepare(job: dict, plan: dict) -> dict:
     (out / MARKER).unlink(missing_ok=True)  # from here on the outputs are not complete
     for stale in [out / ALIGN_STAGING, *out.glob(".aligned.*-*"), *out.glob(".render.*-*")]:  # an interrupted run's staging
         shutil.rmtree(stale, ignore_errors=True)
-    result: dict[str, Any] = {"seconds": {}, "warnings": [], "frame_passes": 0, "camera": None, "camera_file": None}
+    result: dict[str, Any] = {"seconds": {}, "warnings": [], "frame_passes": 0, "camera": None, "camera_file": None,
+                              "camera_yaml": None}
     imp = plan["import"]
     if imp["format"]:
         from ..formats import import_sequence
@@ -106,22 +106,25 @@ def task_prepare(job: dict, plan: dict) -> dict:
     seq_dir = Path(job["seq"])
     seq = open_sequence(seq_dir, read_camera=False)
     result["frames"] = len(seq)
-    camera_file, origin = None, None
+    camera_file = origin = camera = None
     if "calibrate" in steps or ("align" in steps and not (seq_dir / "camera.yaml").exists()):
         from ..calibration import CalibrateOptions, calibrate_sequence
 
         start = time.perf_counter()
         calib = calibrate_sequence(seq, CalibrateOptions.from_config(plan["config"]["calibrate"]))
         camera_file, origin = out / "camera.yaml", "calibrated"
-        write_camera_yaml(camera_file, calib.result.camera, calib.fit_dict())
+        camera, fit = calib.result.camera, calib.fit_dict()
+        write_camera_yaml(camera_file, camera, fit)
         result["warnings"] += list(calib.result.warnings)
         result["seconds"]["calibrate"] = time.perf_counter() - start
         result["frame_passes"] = len(seq)
     elif (seq_dir / "camera.yaml").exists():
         camera_file, origin = seq_dir / "camera.yaml", "given"
-    if camera_file is not None:
+        camera, fit = read_camera_yaml(camera_file, seq.intrinsics.image_size)
+    if camera is not None:  # handed to the align chunks as plain data: read or computed once
         result["camera_file"] = str(camera_file)
-        result["camera"] = _camera_summary(camera_file, seq.intrinsics.image_size, origin)
+        result["camera_yaml"] = camera_to_yaml_dict(camera, fit or None)
+        result["camera"] = _camera_summary(camera, fit, camera_file, origin)
     size = int(plan["chunk_frames"])
     if "align" in steps:  # track statures need the whole sequence: one chunk
         result["align_chunks"] = [(0, len(seq))] if plan["config"]["align"]["height_from"] == "track" else _chunks(len(seq), size)
@@ -136,13 +139,13 @@ def _chunk_dir(job: dict, index: int) -> Path:
     return Path(job["out"]) / ALIGN_STAGING / f"chunk-{index:06d}"
 
 
-def task_align_chunk(job: dict, plan: dict, camera_file: str, index: int, start: int, stop: int) -> dict:
+def task_align_chunk(job: dict, plan: dict, camera_yaml: dict, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
     _apply_limits(plan)
     from ..alignment import align_sequence
 
     seq = open_sequence(job["seq"], read_camera=False)
-    camera, fit = read_camera_yaml(camera_file, seq.intrinsics.image_size)
+    camera, fit = camera_from_yaml_dict(camera_yaml), camera_yaml.get("fit") or {}
     part = replace(seq, frame_names=seq.frame_names[start:stop])
     opts = plan["config"]["align"]  # workers=1: the batch's own workers are the parallelism (no nested pools)
     align_sequence(part, camera, _chunk_dir(job, index), opts["upright"], opts["height_from"], fit or None, workers=1,
