@@ -13,8 +13,9 @@ The defaults (``configs/default.yaml``) are proportionate to real data, with a w
   seen (a long 4D-Humans/PHALP tracking pickle) is a few hundred MB.
 - ``max_array_mb`` (1024): the largest single array a file may declare (npz/npy header, pickled
   array, joblib array). A whole CLIFF/BEDLAM scene file's largest array is tens of MB.
-- ``max_frame_mb`` (256): all the arrays of one contract frame (``.npz``) together. A frame of
-  100 SMPL-X people in float64 is 25 MB.
+- ``max_frame_mb`` (256): all the arrays of one contract frame (``.npz``) together, and the
+  float64 meshes of one frame posed from a tool's parameters (``formats.smpl.lbs``: a CLIFF file of
+  0.1 MB can name 5,000 people in one image). A frame of 100 SMPL-X people in float64 is 25 MB.
 - ``max_pickle_items`` (20,000,000): the most objects one pickle may build (opcodes run, items
   a container is built from, object-array elements) and the most items its shared references may
   add when expanded (a list referenced 1,000 times is converted 1,000 times). A PHALP-like pickle

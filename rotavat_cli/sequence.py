@@ -2,6 +2,8 @@
 
 A sequence is opened lazily (:func:`open_sequence` lists frames and reads ``meta.yaml`` and
 ``camera.yaml``) and iterated one frame at a time, so memory stays bounded whatever its length.
+Its frames come from a :class:`FrameSource`: a directory's files (:class:`DirectorySource`), or an
+HPS tool's own output converted frame by frame (``rotavat_cli.formats.imported_sequence``).
 Every reader validates what it reads and raises :class:`~rotavat_cli.errors.InputError` naming
 the file, the key and the problem. Every writer is atomic (temporary file, then rename).
 """
@@ -10,11 +12,11 @@ from __future__ import annotations
 
 import io
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import yaml
@@ -31,6 +33,8 @@ __all__ = [
     "Frame",
     "Intrinsics",
     "Sequence",
+    "FrameSource",
+    "DirectorySource",
     "PER_PERSON_KEYS",
     "open_sequence",
     "is_sequence_dir",
@@ -425,9 +429,52 @@ def write_meta(out_dir: str | Path, meta: dict) -> None:
 
 
 # ---- sequences ----------------------------------------------------------------------------------
+@runtime_checkable
+class FrameSource(Protocol):
+    """Where a sequence's frames come from: their names, in order, and one frame by name.
+
+    :class:`DirectorySource` reads a sequence directory (the contract's files);
+    ``rotavat_cli.formats`` has one that converts an HPS tool's own output frame by frame when it
+    is read (``--from``). A source may also offer ``warnings`` (what building its frames found)
+    and ``frame_notes(names)`` / ``add_frame_notes(notes)`` (the same, handed back from a copy
+    of the source in a worker process).
+    """
+
+    @property
+    def frame_names(self) -> tuple[str, ...]: ...
+
+    def read_frame(self, name: str) -> Frame: ...
+
+
+@dataclass(frozen=True)
+class DirectorySource:
+    """The frames of a sequence directory: ``NAME.npz`` files (form 'npz') or ``NAME/`` folders of
+    per-person OBJ files (form 'obj'), read and validated one at a time."""
+
+    path: Path
+    form: str  # 'npz' | 'obj'
+    frame_names: tuple[str, ...] = ()
+
+    def frame_path(self, name: str) -> Path:
+        """File (npz) or folder (obj) of a frame."""
+        return self.path / (f"{name}.npz" if self.form == "npz" else name)
+
+    def read_frame(self, name: str) -> Frame:
+        """Read and validate one frame by name."""
+        path = self.frame_path(name)
+        return read_frame_npz(path) if self.form == "npz" else read_frame_obj(path)
+
+
 @dataclass(frozen=True)
 class Sequence:
-    """A lazily read sequence directory: frame list, meta.yaml, optional camera.yaml."""
+    """A lazily read sequence: frame list, meta.yaml content, optional camera, frames read one at a time.
+
+    Its frames come from ``source`` (a :class:`FrameSource`): by default the directory ``path``
+    in ``form`` (:class:`DirectorySource`, what :func:`open_sequence` gives). A sequence read from
+    an HPS tool's own output (``rotavat_cli.formats.imported_sequence``) has that output as
+    ``path``, form 'npz' (what its frames would be written as) and a source converting each
+    frame when it is read; no file is written.
+    """
 
     path: Path
     form: str  # 'npz' | 'obj'
@@ -437,6 +484,7 @@ class Sequence:
     camera_fit: dict = field(default_factory=dict)
     ignored: tuple[str, ...] = ()  # entries of OBJ frame folders that are not people's OBJ files, with why
     origin: str | None = None  # what the user named, when it is not ``path`` (an HPS tool's output read with --from)
+    source: FrameSource | None = None  # None: DirectorySource(path, form)
 
     @property
     def label(self) -> str:
@@ -447,16 +495,28 @@ class Sequence:
         return len(self.frame_names)
 
     @cached_property
+    def frame_source(self) -> FrameSource:
+        """Where the frames are read from: ``source``, or the directory ``path`` in ``form``."""
+        return self.source if self.source is not None else DirectorySource(self.path, self.form, self.frame_names)
+
+    @property
+    def _meta_name(self) -> str:
+        """What errors about the sequence-level metadata name: meta.yaml, or the source it came from."""
+        if isinstance(self.frame_source, DirectorySource):
+            return str(self.path / META_FILE)
+        return str(getattr(self.frame_source, "meta_name", self.label))
+
+    @cached_property
     def focal_kind(self) -> str:
         """Whether the focal its meshes were made with is the camera's own ('camera') or a method's
         guess ('assumed'): meta.yaml ``focal_kind``, absent = 'assumed' (rotavat.focal)."""
-        with input_errors(str(self.path / META_FILE)):
+        with input_errors(self._meta_name):
             return focal_kind_or_default(self.meta.get("focal_kind"))
 
     @cached_property
     def intrinsics(self) -> Intrinsics:
         """Sequence-level intrinsics from meta.yaml (frames may override)."""
-        return _intrinsics_from_mapping(self.meta, str(self.path / META_FILE))
+        return _intrinsics_from_mapping(self.meta, self._meta_name)
 
     @cached_property
     def image_size(self) -> tuple[int, int] | None:
@@ -473,6 +533,8 @@ class Sequence:
         """Image size, or an InputError saying how to provide it."""
         size = self.image_size
         if size is None:
+            if not isinstance(self.frame_source, DirectorySource):
+                raise InputError(f"{self.label}: unknown image size: pass --image-size W H")
             raise InputError(f"{self.path}: unknown image size: add 'image_size: [W, H]' to {META_FILE} "
                              "or an 'image_size' array to the frames")
         return size
@@ -483,18 +545,38 @@ class Sequence:
         return base.override(frame.intrinsics).with_defaults()
 
     def frame_path(self, name: str) -> Path:
-        """File (npz) or folder (obj) of a frame."""
-        return self.path / (f"{name}.npz" if self.form == "npz" else name)
+        """File (npz) or folder (obj) of a frame (a sequence directory's; ValueError for other sources)."""
+        source = self.frame_source
+        if not isinstance(source, DirectorySource):
+            raise ValueError(f"{self.label}: its frames are not files of a sequence directory")
+        return source.frame_path(name)
 
     def read_frame(self, name: str) -> Frame:
         """Read and validate one frame by name."""
-        path = self.frame_path(name)
-        return read_frame_npz(path) if self.form == "npz" else read_frame_obj(path)
+        return self.frame_source.read_frame(name)
 
     def frames(self) -> Iterator[Frame]:
         """Frames in file-name order, one at a time."""
         for name in self.frame_names:
             yield self.read_frame(name)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What reading the frames found so far that the user should hear of (an importer's dropped
+        people, ...); none for a sequence directory (its frames are refused or accepted whole)."""
+        return tuple(getattr(self.frame_source, "warnings", ()))
+
+    def frame_notes(self, names: Iterable[str]) -> Any:
+        """What reading these frames taught the source (warnings, ...): picklable, for
+        :meth:`add_frame_notes` in the process that owns the sequence; None when nothing is kept."""
+        notes = getattr(self.frame_source, "frame_notes", None)
+        return notes(tuple(names)) if notes is not None else None
+
+    def add_frame_notes(self, notes: Any) -> None:
+        """Take in the notes of frames read elsewhere (a worker process's :meth:`frame_notes`)."""
+        add = getattr(self.frame_source, "add_frame_notes", None)
+        if add is not None and notes is not None:
+            add(notes)
 
 
 def open_sequence(path: str | Path, read_camera: bool = True) -> Sequence:
@@ -515,11 +597,12 @@ def open_sequence(path: str | Path, read_camera: bool = True) -> Sequence:
     meta = read_yaml(path / META_FILE) if (path / META_FILE).exists() else {}
     _check_meta(meta, path / META_FILE)
     camera, fit = None, {}
-    seq = Sequence(path, form, tuple(names), meta)
+    source = DirectorySource(path, form, tuple(names))
+    seq = Sequence(path, form, tuple(names), meta, source=source)
     seq.intrinsics, seq.focal_kind  # validates meta.yaml's intrinsics keys early
     if read_camera and (path / CAMERA_FILE).exists():
         camera, fit = read_camera_yaml(path / CAMERA_FILE, seq.intrinsics.image_size)
-    return Sequence(path, form, tuple(names), meta, camera, fit, ignored)
+    return Sequence(path, form, tuple(names), meta, camera, fit, ignored, source=source)
 
 
 def is_sequence_dir(folder: str | Path) -> bool:

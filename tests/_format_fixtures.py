@@ -435,3 +435,14 @@ def truncate(path: Path, fraction: float = 0.5) -> Path:
 def load_model(path: Path) -> BodyModel:
     return load_body_model(path)
 
+
+
+# ---- worker processes ------------------------------------------------------------------------------
+def read_in_worker(seq, names):
+    """In a worker process: whether the sequence's source was already loaded there, which reader object
+    serves it, the frames' arrays and what reading them found (``Sequence.frame_notes``)."""
+    from rotavat_cli.formats.source import recipe_cached
+
+    cached = recipe_cached(seq.frame_source.recipe)
+    frames = [dict(seq.read_frame(name).data) for name in names]
+    return cached, os.getpid(), id(seq.frame_source.imported), frames, seq.frame_notes(names)

@@ -3,8 +3,10 @@ into contract sequences the other commands accept, and hostile / corrupt inputs 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import pickle
+import tempfile
 from pathlib import Path
 
 import _format_fixtures as F
@@ -17,6 +19,7 @@ from rotavat_cli.camera import horizon_v_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
 from rotavat_cli.formats.agora import focal_mm
+from rotavat_cli.formats.source import ImporterSource, forget, recipe_cached
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
 
@@ -151,6 +154,9 @@ def test_track_ids_are_kept(fmt, tmp_path, scene, model, camera, model_path):
     frames = [f for f in open_sequence(out).frames() if f.n_people]
     if fmt == "bedlam":  # subject names -> integers in sorted order (rp_subject_03, rp_subject_05)
         assert frames[0].data["person_ids"].tolist() == [0, 1] and frames[1].data["person_ids"].tolist() == [0]
+        # the legend names the subjects, not the frames (the two lists once shared a variable)
+        legend = open_sequence(out).meta["import"]["person_ids"]
+        assert legend == "subject names in sorted order: rp_subject_03, rp_subject_05"
     else:
         assert frames[0].data["person_ids"].tolist() == [3, 5] and frames[1].data["person_ids"].tolist() == [3]
 
@@ -207,10 +213,16 @@ def test_calibrate_accepts_an_imported_sequence(tmp_path, model, model_path, run
 
 def test_imported_sequence_context_manager(tmp_path, scene, model, camera, model_path):
     src = _write("agora", tmp_path, scene, model, camera)
+    before = _files_under(tmp_path)
     with imported_sequence(src, "agora") as seq:
         assert len(seq) == 2 and seq.meta["source"] == "agora"
         folder = seq.path
-    assert not folder.exists()
+        # named by the tool's own output (no converted copy anywhere); frames converted when read
+        assert folder == src and seq.label == str(src) and seq.form == "npz" and seq.origin == str(src)
+        assert [f.n_people for f in seq.frames()] == [2, 1]
+        assert recipe_cached(seq.frame_source.recipe)
+    assert not recipe_cached(seq.frame_source.recipe)  # what the reader loaded is let go at the end
+    assert folder.exists() and _files_under(tmp_path) == before  # nothing written, nothing left to delete
 
 
 # ---- conventions, format by format ---------------------------------------------------------------
@@ -519,3 +531,209 @@ def test_every_format_goes_through_calibrate_align_eval_render(fmt, tmp_path, mo
                     "--out", tmp_path / "render", "--no-gif", "--no-glb")
     assert result.exit_code == 0, result.output
     assert len(list((tmp_path / "render").glob("*.png"))) == 1
+
+
+# ---- --from: the tool's output read as a sequence, each frame converted when read -----------------
+def _files_under(folder: Path) -> dict[str, str]:
+    """Every file under ``folder`` (or the file itself) with the hash of its bytes."""
+    files = [folder] if folder.is_file() else sorted(p for p in folder.rglob("*") if p.is_file())
+    return {str(p.relative_to(folder) if p != folder else p.name): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in files}
+
+
+def _refuse_temporary_dirs(monkeypatch) -> None:
+    """Make creating a temporary directory (or file) outside a named output's folder fail the test."""
+    real_mkdtemp, real_mkstemp = tempfile.mkdtemp, tempfile.mkstemp
+
+    def mkdtemp(suffix=None, prefix=None, dir=None):
+        if dir is None:
+            raise AssertionError("a temporary directory was created")
+        return real_mkdtemp(suffix, prefix, dir)  # beside an output: staging it (atomic writes)
+
+    def mkstemp(suffix=None, prefix=None, dir=None, text=False):
+        if dir is None:
+            raise AssertionError("a temporary file was created")
+        return real_mkstemp(suffix, prefix, dir, text)
+
+    def temporary_directory(*args, **kwargs):
+        raise AssertionError("a temporary directory was created")
+
+    monkeypatch.setattr(tempfile, "mkdtemp", mkdtemp)
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    monkeypatch.setattr(tempfile, "TemporaryDirectory", temporary_directory)
+
+
+def _from_scene(model, camera, n_frames: int = 10):
+    """Four people per frame, the third frame empty; ten frames make two chunks for align's workers."""
+    rng = np.random.default_rng(7)
+    return [[F.standing_person(model, camera, rng.uniform(-3, 3), -rng.uniform(6, 14), pid) for pid in range(4)]
+            if i != 2 else [] for i in range(n_frames)]
+
+
+def _ok(result):
+    assert result.exit_code == 0, result.output
+    return result
+
+
+def _report(result) -> dict:
+    """A --json eval result without the prediction's name (a path, which differs by design)."""
+    rows = json.loads(result.stdout)["predictions"]
+    return [{k: v for k, v in row.items() if k not in ("pred", "gt")} for row in rows]
+
+
+@pytest.mark.parametrize("fmt", ALL)
+def test_from_gives_what_import_then_run_gives(fmt, tmp_path, model, camera, model_path, runner, monkeypatch):
+    """calibrate/align/eval --from FMT give byte for byte the camera.yaml, aligned sequence and metrics
+    of importing first; no temporary directory or file is made, the input is never touched."""
+    (tmp_path / "in").mkdir()
+    src = _write(fmt, tmp_path / "in", _from_scene(model, camera), model, camera)
+    size = ["--image-size", W, H] if fmt in ("cliff", "multihmr") else []
+    opts = ["--from", fmt, "--smpl-model", model_path, *size]
+    imported = tmp_path / "imported"
+    import_sequence(src, imported, fmt, smpl_model=model_path, image_size=(W, H) if size else None)
+    before = _files_under(tmp_path / "in")
+    _refuse_temporary_dirs(monkeypatch)
+
+    cams = [tmp_path / "cam_imported.yaml", tmp_path / "cam_from.yaml"]
+    _ok(invoke(runner, "calibrate", imported, "--out", cams[0], "--quiet"))
+    _ok(invoke(runner, "calibrate", src, *opts, "--out", cams[1], "--quiet"))
+    assert cams[0].read_bytes() == cams[1].read_bytes()
+
+    camera_given = ["--camera", cams[0], "-q"]
+    _ok(invoke(runner, "align", "--in", imported, *camera_given, "--out", tmp_path / "al_imported", "--jobs", 1))
+    _ok(invoke(runner, "align", "--in", src, *opts, *camera_given, "--out", tmp_path / "al_from", "--jobs", 2))
+    aligned = _files_under(tmp_path / "al_imported")
+    assert len(aligned) >= 9 + 4 and _files_under(tmp_path / "al_from") == aligned  # frames, people.csv, meta, camera
+    if fmt == "spec":  # the camera SPEC carries, used when no --camera is given
+        _ok(invoke(runner, "align", "--in", imported, "--out", tmp_path / "al2_imported", "-q"))
+        _ok(invoke(runner, "align", "--in", src, *opts, "--out", tmp_path / "al2_from", "-q"))
+        assert _files_under(tmp_path / "al2_from") == _files_under(tmp_path / "al2_imported")
+
+    gt = ["--gt", imported]
+    reports = [_report(_ok(invoke(runner, "eval", imported, *gt, "--out", tmp_path / "m_imported", "--json"))),
+               _report(_ok(invoke(runner, "eval", src, *opts, *gt, "--out", tmp_path / "m_from", "--json")))]
+    assert reports[0] == reports[1] and reports[0][0]["matched"] == 36
+    if fmt in ("agora", "bedlam"):  # ground truth read with --gt-from
+        gt_from = ["--gt", src, "--gt-from", fmt, "--smpl-model", model_path]
+        again = _report(_ok(invoke(runner, "eval", imported, *gt_from, "--out", tmp_path / "m_gt_from", "--json")))
+        assert again == reports[0]
+    assert _files_under(tmp_path / "in") == before
+    outputs = ["in", "imported", "cam_imported.yaml", "cam_from.yaml", "al_imported", "al_from", "m_imported", "m_from"]
+    outputs += ["al2_imported", "al2_from"] if fmt == "spec" else []
+    outputs += ["m_gt_from"] if fmt in ("agora", "bedlam") else []
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(outputs)  # nothing else was written
+
+
+@pytest.mark.parametrize("fmt", ALL)
+def test_imported_sequence_is_what_import_writes(fmt, tmp_path, model, camera, model_path):
+    """Frame by frame (in any order, twice), meta.yaml content and camera: those of import + open_sequence."""
+    src = _write(fmt, tmp_path, _from_scene(model, camera), model, camera)
+    options = {"smpl_model": model_path, "image_size": (W, H) if fmt in ("cliff", "multihmr") else None}
+    import_sequence(src, tmp_path / "out", fmt, **options)
+    written = open_sequence(tmp_path / "out")
+    with imported_sequence(src, fmt, **options) as seq:
+        assert seq.frame_names == written.frame_names and seq.image_size == written.image_size
+        assert seq.intrinsics == written.intrinsics and seq.focal_kind == written.focal_kind
+        assert seq.camera == written.camera and seq.camera_fit == written.camera_fit
+        for name in [*reversed(seq.frame_names), *seq.frame_names]:
+            ours, theirs = seq.read_frame(name), written.read_frame(name)
+            assert ours.name == theirs.name and sorted(ours.data) == sorted(theirs.data)
+            for key, value in theirs.data.items():
+                assert type(ours.data[key]) is type(value) and ours.data[key].dtype == value.dtype, key
+                np.testing.assert_array_equal(ours.data[key], value)
+        assert seq.meta == written.meta  # complete once every frame was read (joints layout, warnings)
+        assert list(seq.warnings) == written.meta["import"]["warnings"]
+
+
+def test_from_shows_the_import_warnings_once_also_from_workers(tmp_path, model, camera, model_path, runner):
+    """A person dropped while a worker builds its frame is reported once, after the command, as import reports it."""
+    scene = _from_scene(model, camera)
+    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    bad = sorted(src.glob("*.npz"))[8]  # the tenth frame (the third is empty: no file), in align's second chunk
+    results = safe_pickle.load_npz(bad)["results"].item()
+    results["verts"][1, 5] = np.nan
+    np.savez(bad, results=results)
+    cam_yaml = tmp_path / "camera.yaml"
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    imported = invoke(runner, "import", src, tmp_path / "imported", "--from", "bev")
+    summary = invoke(runner, "import", src, tmp_path / "imp2", "--from", "bev", "--json")
+    expected = json.loads(summary.stdout)["warnings"]
+    assert any("inferred" in w for w in expected) and any("dropped 1 person" in w for w in expected)
+    for args in (["align", "--in", src, "--camera", cam_yaml, "--out", tmp_path / "al", "--jobs", 2],
+                 ["calibrate", src, "--out", tmp_path / "cam.yaml"]):
+        result = _ok(invoke(runner, *args, "--from", "bev"))
+        text = " ".join(result.stderr.split())
+        for warning in expected:
+            assert text.count(" ".join(f"warning: {warning}".split())) == 1, (warning, text)
+        assert text.count("warning:") == len(expected) == " ".join(imported.stderr.split()).count("warning:")
+    meta = open_sequence(tmp_path / "al").meta["import"]
+    assert meta["warnings"] == expected  # the aligned sequence's meta.yaml keeps them, as after an import
+    assert "warning" not in invoke(runner, "align", "--in", src, "--from", "bev", "--camera", cam_yaml, "--out",
+                                   tmp_path / "al3", "--quiet").stderr
+
+
+def test_imported_sequence_pickles_as_its_recipe(tmp_path, model, camera, model_path):
+    """Sent to a worker, an imported sequence is a few kB (its recipe, not what was loaded); a process
+    without the loaded source reads it again, once, and builds the same frames."""
+    scene = _from_scene(model, camera, 5)
+    src = F.write_phalp(tmp_path / "r.pkl", scene, (W, H), ghost=False)
+    with imported_sequence(src, "4dhumans", smpl_model=model_path) as seq:
+        blob = pickle.dumps(seq)
+        assert len(blob) < 4000 < src.stat().st_size
+        name = seq.frame_names[3]
+        frame = seq.read_frame(name)
+        recipe = seq.frame_source.recipe
+        forget(recipe)  # as in a spawned worker: nothing loaded in this process
+        assert not recipe_cached(recipe)
+        copy = pickle.loads(blob)
+        assert isinstance(copy.frame_source, ImporterSource) and copy.frame_source.recipe == recipe
+        again = copy.read_frame(name)
+        assert recipe_cached(recipe) and copy.frame_source.imported is pickle.loads(blob).frame_source.imported
+        for key, value in frame.data.items():
+            np.testing.assert_array_equal(again.data[key], value)
+        assert copy.meta == seq.meta and copy.camera == seq.camera
+        notes = copy.frame_notes([name])
+        assert list(notes) == [3]
+        seq.add_frame_notes(notes)  # what a worker found comes back (here: nothing to report)
+        assert seq.warnings == ()
+    assert not recipe_cached(recipe)
+
+
+def test_from_errors_in_a_frame_exit_2_with_one_line(tmp_path, scene, model, camera, model_path, runner):
+    """Malformed content met while a frame is converted (not when the source is opened) is one line, exit 2,
+    and leaves no output."""
+    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    bad = sorted(src.glob("*.npz"))[1]
+    results = safe_pickle.load_npz(bad)["results"].item()
+    results["verts"] = "not an array"
+    np.savez(bad, results=results)
+    cam_yaml = tmp_path / "camera.yaml"
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    for jobs in (1, 2):
+        text = _one_line_error(invoke(runner, "align", "--in", src, "--from", "bev", "--image-size", W, H, "--camera",
+                                      cam_yaml, "--out", tmp_path / "al", "--jobs", jobs))
+        assert f"[{bad.stem}]" in text and "verts" in text
+        assert not (tmp_path / "al").exists()
+
+
+def test_a_spawned_worker_reads_the_source_once(tmp_path, model, camera, model_path):
+    """Where workers are spawned (no inherited memory), each reads the source from its recipe once."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    scene = _from_scene(model, camera, 4)
+    scene[1][0].verts_cam[3] = np.nan  # dropped with a warning when frame 1 is built
+    src = F.write_multihmr(tmp_path / "mh", scene, image_size=(W, H))
+    with imported_sequence(src, "multihmr", image_size=(W, H)) as seq:
+        expected = [dict(seq.read_frame(name).data) for name in seq.frame_names]
+        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            first = pool.submit(F.read_in_worker, seq, seq.frame_names[:2]).result()
+            second = pool.submit(F.read_in_worker, seq, seq.frame_names[2:]).result()
+    assert first[0] is False and second[0] is True  # read by the first task, kept for the next
+    assert first[1] == second[1] and first[2] == second[2]
+    for got, want in zip(first[3] + second[3], expected):
+        assert sorted(got) == sorted(want)
+        for key in want:
+            np.testing.assert_array_equal(got[key], want[key])
+    dropped = [w for w in seq.warnings if "dropped 1 person" in w]
+    assert len(dropped) == 1 and [w for notes in first[4].values() for w in notes.warnings] == dropped

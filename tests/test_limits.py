@@ -295,6 +295,25 @@ def test_bev_npz_extra_member_is_never_read(tmp_path):
     assert len(list((tmp_path / "out").glob("*.npz"))) == 1
 
 
+def test_parameters_for_gigabytes_of_meshes_are_refused_before_posing(tmp_path):
+    """A 0.1 MB CLIFF file naming 5,000 people in one image: posing them would need 754 MiB of
+    float64 meshes (and 4 GiB of skinning transforms at once); refused, one line, bounded memory."""
+    n = 5_000
+    detections = np.zeros((n, 8))
+    detections[:, 3:5] = 10.0  # boxes (0, 0) - (10, 10)
+    src = tmp_path / "cliff.npz"
+    np.savez_compressed(src, imgname=np.array(["/data/imgs/000000.png"] * n), pose=np.zeros((n, 72)),
+                        shape=np.zeros((n, 10)), global_t=np.tile([0.0, 0.0, 10.0], (n, 1)),
+                        pred_joints=np.zeros((n, 45, 3)), focal_l=np.full(n, 800.0), detection_all=detections)
+    assert src.stat().st_size < 1 << 20
+    model = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
+    for command in (("import", src, tmp_path / "out"), ("calibrate", src, "--out", tmp_path / "camera.yaml")):
+        assert_refused(run(*command, "--from", "cliff", "--image-size", 640, 480, "--smpl-model", model),
+                       "cliff.npz: posing 5000 people on SMPL.npz (6591 vertices) needs 754.3 MiB of meshes",
+                       "limits.max_frame_mb (256.0 MiB)")
+    assert not (tmp_path / "out").exists() and not (tmp_path / "camera.yaml").exists()
+
+
 def test_compressed_pickle_bomb(tmp_path):
     """A 2.3 MB zlib-compressed 'joblib' file inflating to 2.2 GiB: measured in chunks, refused, never held."""
     data, _ = deflated_zeros(b"\x80\x04", (2 << 30) + (1 << 28))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,8 @@ from conftest import invoke, tetra_frame, tree_hash
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError
-from rotavat_cli.sequence import Frame, open_sequence, read_camera_yaml, read_frame_npz, write_camera_yaml, write_frame
+from rotavat_cli.sequence import (DirectorySource, Frame, FrameSource, Sequence, open_sequence, read_camera_yaml,
+                                  read_frame_npz, write_camera_yaml, write_frame)
 
 
 def test_open_sequence_lists_frames_and_meta(npz_seq: Path):
@@ -169,3 +171,54 @@ def test_progress_bars_stay_off_in_ci(monkeypatch):
     monkeypatch.setattr(_common.console.file, "isatty", lambda: True, raising=False)
     assert _common.progress_enabled(False, False) is False
     assert _common.progress_enabled(True, False) is False
+
+
+# ---- frame sources ---------------------------------------------------------------------------------
+def test_a_directory_is_the_default_frame_source(npz_seq: Path):
+    seq = open_sequence(npz_seq)
+    source = seq.frame_source
+    assert isinstance(source, DirectorySource) and isinstance(source, FrameSource)
+    assert (source.path, source.form, source.frame_names) == (npz_seq, "npz", seq.frame_names)
+    assert seq.frame_path("000001") == npz_seq / "000001.npz"
+    assert seq.warnings == () and seq.frame_notes(seq.frame_names) is None
+    seq.add_frame_notes(None)  # nothing to take in
+    bare = Sequence(npz_seq, "npz", seq.frame_names, seq.meta)  # no source given: the directory itself
+    assert bare.frame_source == source
+    assert [f.n_people for f in bare.frames()] == [f.n_people for f in seq.frames()] == [3, 0, 2]
+    part = replace(seq, frame_names=seq.frame_names[1:])  # what batch's align chunks do
+    assert [f.name for f in part.frames()] == ["000001", "000002"] and len(part) == 2
+
+
+class _MemorySource:
+    """Frames held in memory, one warning collected while reading them (a FrameSource)."""
+
+    def __init__(self, frames: list[Frame]):
+        self._frames = {f.name: f for f in frames}
+        self.warnings: list[str] = []
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        return tuple(self._frames)
+
+    def read_frame(self, name: str) -> Frame:
+        if name == "b" and "b was odd" not in self.warnings:
+            self.warnings.append("b was odd")
+        return self._frames[name]
+
+
+def test_a_sequence_over_any_frame_source(tmp_path: Path):
+    rng = np.random.default_rng(4)
+    frames = [Frame(name, {**tetra_frame(rng, p), "image_size": np.array([320, 240])}, f"mem [{name}]")
+              for name, p in (("a", 2), ("b", 1))]
+    source = _MemorySource(frames)
+    assert isinstance(source, FrameSource)
+    seq = Sequence(tmp_path / "nowhere", "npz", source.frame_names, {"focal_length": 300.0}, source=source,
+                   origin="the tool's output")
+    assert seq.label == "the tool's output" and len(seq) == 2
+    assert seq.image_size == (320, 240)  # from the first frame: no meta.yaml says it
+    assert [f.n_people for f in seq.frames()] == [2, 1] and seq.read_frame("b").source == "mem [b]"
+    assert seq.warnings == ("b was odd",)
+    assert seq.frame_intrinsics(seq.read_frame("a")).focal_px == 300.0
+    with pytest.raises(ValueError, match="not files"):
+        seq.frame_path("a")
+    assert not (tmp_path / "nowhere").exists()

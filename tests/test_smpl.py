@@ -8,7 +8,9 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 
+from rotavat_cli import limits
 from rotavat_cli.errors import InputError
+from rotavat_cli.formats import smpl
 from rotavat_cli.formats.smpl import SMPLX_TO_SMPL24, joints_to_smpl24, lbs, load_body_model, pose_to_matrices
 from rotavat_cli.rotations import axis_angle_to_matrix
 
@@ -108,6 +110,26 @@ def test_axis_angle_and_rotation_matrices_agree(chain):
 def test_cardinality(chain, n_people):
     verts, joints = lbs(chain, np.zeros((n_people, 5)), np.zeros((n_people, 3, 3)), np.zeros((n_people, 3)))
     assert verts.shape == (n_people, 5, 3) and joints.shape == (n_people, 3, 3)
+
+
+def test_many_people_are_posed_in_chunks_equal_to_all_at_once(chain, monkeypatch):
+    """Past the chunk size lbs poses a few people at a time (bounded memory): same numbers."""
+    rng = np.random.default_rng(3)
+    betas, pose, transl = rng.normal(0, 1, (7, 2)), rng.normal(0, 0.5, (7, 9)), rng.normal(0, 2, (7, 3))
+    whole = lbs(chain, betas, pose, transl)
+    monkeypatch.setattr(smpl, "_LBS_CHUNK_BYTES", 2 * chain.n_verts * smpl._LBS_BYTES_PER_VERTEX)  # 2 people
+    chunked = lbs(chain, betas, pose, transl)
+    for a, b in zip(whole, chunked):
+        assert a.shape == b.shape
+        np.testing.assert_array_equal(a, b)
+
+
+def test_posing_more_than_a_frame_may_hold_is_refused(chain):
+    with limits.applied(limits.Limits(1 << 30, 1 << 30, 10 * 5 * 3 * 8, 1000, 1000)):  # 10 people of 5 vertices
+        assert lbs(chain, np.zeros((10, 2)), np.zeros((10, 3, 3)))[0].shape == (10, 5, 3)
+        with pytest.raises(InputError, match=r"posing 11 people on chain.npz \(5 vertices\) needs 1.3 KiB of meshes, "
+                                             r"over limits.max_frame_mb \(1.2 KiB\)"):
+            lbs(chain, np.zeros((11, 2)), np.zeros((11, 3, 3)))
 
 
 def test_float32_file_and_smpl_layout(tmp_path):

@@ -251,8 +251,9 @@ def track_statures(seq: Sequence, camera: Camera, upright: str = "paper") -> dic
 _CHUNK_FRAMES = 8  # frames per worker task: amortises task overhead, keeps memory bounded
 
 
-def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray], str]]:
-    """Read, align and write a few frames; per frame its people count, columns and people.csv rows."""
+def _align_chunk(task: tuple) -> tuple[list[tuple[int, dict[str, np.ndarray], str]], object]:
+    """Read, align and write a few frames: per frame its people count, columns and people.csv rows; and
+    what reading them found (``Sequence.frame_notes``: an imported sequence's warnings, from a worker)."""
     seq, names, camera, out, upright, stature_by_id, stature_range_m = task
     results = []
     for name in names:
@@ -260,7 +261,7 @@ def _align_chunk(task: tuple) -> list[tuple[int, dict[str, np.ndarray], str]]:
         new_frame, cols = align_frame(frame, camera, upright, stature_by_id, seq.frame_intrinsics(frame), stature_range_m)
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols)))
-    return results
+    return results, seq.frame_notes(names)
 
 
 @dataclass
@@ -364,7 +365,8 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str 
         tasks = ((seq, chunk, camera, stage, upright, stature_by_id, (lo, hi)) for chunk in chunks)
         with atomic_open(stage / "people.csv", "w") as handle:
             csv.writer(handle, lineterminator="\n").writerow(PEOPLE_COLUMNS)
-            for results in ordered_map(_align_chunk, tasks, cap_workers(workers, len(chunks)), processes=True):
+            for results, notes in ordered_map(_align_chunk, tasks, cap_workers(workers, len(chunks)), processes=True):
+                seq.add_frame_notes(notes)
                 for n_people, cols, rows in results:
                     handle.write(rows)
                     summary.add(n_people, cols)

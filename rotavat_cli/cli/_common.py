@@ -8,7 +8,6 @@ import sys
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -139,9 +138,11 @@ def use_config(config_file: Path | None, overrides: dict | None = None) -> dict:
 @contextmanager
 def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | None = None,
                    smpl_model: Path | None = None, read_camera: bool = True, quiet: bool = False) -> Iterator[Sequence]:
-    """Open a contract sequence, or with ``fmt`` import it into a temporary one for the command's duration.
+    """Open a contract sequence, or with ``fmt`` read an HPS tool's output as one, each frame converted
+    when it is read (nothing written: ``rotavat_cli.formats.imported_sequence``).
 
-    Entries of OBJ frame folders that are not people's OBJ files are reported (never silently skipped).
+    Entries of OBJ frame folders that are not people's OBJ files are reported (never silently skipped);
+    what converting found (the warnings ``rotavat import`` prints) is printed once, after the command.
     """
     if fmt is None:
         seq = open_sequence(path, read_camera=read_camera)
@@ -152,8 +153,10 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
 
     if fmt not in available_formats():
         raise InputError(f"unknown format '{fmt}' for --from (known: {', '.join(available_formats())})")
-    with imported_sequence(path, fmt, image_size=image_size, smpl_model=smpl_model) as seq:
-        yield seq if read_camera else replace(seq, camera=None, camera_fit={})
+    with imported_sequence(path, fmt, image_size=image_size, smpl_model=smpl_model, read_camera=read_camera) as seq:
+        yield seq
+        for warning in seq.warnings:
+            info(f"[yellow]warning:[/] {escape(str(warning))}", quiet)
 
 
 def warn_ignored(seq: Sequence, quiet: bool) -> None:

@@ -2,10 +2,13 @@
 
 One module per external tool; each exports ``READERS = {"name": read_name}`` (trimesh's loader
 registry) and a ``sniff(path) -> name | None`` used by :func:`detect_format`. Every reader takes the
-source path and :class:`ImportOptions` and returns the same type, :class:`ImportedSequence`: lazily
-produced contract :class:`~rotavat_cli.sequence.Frame` objects (OpenCV camera frame, metres,
-float32), the sequence-level ``meta.yaml`` content, and (SPEC only) a camera. Conventions of each
-tool, with the source files they were read from, are in ``docs/formats.md``.
+source path and :class:`ImportOptions` and returns the same type, :class:`ImportedSequence`: contract
+:class:`~rotavat_cli.sequence.Frame` objects (OpenCV camera frame, metres, float32) built one at a
+time on demand from what the reader loaded, the sequence-level ``meta.yaml`` content, and (SPEC
+only) a camera. :func:`import_sequence` writes them as a sequence directory; :func:`imported_sequence`
+reads them as a :class:`~rotavat_cli.sequence.Sequence` without writing anything
+(:mod:`rotavat_cli.formats.source`). Conventions of each tool, with the source files they were
+read from, are in ``docs/formats.md``.
 
 Frame keys written: ``vertices`` (P, V, 3) when meshes are known (given by the tool, or posed from
 its SMPL parameters with ``--smpl-model``), ``faces`` when the model file gives them, ``joints``
@@ -17,10 +20,8 @@ per-frame ``focal_length`` / ``principal_point`` / ``image_size`` only when they
 from __future__ import annotations
 
 import contextlib
-import tempfile
 import zipfile
 from collections.abc import Callable, Iterator
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +29,11 @@ from ..atomic import staged_directory
 from ..errors import InputError
 from ..outputs import check_output_dir
 from ..plain import to_plain
-from ..sequence import Sequence, open_sequence, write_camera_yaml, write_frame, write_meta
+from ..sequence import Sequence, write_camera_yaml, write_frame, write_meta
 from . import agora, bedlam, bev, cliff, fourdhumans, multihmr, spec
 from ._common import ImportedSequence, ImportOptions
 from .smpl import BodyModel, load_body_model
+from .source import forget, open_imported
 
 __all__ = [
     "ImportOptions",
@@ -41,6 +43,7 @@ __all__ = [
     "read_format",
     "import_sequence",
     "imported_sequence",
+    "reading_errors",
 ]
 
 
@@ -124,14 +127,12 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
     """
     src, out = Path(src), Path(out)
     check_output_dir(out, [src], overwrite)
-    try:
+    with reading_errors(src, fmt):
         imported = read_format(src, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov_deg)
-    except _READ_ERRORS as exc:
-        raise _invalid(src, fmt, exc) from None
     with staged_directory(out, "import") as staging:
         frames = people = empty = 0
         has_vertices = False
-        try:
+        with reading_errors(src, fmt):
             for frame in imported.frames:
                 write_frame(staging, frame, "npz")
                 frames += 1
@@ -140,8 +141,6 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
                 has_vertices |= frame.n_people > 0 and frame.get("vertices") is not None
                 if progress is not None:
                     progress()
-        except _READ_ERRORS as exc:
-            raise _invalid(src, fmt, exc) from None
         if frames == 0:
             raise InputError(f"{src}: no frames found for format '{fmt}'")
         meta = to_plain(dict(imported.meta))
@@ -166,10 +165,37 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
 
 
 @contextlib.contextmanager
-def imported_sequence(src: str | Path, fmt: str, **options: Any) -> Iterator[Sequence]:
-    """Convert on the fly: import into a temporary directory and yield it opened (for --from in
-    calibrate/align/eval). The directory is deleted on exit. ``options`` as for import_sequence."""
-    with tempfile.TemporaryDirectory(prefix="rotavat-import-") as tmp:
-        out = Path(tmp) / "seq"
-        import_sequence(src, out, fmt, **options)
-        yield replace(open_sequence(out), origin=str(src))
+def reading_errors(src: Path, fmt: str) -> Iterator[None]:
+    """Context: what malformed content raises while a reader reads or builds frames (wrong types,
+    shapes, keys) becomes a one-line InputError naming ``src``, as ``import_sequence`` reports it;
+    an InputError that does not name ``src`` (a size limit met while posing) is prefixed with it."""
+    try:
+        yield
+    except InputError as exc:  # already one line; named by the file if what raised it could not name it
+        if str(src) in str(exc):
+            raise
+        raise InputError(f"{src}: {exc}") from None
+    except _READ_ERRORS as exc:
+        raise _invalid(src, fmt, exc) from None
+
+
+@contextlib.contextmanager
+def imported_sequence(src: str | Path, fmt: str, *, read_camera: bool = True, **options: Any) -> Iterator[Sequence]:
+    """Convert on the fly (``--from`` in calibrate/align/eval): ``src`` read as a Sequence whose
+    frames are converted when read; no file is written.
+
+    The sequence is named by ``src`` (its ``path``, ``origin`` and ``label``) and says form 'npz'
+    (what ``align`` writes for it). Its frames, ``meta`` and camera are those ``rotavat import``
+    would write and :func:`~rotavat_cli.sequence.open_sequence` read back, so every command gives
+    the same results either way; ``meta['import']`` (joints layout, warnings) is complete once
+    every frame was read, and ``seq.warnings`` lists what the user should hear of. ``options``:
+    ``image_size``, ``smpl_model``, ``fov_deg`` as for :func:`read_format`; ``read_camera``: include
+    a camera the format carries (SPEC's: it needs every frame once). Worker processes re-read the
+    source from its recipe, once each (:mod:`rotavat_cli.formats.source`); on exit this process
+    forgets what it loaded.
+    """
+    seq = open_imported(src, fmt, read_camera=read_camera, **options)
+    try:
+        yield seq
+    finally:
+        forget(seq.frame_source.recipe)

@@ -19,9 +19,9 @@ from ..errors import InputError
 from ..sequence import Frame, validate_frame
 from .smpl import BodyModel
 
-__all__ = ["ImportOptions", "ImportedSequence", "fail", "npz_has_keys", "single_file", "need_image_size", "as_array",
-           "get", "padded_square", "project_px", "image_size_from_header", "people_frame", "frame_names",
-           "natural_key", "base_meta", "no_model_warning", "model_faces"]
+__all__ = ["ImportOptions", "ImportedSequence", "FrameNotes", "Conclusion", "fail", "npz_has_keys", "single_file",
+           "need_image_size", "as_array", "get", "padded_square", "project_px", "image_size_from_header",
+           "people_frame", "frame_names", "natural_key", "base_meta", "no_model_warning", "model_faces"]
 
 
 # ---- shared types --------------------------------------------------------------------------
@@ -35,19 +35,81 @@ class ImportOptions:
 
 
 @dataclass
-class ImportedSequence:
-    """A converted sequence: frames (lazy, one pass), meta.yaml content, optional camera.
+class FrameNotes:
+    """What building one frame found besides the frame: its warnings (dropped people, duplicate
+    ids), and facts the reader sums up over every frame (``ImportedSequence.conclude``), e.g. the
+    joints layout the frame showed or its people's heights above the ground. Plain, picklable data."""
 
-    Readers may fill ``warnings``, ``meta`` and ``camera`` while ``frames`` is being consumed;
-    read them after the iterator is exhausted.
+    warnings: list[str] = field(default_factory=list)
+    facts: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Conclusion:
+    """The part of an import that depends on every frame: entries of meta.yaml's ``import:`` block,
+    warnings, and (SPEC) the camera."""
+
+    import_meta: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    camera: Camera | None = None
+    camera_fit: dict | None = None
+
+
+@dataclass
+class ImportedSequence:
+    """A converted sequence: frame names, any frame built on demand, meta.yaml content, optional camera.
+
+    ``build(i, notes)`` builds frame ``i`` from what the reader loaded (kept in its closure: the
+    parsed files, never the frames) and records what it found in ``notes``; frames can be built
+    in any order, again, or in another process with the same reader. ``meta`` and ``warnings``
+    hold what is known before any frame is built; ``conclude`` (optional) turns the notes of
+    every frame, in frame order, into the rest (:class:`Conclusion`).
+
+    Iterating ``frames`` builds every frame in order and then completes ``warnings``, ``meta``
+    and ``camera`` as ``rotavat import`` writes them: read those after the iterator is exhausted.
     """
 
-    frames: Iterator[Frame]
-    n_frames: int
+    names: tuple[str, ...]
+    build: Callable[[int, FrameNotes], Frame]
     meta: dict
     warnings: list[str] = field(default_factory=list)
     camera: Camera | None = None
     camera_fit: dict | None = None
+    conclude: Callable[[list[FrameNotes]], Conclusion] | None = None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.names)
+
+    def frame_at(self, index: int) -> tuple[Frame, FrameNotes]:
+        """Frame ``index`` (0-based, frame order) and what building it found."""
+        notes = FrameNotes()
+        return self.build(index, notes), notes
+
+    def concluded(self, notes: list[FrameNotes]) -> Conclusion:
+        """The frame-dependent part of the import from every frame's notes, in frame order."""
+        return self.conclude(notes) if self.conclude is not None else Conclusion()
+
+    def apply(self, conclusion: Conclusion) -> None:
+        """Complete ``meta``, ``warnings`` and the camera with a conclusion."""
+        self.meta.setdefault("import", {}).update(conclusion.import_meta)
+        self.warnings.extend(conclusion.warnings)
+        if conclusion.camera is not None:
+            self.camera, self.camera_fit = conclusion.camera, conclusion.camera_fit
+
+    @property
+    def frames(self) -> Iterator[Frame]:
+        """Every frame in order, one at a time (one pass; see the class docstring)."""
+        return self._frames()
+
+    def _frames(self) -> Iterator[Frame]:
+        notes = []
+        for index in range(self.n_frames):
+            frame, found = self.frame_at(index)
+            self.warnings.extend(found.warnings)
+            notes.append(found)
+            yield frame
+        self.apply(self.concluded(notes))
 
 
 # ---- helpers shared by the readers -----------------------------------------------------------

@@ -21,7 +21,7 @@ at 3840x2160), ``agora_evaluation/projection.py`` (``project2d``: ``smpl2opencv`
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +29,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
-                      natural_key, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
+                      get, model_faces, natural_key, people_frame)
 from .smpl import joints_to_smpl24, lbs
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width
@@ -101,7 +101,6 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
     focals = {image: focal_mm(image) / SENSOR_WIDTH_MM * image_size[0] for image, _ in groups}
     constant_focal = len(set(focals.values())) == 1
     model = opts.body_model
-    layout = {"value": None}
     names = frame_names([image for image, _ in groups], warnings)
 
     def person(path: Path) -> dict[str, np.ndarray | None]:
@@ -130,30 +129,34 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
             raise fail(path, "neither 'verts' nor 'params'")
         return out
 
-    def frames() -> Iterator[Frame]:
-        for index, (image, paths) in enumerate(groups):
-            people = [person(p) for p in paths]
-            stacked: dict[str, np.ndarray | None] = {}
-            for key in ("vertices", "joints", "keypoints_2d"):
-                values = [p[key] for p in people]
-                if any(v is None for v in values) or len({v.shape for v in values}) > 1:
-                    stacked[key] = None
-                    continue
-                stacked[key] = np.stack(values)
-            if stacked["joints"] is not None:
-                try:
-                    stacked["joints"], note = joints_to_smpl24(stacked["joints"])
-                    layout["value"] = layout["value"] or note
-                except ValueError:
-                    layout["value"] = layout["value"] or f"agora{stacked['joints'].shape[1]}"
-            if stacked["vertices"] is None:
-                raise fail(paths[0], "people of one image must all have vertices of the same size")
-            n_verts = stacked["vertices"].shape[1]
-            extra = {} if constant_focal else {"focal_length": np.float64(focals[image])}
-            yield people_frame(names[index], f"{src} [{image}]", warnings, vertices=stacked["vertices"],
-                               joints=stacked["joints"], keypoints_2d=stacked["keypoints_2d"],
-                               faces=model_faces(model, n_verts), n_verts=n_verts, extra=extra)
-        meta["import"]["joints_layout"] = layout["value"]
+    def build(index: int, notes: FrameNotes) -> Frame:
+        image, paths = groups[index]
+        people = [person(p) for p in paths]
+        stacked: dict[str, np.ndarray | None] = {}
+        layout = None
+        for key in ("vertices", "joints", "keypoints_2d"):
+            values = [p[key] for p in people]
+            if any(v is None for v in values) or len({v.shape for v in values}) > 1:
+                stacked[key] = None
+                continue
+            stacked[key] = np.stack(values)
+        if stacked["joints"] is not None:
+            try:
+                stacked["joints"], layout = joints_to_smpl24(stacked["joints"])
+            except ValueError:
+                layout = f"agora{stacked['joints'].shape[1]}"
+        notes.facts["joints_layout"] = layout
+        if stacked["vertices"] is None:
+            raise fail(paths[0], "people of one image must all have vertices of the same size")
+        n_verts = stacked["vertices"].shape[1]
+        extra = {} if constant_focal else {"focal_length": np.float64(focals[image])}
+        return people_frame(names[index], f"{src} [{image}]", notes.warnings, vertices=stacked["vertices"],
+                            joints=stacked["joints"], keypoints_2d=stacked["keypoints_2d"],
+                            faces=model_faces(model, n_verts), n_verts=n_verts, extra=extra)
+
+    def conclude(notes: list[FrameNotes]) -> Conclusion:
+        return Conclusion({"joints_layout": next((n.facts["joints_layout"] for n in notes
+                                                  if n.facts.get("joints_layout")), None)})
 
     meta = base_meta("agora", src, opts, image_size, next(iter(focals.values())) if constant_focal else None,
                      principal_point, focal_kind=CAMERA)
@@ -165,7 +168,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
         "conventions": "camera frame = OpenCV, metres; focal = focal_mm / 36 mm * W (hdri 50, cam00-03 18, "
                        "else 28 mm); principal point = image centre",
     })
-    return ImportedSequence(frames(), len(groups), meta, warnings)
+    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
 
 
 READERS = {"agora": read_agora}

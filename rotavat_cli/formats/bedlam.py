@@ -20,7 +20,6 @@ Source: pixelite1201/BEDLAM ``data_processing/df_full_body.py`` (``get_params``,
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +27,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
-                      npz_has_keys, people_frame, single_file)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces,
+                      natural_key, npz_has_keys, people_frame, single_file)
 from .smpl import joints_to_smpl24, lbs
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
@@ -75,34 +74,35 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     principal_point = (float(np.median(cam_int[:, 0, 2])), float(np.median(cam_int[:, 1, 2]))) if n_rows else None
 
     model = opts.body_model
-    vertices = joints = None
     layout = None
     if model is not None:
         n_pose = model.n_joints * 3
         if pose.shape[1] != n_pose:
             raise fail(path, f"'pose_cam' has {pose.shape[1]} values per person but --smpl-model {model.name} "
                              f"needs {n_pose} (SMPL-X: 165, SMPL: 72)")
-        vertices, joints55 = lbs(model, betas, pose, trans + cam_ext[:, :3, 3])
-        joints, layout = joints_to_smpl24(joints55)
+        layout = joints_to_smpl24(np.zeros((0, model.n_joints, 3)))[1]
     else:
         warnings.append("BEDLAM stores SMPL-X parameters, not meshes, and no --smpl-model was given: imported 2D "
                         "keypoints only (no vertices or joints)")
 
-    names = sorted(set(np.asarray(data["sub"]).reshape(-1).astype(str))) if "sub" in data else []
-    sub_ids = ({n: i for i, n in enumerate(names)}, np.asarray(data["sub"]).reshape(-1).astype(str)) if names else None
+    subjects = sorted(set(np.asarray(data["sub"]).reshape(-1).astype(str))) if "sub" in data else []
+    sub_ids = ({n: i for i, n in enumerate(subjects)}, np.asarray(data["sub"]).reshape(-1).astype(str)) if subjects else None
     images = sorted(set(imgname), key=natural_key)
     names = frame_names([Path(i).stem for i in images], warnings)
+    faces = model_faces(model, None if model is None else model.n_verts)
 
-    def frames() -> Iterator[Frame]:
-        for index, image in enumerate(images):
-            rows = np.flatnonzero(imgname == image)
-            ids = np.array([sub_ids[0][sub_ids[1][r]] for r in rows], dtype=np.int64) if sub_ids else None
-            extra = {} if constant_focal else {"focal_length": np.float64(fx[rows[0]])}
-            kp = gtkps[rows][..., :2] if gtkps is not None else None
-            yield people_frame(names[index], f"{path} [{image}]", warnings,
-                               vertices=None if vertices is None else vertices[rows],
-                               joints=None if joints is None else joints[rows], keypoints_2d=kp, person_ids=ids,
-                               faces=model_faces(model, None if vertices is None else vertices.shape[1]), extra=extra)
+    def build(index: int, notes: FrameNotes) -> Frame:
+        image = images[index]
+        rows = np.flatnonzero(imgname == image)
+        ids = np.array([sub_ids[0][sub_ids[1][r]] for r in rows], dtype=np.int64) if sub_ids else None
+        extra = {} if constant_focal else {"focal_length": np.float64(fx[rows[0]])}
+        kp = gtkps[rows][..., :2] if gtkps is not None else None
+        vertices = joints = None
+        if model is not None:  # posed here, one image's people at a time: memory stays that of the file
+            vertices, joints55 = lbs(model, betas[rows], pose[rows], trans[rows] + cam_ext[rows, :3, 3])
+            joints = joints_to_smpl24(joints55)[0]
+        return people_frame(names[index], f"{path} [{image}]", notes.warnings, vertices=vertices, joints=joints,
+                            keypoints_2d=kp, person_ids=ids, faces=faces, extra=extra)
 
     meta = base_meta("bedlam", path, opts, image_size, float(fx[0]) if n_rows and constant_focal else None, principal_point,
                      focal_kind=CAMERA)
@@ -112,11 +112,11 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
         "joints_layout": layout,
         "root_joint": 0,
         "keypoints_2d_layout": f"bedlam gtkps ({gtkps.shape[1]} joints)" if gtkps is not None else None,
-        "person_ids": "subject names in sorted order: " + ", ".join(names) if names else None,
+        "person_ids": "subject names in sorted order: " + ", ".join(subjects) if subjects else None,
         "conventions": "camera frame = OpenCV, metres: vertices = SMPL-X(pose_cam, shape, trans_cam) + cam_ext[:3, 3]; "
                        "intrinsics = cam_int",
     })
-    return ImportedSequence(frames(), len(images), meta, warnings)
+    return ImportedSequence(tuple(names), build, meta, warnings)
 
 
 READERS = {"bedlam": read_bedlam}

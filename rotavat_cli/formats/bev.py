@@ -31,7 +31,8 @@ from __future__ import annotations
 
 import re
 import zipfile
-from collections.abc import Callable, Iterator
+from dataclasses import replace
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -39,8 +40,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
-                      natural_key, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get,
+                      model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _NET_INPUT = 512
@@ -201,15 +202,19 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
     principal_point = (side / 2.0 - left, side / 2.0 - top)
     model = opts.body_model
     names = frame_names([_image_stem(name) for name, _ in sources], warnings)
+    # BEV's meshes come whole: of the model, only its triangles are used (the rest need not stay loaded)
+    people_opts = opts if fmt == "romp" else replace(opts, body_model=None)
+    model_verts = None if model is None else model.n_verts
+    faces = model_faces(model, model_verts)
 
-    def frames() -> Iterator[Frame]:
-        for index, (name, load) in enumerate(sources):
-            source = f"{src} [{name}]"
-            people = _people(load(), source, fmt, opts)
-            verts = people["vertices"]
-            yield people_frame(names[index], source, warnings, vertices=verts, joints=people["joints"],
-                               keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
-                               faces=model_faces(model, None if verts is None else verts.shape[1]))
+    def build(index: int, notes: FrameNotes) -> Frame:
+        name, load = sources[index]
+        source = f"{src} [{name}]"
+        people = _people(load(), source, fmt, people_opts)
+        verts = people["vertices"]
+        return people_frame(names[index], source, notes.warnings, vertices=verts, joints=people["joints"],
+                            keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
+                            faces=faces if verts is not None and verts.shape[1] == model_verts else None)
 
     meta = base_meta(fmt, src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule=fmt)
     meta["import"].update({
@@ -221,7 +226,7 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
         "conventions": f"camera frame = OpenCV, metres; vertices = verts + cam_trans; 60-degree FOV on the "
                        f"centred padded square (S = {side})",
     })
-    return ImportedSequence(frames(), len(sources), meta, warnings)
+    return ImportedSequence(tuple(names), build, meta, warnings)
 
 
 def read_bev(src: Path, opts: ImportOptions) -> ImportedSequence:

@@ -19,7 +19,6 @@ Source: huawei-noah/noah-research ``CLIFF/demo.py`` (and the multi-person fork h
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -27,9 +26,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, image_size_from_header,
-                      model_faces, no_model_warning, npz_has_keys, people_frame, single_file)
-from .smpl import joints_to_smpl24, lbs
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
+                      image_size_from_header, model_faces, no_model_warning, npz_has_keys, people_frame, single_file)
+from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
 
@@ -86,7 +85,8 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
 
     model = opts.body_model
-    vertices = joints = None
+    rot = betas = None  # per detection row: SMPL pose as rotation matrices, shape (posed frame by frame)
+    joints = None
     layout = "smpl24"
     n_params = 0
     if model is not None:
@@ -96,14 +96,15 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
         betas = as_array(data.get("shape"), "shape", path)
         n_params = min(len(pose), len(betas), len(global_t))
         try:
-            vertices, joints = lbs(model, betas[:n_params], pose[:n_params], global_t[:n_params])
+            rot = pose_to_matrices(pose[:n_params], model.n_joints)
+            posed = posed_joints(model, betas[:n_params], rot, global_t[:n_params])
         except ValueError as exc:
             raise fail(path, str(exc)) from None
         if n_params < n_det:
             warnings.append(f"{path}: {n_det - n_params} detections without SMPL parameters (--infill rows) "
                             "were skipped")
         if pred_joints.shape[1] in (24, 45) and n_params:
-            gap = float(np.max(np.linalg.norm(joints - pred_joints[:n_params, :24], axis=-1)))
+            gap = float(np.max(np.linalg.norm(posed - pred_joints[:n_params, :24], axis=-1)))
             if gap > 0.02:
                 warnings.append(f"{path}: joints posed with {model.name} differ from CLIFF's pred_joints by up to "
                                 f"{gap * 100:.1f} cm: is it the SMPL model CLIFF used?")
@@ -118,18 +119,22 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     use_ids = all(len(np.unique(track_col[frame_index == i])) == int((frame_index == i).sum())
                   for i in np.unique(frame_index))
     n_rows = n_params if model is not None else n_det
-    faces = model_faces(model, None if vertices is None else vertices.shape[1])
+    faces = model_faces(model, None if model is None else model.n_verts)
     names = frame_names([Path(str(n)).stem for n in imgnames], warnings)
 
-    def frames() -> Iterator[Frame]:
-        for i in range(len(imgnames)):
-            rows = np.flatnonzero(frame_index[:n_rows] == i)
-            yield people_frame(
-                names[i], f"{path} [image {i}]", warnings,
-                vertices=None if vertices is None else vertices[rows],
-                joints=joints[rows],
-                person_ids=track_col[rows] if use_ids else None,
-                faces=faces, n_verts=None if vertices is None else vertices.shape[1])
+    def build(i: int, notes: FrameNotes) -> Frame:
+        rows = np.flatnonzero(frame_index[:n_rows] == i)
+        if model is not None:  # posed here, one frame's people at a time: memory stays that of the file
+            try:
+                vertices, frame_joints = lbs(model, betas[rows], rot[rows], global_t[rows])
+            except ValueError as exc:
+                raise fail(path, str(exc)) from None
+        else:
+            vertices, frame_joints = None, joints[rows]
+        return people_frame(
+            names[i], f"{path} [image {i}]", notes.warnings, vertices=vertices, joints=frame_joints,
+            person_ids=track_col[rows] if use_ids else None,
+            faces=faces, n_verts=None if vertices is None else vertices.shape[1])
 
     meta = base_meta("cliff", path, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="cliff")
     meta["import"].update({
@@ -139,7 +144,7 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
         "root_joint": 8 if layout == "spin49" else 0,
         "conventions": "camera frame = OpenCV, metres; focal = image diagonal; vertices = SMPL(pose, shape) + global_t",
     })
-    return ImportedSequence(frames(), len(imgnames), meta, warnings)
+    return ImportedSequence(tuple(names), build, meta, warnings)
 
 
 READERS = {"cliff": read_cliff}

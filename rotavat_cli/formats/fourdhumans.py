@@ -24,7 +24,7 @@ PHALP: ``HMR2_4dhuman``).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -32,8 +32,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
-                      no_model_warning, padded_square, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get,
+                      model_faces, no_model_warning, padded_square, people_frame)
 from .smpl import lbs
 
 
@@ -120,15 +120,15 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
 
     names = frame_names([Path(str(k)).stem for k in order], warnings)
 
-    def frames() -> Iterator[Frame]:
-        for index, key in enumerate(order):
-            source = f"{src} [{key}]"
-            p = people(data[key], source)
-            verts = p["vertices"]
-            yield people_frame(names[index], source, warnings, vertices=verts, joints=p["joints"],
-                               keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
-                               faces=model_faces(model, None if verts is None else verts.shape[1]),
-                               n_verts=None if model is None else model.n_verts)
+    def build(index: int, notes: FrameNotes) -> Frame:
+        key = order[index]
+        source = f"{src} [{key}]"
+        p = people(data[key], source)
+        verts = p["vertices"]
+        return people_frame(names[index], source, notes.warnings, vertices=verts, joints=p["joints"],
+                            keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
+                            faces=model_faces(model, None if verts is None else verts.shape[1]),
+                            n_verts=None if model is None else model.n_verts)
 
     meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="4dhumans")
     meta["import"].update({
@@ -140,7 +140,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         "conventions": f"camera frame = OpenCV, metres; vertices = SMPL(smpl) + camera; focal = 5000 * S / 256 "
                        f"(S = {side}); only detections with tracked_time == 0",
     })
-    return ImportedSequence(frames(), len(order), meta, warnings)
+    return ImportedSequence(tuple(names), build, meta, warnings)
 
 
 READERS = {"4dhumans": read_fourdhumans}

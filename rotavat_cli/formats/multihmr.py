@@ -25,7 +25,7 @@ Source: naver/multi-hmr ``demo.py`` (``open_image``: ``ImageOps.contain`` + ``Im
 from __future__ import annotations
 
 import zipfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +33,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces, natural_key,
-                      need_image_size, people_frame, project_px)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
+                      model_faces, natural_key, need_image_size, people_frame, project_px)
 from .smpl import joints_to_smpl24
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
@@ -111,36 +111,38 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
     model = opts.body_model
     warnings: list[str] = []
-    layout = {"value": None}
     names = frame_names([p.stem for p in files], warnings)
 
-    def frames() -> Iterator[Frame]:
-        for index, path in enumerate(files):
-            humans = _humans(path)
-            verts, j3d = humans["verts"], humans["j3d"]
-            n = len(verts)
-            joints = kp = None
-            if j3d is not None and len(j3d) != n:
-                raise fail(path, "'j3d_smplx' and 'verts_smplx' differ in their number of people")
-            if j3d is None and model is not None and n and model.n_verts == verts.shape[1]:
-                j3d = np.einsum("jv,pvc->pjc", model.J_regressor, verts)  # joints regressed from the posed mesh
-                layout["value"] = layout["value"] or "smpl24 (regressed from the meshes with --smpl-model)"
-            if j3d is not None:
-                try:
-                    joints, note = joints_to_smpl24(j3d)
-                    layout["value"] = layout["value"] or note
-                except ValueError:
-                    joints = j3d
-                    layout["value"] = layout["value"] or f"multihmr{j3d.shape[1]}"
-                kp = project_px(j3d, focal, principal_point)
-            yield people_frame(names[index], path, warnings, vertices=verts if verts.shape[1] else None,
-                               joints=joints, keypoints_2d=kp,
-                               faces=model_faces(model, verts.shape[1] if verts.shape[1] else None),
-                               n_verts=verts.shape[1] if verts.shape[1] else None)
-        if layout["value"] is None:
-            warnings.append(f"{src}: no 'j3d_smplx' in the files (and no matching --smpl-model): vertices only, "
-                            "no joints (MPJPE unavailable)")
-        meta["import"]["joints_layout"] = layout["value"]
+    def build(index: int, notes: FrameNotes) -> Frame:
+        path = files[index]
+        humans = _humans(path)
+        verts, j3d = humans["verts"], humans["j3d"]
+        n = len(verts)
+        joints = kp = layout = None
+        if j3d is not None and len(j3d) != n:
+            raise fail(path, "'j3d_smplx' and 'verts_smplx' differ in their number of people")
+        if j3d is None and model is not None and n and model.n_verts == verts.shape[1]:
+            j3d = np.einsum("jv,pvc->pjc", model.J_regressor, verts)  # joints regressed from the posed mesh
+            layout = "smpl24 (regressed from the meshes with --smpl-model)"
+        if j3d is not None:
+            try:
+                joints, note = joints_to_smpl24(j3d)
+                layout = layout or note
+            except ValueError:
+                joints = j3d
+                layout = layout or f"multihmr{j3d.shape[1]}"
+            kp = project_px(j3d, focal, principal_point)
+        notes.facts["joints_layout"] = layout
+        return people_frame(names[index], path, notes.warnings, vertices=verts if verts.shape[1] else None,
+                            joints=joints, keypoints_2d=kp,
+                            faces=model_faces(model, verts.shape[1] if verts.shape[1] else None),
+                            n_verts=verts.shape[1] if verts.shape[1] else None)
+
+    def conclude(notes: list[FrameNotes]) -> Conclusion:
+        layout = next((n.facts["joints_layout"] for n in notes if n.facts.get("joints_layout")), None)
+        warned = [] if layout is not None else [f"{src}: no 'j3d_smplx' in the files (and no matching --smpl-model): "
+                                                 "vertices only, no joints (MPJPE unavailable)"]
+        return Conclusion({"joints_layout": layout}, warned)
 
     meta = base_meta("multihmr", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED)
     meta["import"].update({
@@ -151,7 +153,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         "conventions": f"camera frame = OpenCV, metres; focal = max(W, H) / (2 tan({fov:g} deg / 2)); "
                        "principal point = image centre",
     })
-    return ImportedSequence(frames(), len(files), meta, warnings)
+    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
 
 
 READERS = {"multihmr": read_multihmr}

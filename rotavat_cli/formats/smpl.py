@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
+from .. import limits, safe_pickle
 from ..errors import InputError
 from ..rotations import axis_angle_to_matrix
 
@@ -46,6 +46,7 @@ __all__ = [
     "load_body_model",
     "pose_to_matrices",
     "lbs",
+    "posed_joints",
     "SMPLX_TO_SMPL24",
     "joints_to_smpl24",
     "SMPL_PARENTS",
@@ -171,6 +172,33 @@ def pose_to_matrices(pose: np.ndarray, n_joints: int) -> np.ndarray:
     raise ValueError(f"pose of shape {list(pose.shape)} is neither axis-angle nor rotation matrices for {n_joints} joints")
 
 
+# transient memory of lbs per posed vertex: the (4, 4) blend of joint transforms, float64
+_LBS_BYTES_PER_VERTEX = 16 * 8
+_LBS_CHUNK_BYTES = 64 << 20  # people are posed in chunks whose transforms take at most this
+
+
+def check_posed_size(model: BodyModel, n_people: int) -> None:
+    """Refuse to pose more people at once than one contract frame may hold (``limits.max_frame_mb``):
+    a parameter file of a few MB can name enough people in one image to need gigabytes of meshes.
+
+    Raises InputError (the caller's reader names the file).
+    """
+    needed = n_people * model.n_verts * 3 * 8  # float64 vertices (P, V, 3)
+    limit = limits.current().max_frame_bytes
+    if needed > limit:
+        raise InputError(f"posing {n_people} people on {model.name} ({model.n_verts} vertices) needs "
+                         f"{limits.human_bytes(needed)} of meshes, over limits.max_frame_mb "
+                         f"({limits.human_bytes(limit)}); raise it in the config if this is real")
+
+
+def _rows(values: np.ndarray | None, n_people: int, rows: slice) -> np.ndarray | None:
+    """Rows ``rows`` of a per-person array given as (P, ...) (or reshapeable to it); None stays None."""
+    if values is None:
+        return None
+    values = np.asarray(values)
+    return values.reshape(n_people, -1)[rows]
+
+
 def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarray | None = None,
         expression: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pose the model: -> vertices (P, V, 3), joints (P, J, 3), float64, the model's frame (+ transl).
@@ -185,6 +213,12 @@ def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarra
     n_people = rot.shape[0]
     if n_people == 0:
         return np.zeros((0, model.n_verts, 3)), np.zeros((0, model.n_joints, 3))
+    check_posed_size(model, n_people)
+    chunk = max(1, _LBS_CHUNK_BYTES // (model.n_verts * _LBS_BYTES_PER_VERTEX))
+    if n_people > chunk:  # many people: the (P, V, 4, 4) transforms are made a few people at a time
+        parts = [lbs(model, _rows(betas, n_people, s), rot[s], _rows(transl, n_people, s),
+                     _rows(expression, n_people, s)) for s in (slice(i, i + chunk) for i in range(0, n_people, chunk))]
+        return np.concatenate([v for v, _ in parts]), np.concatenate([j for _, j in parts])
     betas = np.asarray(betas, dtype=np.float64).reshape(n_people, -1)
     n_components = min(300, model.shapedirs.shape[2]) if model.kind == "smplx" else model.shapedirs.shape[2]
     n_shape = min(betas.shape[1], n_components)
@@ -204,6 +238,29 @@ def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarra
         verts = verts + transl
         posed_joints = posed_joints + transl
     return verts, posed_joints
+
+
+def posed_joints(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarray | None = None) -> np.ndarray:
+    """The joints (P, J, 3) :func:`lbs` gives, without posing the meshes (float64; equal to its joints up
+    to rounding): the rest joints come from the regressor applied to the template and the shape blend
+    shapes (linear), then the kinematic chain. Cheap for many people: no (P, V, ...) array is made.
+
+    betas, pose, transl: as for :func:`lbs` (no expression: it moves the face only).
+    """
+    rot = pose_to_matrices(pose, model.n_joints)  # (P, J, 3, 3)
+    n_people = rot.shape[0]
+    if n_people == 0:
+        return np.zeros((0, model.n_joints, 3))
+    betas = np.asarray(betas, dtype=np.float64).reshape(n_people, -1)
+    n_components = min(300, model.shapedirs.shape[2]) if model.kind == "smplx" else model.shapedirs.shape[2]
+    n_shape = min(betas.shape[1], n_components)
+    joints_template = model.J_regressor @ model.v_template  # (J, 3)
+    joints_shapedirs = np.einsum("jv,vcs->jcs", model.J_regressor, model.shapedirs[:, :, :n_shape])  # (J, 3, S)
+    rest_joints = joints_template[None] + np.einsum("jcs,ps->pjc", joints_shapedirs, betas[:, :n_shape])
+    joints, _ = _rigid_transforms(rot, rest_joints, model.parents)
+    if transl is not None:
+        joints = joints + np.asarray(transl, dtype=np.float64).reshape(n_people, 1, 3)
+    return joints
 
 
 def _rigid_transforms(rot: np.ndarray, joints: np.ndarray, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,6 @@ in radians), ``camcalib/vis_utils.py`` (horizon: positive pitch = looking down),
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +32,8 @@ from ..focal import ASSUMED
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
-from ._common import (ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get, model_faces,
-                      natural_key, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
+                      get, model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
@@ -160,27 +159,41 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
             break
     focals = np.array([cams[s]["f_pix"] for s in stems])
     ups = np.stack([spec_rotation(cams[s]["pitch"], cams[s]["roll"]) @ _UP_SPEC_WORLD for s in stems])
-    ground: list[float] = []
     names = frame_names(stems, warnings)
-    imported: ImportedSequence
+    vertex_counts: dict[str, int] = {}  # V of each results file seen: an empty image after one has (0, V, 3) vertices
 
-    def frames() -> Iterator[Frame]:
-        n_verts = None
-        for index, stem in enumerate(stems):
-            people = load(stem)
-            source = results.get(stem, calib[stem])
-            extra = {"focal_length": np.float64(cams[stem]["f_pix"])}
-            if people is None:
-                yield people_frame(names[index], source, warnings, n_verts=n_verts, extra=extra)
-                continue
-            verts = people["vertices"]
-            n_verts = verts.shape[1]
-            feet_cam, _ = foot_head_points(verts)
-            ground.extend((-(feet_cam @ ups[index]))[np.isfinite(feet_cam).all(axis=1)].tolist())
-            yield people_frame(names[index], source, warnings, vertices=verts, joints=people["joints"],
-                               keypoints_2d=people.get("keypoints_2d"), faces=model_faces(model, n_verts),
-                               n_verts=n_verts, extra=extra)
-        imported.camera, imported.camera_fit = _camera(image_size, principal_point, focals, ups, ground, warnings, src)
+    def n_verts_before(index: int) -> int | None:
+        """V of the results file of the last image before ``index`` that has one (None: no such image)."""
+        stem = next((s for s in reversed(stems[:index]) if s in results), None)
+        if stem is None:
+            return None
+        if stem not in vertex_counts:
+            path = results[stem]
+            verts = as_array(get(safe_pickle.load_file(path), "smpl_vertices", path), "smpl_vertices", path, ndim=3,
+                             last=(3,))
+            vertex_counts[stem] = verts.shape[1]
+        return vertex_counts[stem]
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        stem = stems[index]
+        people = load(stem)
+        source = results.get(stem, calib[stem])
+        extra = {"focal_length": np.float64(cams[stem]["f_pix"])}
+        if people is None:
+            return people_frame(names[index], source, notes.warnings, n_verts=n_verts_before(index), extra=extra)
+        verts = people["vertices"]
+        n_verts = vertex_counts[stem] = verts.shape[1]
+        feet_cam, _ = foot_head_points(verts)
+        notes.facts["ground_m"] = (-(feet_cam @ ups[index]))[np.isfinite(feet_cam).all(axis=1)].tolist()
+        return people_frame(names[index], source, notes.warnings, vertices=verts, joints=people["joints"],
+                            keypoints_2d=people.get("keypoints_2d"), faces=model_faces(model, n_verts),
+                            n_verts=n_verts, extra=extra)
+
+    def conclude(notes: list[FrameNotes]) -> Conclusion:
+        ground = [h for n in notes for h in n.facts.get("ground_m", ())]
+        found: list[str] = []
+        camera, fit = _camera(image_size, principal_point, focals, ups, ground, found, src)
+        return Conclusion(warnings=found, camera=camera, camera_fit=fit)
 
     meta = base_meta("spec", src, opts, image_size, float(np.median(focals)), principal_point, focal_kind=ASSUMED)
     meta["import"].update({
@@ -192,8 +205,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         "conventions": "camera frame = OpenCV, metres: X_cam = Rx(pitch) Rz(roll) X + pred_cam_t; per-frame focal = "
                        "CamCalib f_pix; principal point = image centre",
     })
-    imported = ImportedSequence(frames(), len(stems), meta, warnings)
-    return imported
+    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
 
 
 def _camera(image_size: tuple[int, int], principal_point: tuple[float, float], focals: np.ndarray, ups: np.ndarray,
