@@ -1257,7 +1257,6 @@ def gen_degenerate() -> list[Case]:
     """Degenerate scenes: one depth, above the horizon, nobody, a camera looking straight down/up."""
     cls = "degenerate"
     cases: list[Case] = []
-    cam = camera()
 
     def seq(frames: list[dict], extra: dict | None = None) -> Callable[[], dict]:
         return lambda: {**contract_seq("seq", frames=frames), "cam.yaml": camera_yaml(), **(extra or {})}
