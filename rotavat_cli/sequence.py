@@ -529,6 +529,13 @@ class Sequence:
                 return size
         return self.camera.image_size if self.camera is not None else None
 
+    @property
+    def camera_label(self) -> str:
+        """How messages name the sequence's own camera: its camera.yaml, or the camera its format carried."""
+        if isinstance(self.frame_source, DirectorySource):
+            return str(self.path / "camera.yaml")
+        return f"the camera imported with {self.label}"
+
     def require_image_size(self) -> tuple[int, int]:
         """Image size, or an InputError saying how to provide it."""
         size = self.image_size

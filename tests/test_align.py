@@ -230,3 +230,29 @@ def test_people_csv_cells():
     assert rows[0] == ["a,b", "7", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333",
                        "0.333333", "2.5", "0.333333", "0.333333", ""]
     assert rows[1] == ["000001", "8"] + [""] * 10 + ["degenerate_mesh"]
+
+
+def test_one_rule_picks_the_camera_align_uses():
+    """Given > the sequence's own > calibrated now; calibration runs only in the last case."""
+    from dataclasses import replace
+
+    from rotavat_cli.alignment import CALIBRATED, GIVEN, AlignCamera, camera_for_align
+    from rotavat_cli.sequence import Sequence
+
+    own_cam = Camera((640, 480), 500.0, None, 0.3, 0.0, 4.0)
+    given = AlignCamera(Camera((640, 480), 700.0, None, 0.2, 0.0, 6.0), {"method": "grid"}, GIVEN, "cam.yaml")
+    calls = []
+
+    def calibrate(seq):
+        calls.append(seq.label)
+        return AlignCamera(Camera((640, 480), 900.0, None, 0.1, 0.0, 2.0), {}, CALIBRATED, "from the people")
+
+    bare = Sequence(Path("/data/seq"), "npz", ("000000",))
+    with_own = replace(bare, camera=own_cam, camera_fit={"pairs": 12})
+    assert camera_for_align(with_own, given, calibrate) is given
+    chosen = camera_for_align(with_own, None, calibrate)
+    assert chosen.camera is own_cam and chosen.fit == {"pairs": 12} and chosen.origin == GIVEN
+    assert chosen.source == str(Path("/data/seq/camera.yaml"))
+    assert calls == []
+    chosen = camera_for_align(bare, None, calibrate)
+    assert chosen.origin == CALIBRATED and chosen.camera.focal_px == 900.0 and calls == ["/data/seq"]

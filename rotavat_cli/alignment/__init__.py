@@ -1,10 +1,13 @@
 """Alignment: the RotAvat transform (:mod:`.transform`, pure and vectorised over people) and its
-application to frames and whole sequences (:mod:`.align`: re-expression into the camera, people.csv)."""
+application to frames and whole sequences (:mod:`.align`: re-expression into the camera, people.csv);
+which camera a sequence is aligned into (:mod:`.camera_choice`)."""
 
 from .align import (HEIGHT_FROM, IMPLAUSIBLE_STATURE, PEOPLE_COLUMNS, STATURE_RANGE_M, AlignSummary, MeshIntrinsics,
                     align_frame, align_sequence, aligned_meta, summarize_people_csv, track_statures)
+from .camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from .transform import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, rotavat_transforms
 
 __all__ = ["HEIGHT_FROM", "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "STATURE_RANGE_M", "AlignSummary", "MeshIntrinsics",
            "align_frame", "align_sequence", "aligned_meta", "summarize_people_csv", "track_statures", "FLAGS", "UPRIGHT",
-           "AlignTransform", "apply_transforms", "method_rays_cam", "rotavat_transforms"]
+           "AlignTransform", "apply_transforms", "method_rays_cam", "rotavat_transforms", "CALIBRATED", "GIVEN",
+           "AlignCamera", "camera_for_align"]

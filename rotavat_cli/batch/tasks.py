@@ -23,12 +23,13 @@ from typing import Any
 
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
-from ..camera import Camera, camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
+from ..alignment.camera_choice import CALIBRATED, AlignCamera, camera_for_align
+from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
 from ..errors import InputError, RotavatError, TaskError
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..plain import to_plain
-from ..sequence import open_sequence, read_camera_yaml, write_camera_yaml
+from ..sequence import Sequence, open_sequence, write_camera_yaml
 from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
 
 __all__ = ["TaskError", "run_task", "one_line", "task_prepare", "task_align_chunk", "task_align_merge", "task_eval_chunk",
@@ -77,10 +78,10 @@ def _chunks(n: int, size: int) -> list[tuple[int, int]]:
     return [(a, min(a + size, n)) for a in range(0, n, max(1, size))]
 
 
-def _camera_summary(camera: Camera, fit: dict, camera_file: Path, origin: str) -> dict:
+def _camera_summary(chosen: AlignCamera) -> dict:
     """Camera parameters in report units, with a few fit figures when estimated."""
-    summary = {"origin": origin, "file": str(camera_file), **camera_parameters(camera)}
-    summary.update({k: fit[k] for k in ("method", "focal_policy", "pairs", "inliers", "rmse_px") if k in fit})
+    summary = {"origin": chosen.origin, "file": chosen.source, **camera_parameters(chosen.camera)}
+    summary.update({k: chosen.fit[k] for k in ("method", "focal_policy", "pairs", "inliers", "rmse_px") if k in chosen.fit})
     return summary
 
 
@@ -104,27 +105,30 @@ def task_prepare(job: dict, plan: dict) -> dict:
         result["warnings"] += [str(w) for w in summary.get("warnings", [])]
         result["seconds"]["import"] = time.perf_counter() - start
     seq_dir = Path(job["seq"])
-    seq = open_sequence(seq_dir, read_camera=False)
+    seq = open_sequence(seq_dir)
     result["frames"] = len(seq)
-    camera_file = origin = camera = None
-    if "calibrate" in steps or ("align" in steps and not (seq_dir / "camera.yaml").exists()):
+
+    def calibrate(s: Sequence) -> AlignCamera:
         from ..calibration import CalibrateOptions, calibrate_sequence
 
         start = time.perf_counter()
-        calib = calibrate_sequence(seq, CalibrateOptions.from_config(plan["config"]["calibrate"]))
-        camera_file, origin = out / "camera.yaml", "calibrated"
-        camera, fit = calib.result.camera, calib.fit_dict()
-        write_camera_yaml(camera_file, camera, fit)
+        calib = calibrate_sequence(s, CalibrateOptions.from_config(plan["config"]["calibrate"]))
+        write_camera_yaml(out / "camera.yaml", calib.result.camera, calib.fit_dict())
         result["warnings"] += list(calib.result.warnings)
         result["seconds"]["calibrate"] = time.perf_counter() - start
-        result["frame_passes"] = len(seq)
-    elif (seq_dir / "camera.yaml").exists():
-        camera_file, origin = seq_dir / "camera.yaml", "given"
-        camera, fit = read_camera_yaml(camera_file, seq.intrinsics.image_size)
-    if camera is not None:  # handed to the align chunks as plain data: read or computed once
-        result["camera_file"] = str(camera_file)
-        result["camera_yaml"] = camera_to_yaml_dict(camera, fit or None)
-        result["camera"] = _camera_summary(camera, fit, camera_file, origin)
+        result["frame_passes"] = len(s)
+        return AlignCamera(calib.result.camera, calib.fit_dict(), CALIBRATED, str(out / "camera.yaml"))
+
+    # The calibrate step's camera is the one given to align (as `calibrate` then `align --camera`);
+    # align takes it, else the sequence's own, else calibrates. Without align, the sequence's own
+    # camera (if any) is still reported and places the render rows.
+    chosen = calibrate(seq) if "calibrate" in steps else None
+    if "align" in steps or (chosen is None and seq.camera is not None):
+        chosen = camera_for_align(seq, chosen, calibrate)
+    if chosen is not None:  # handed to the align chunks as plain data: read or computed once
+        result["camera_file"] = chosen.source
+        result["camera_yaml"] = camera_to_yaml_dict(chosen.camera, chosen.fit or None)
+        result["camera"] = _camera_summary(chosen)
     size = int(plan["chunk_frames"])
     if "align" in steps:  # track statures need the whole sequence: one chunk
         result["align_chunks"] = [(0, len(seq))] if plan["config"]["align"]["height_from"] == "track" else _chunks(len(seq), size)

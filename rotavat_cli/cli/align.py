@@ -7,10 +7,10 @@ from typing import Annotated
 
 import typer
 
-from ..alignment import align_sequence
+from ..alignment import CALIBRATED, GIVEN, AlignCamera, align_sequence, camera_for_align
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
-from ..sequence import read_camera_yaml
+from ..sequence import Sequence, read_camera_yaml
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
                       input_sequence, print_json, progress_bar, progress_enabled)
 from .calibrate import run_calibration
@@ -38,18 +38,18 @@ def align(
     if opts["jobs"] > cpu_count():
         info(f"jobs {opts['jobs']}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
     with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
-        if camera is not None:
-            cam, fit = read_camera_yaml(camera, sequence.image_size)
-            origin = str(camera)
-        elif sequence.camera is not None:
-            cam, fit = sequence.camera, sequence.camera_fit
-            origin = str(seq / "camera.yaml") if from_ is None else f"the camera imported with {seq}"
-        else:
-            calib = run_calibration(sequence, config, quiet or as_json)
-            cam, fit, origin = calib.result.camera, calib.fit_dict(), "calibrated from the people"
+        given = None if camera is None else AlignCamera(*read_camera_yaml(camera, sequence.image_size), GIVEN, str(camera))
+
+        def calibrate(s: Sequence) -> AlignCamera:
+            calib = run_calibration(s, config, quiet or as_json)
+            return AlignCamera(calib.result.camera, calib.fit_dict(), CALIBRATED, "calibrated from the people")
+
+        chosen = camera_for_align(sequence, given, calibrate)
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
-            summary = align_sequence(sequence, cam, out, opts["upright"], opts["height_from"], fit or None, advance,
-                                     workers=opts["jobs"], stature_range_m=tuple(opts["stature_range_m"]), force=force)
+            summary = align_sequence(sequence, chosen.camera, out, opts["upright"], opts["height_from"], chosen.fit or None,
+                                     advance, workers=opts["jobs"], stature_range_m=tuple(opts["stature_range_m"]),
+                                     force=force)
+    origin = chosen.source
     result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
     if as_json:
         print_json(result)
