@@ -43,7 +43,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rotavat_cli.alignment.align import align_sequence, summarize_people_csv  # noqa: E402
+from rotavat_cli.alignment import AlignOptions, align_sequence, summarize_people_csv  # noqa: E402
 from rotavat_cli.calibration import CalibrateOptions, calibrate_sequence  # noqa: E402
 from rotavat_cli.camera import Camera  # noqa: E402
 from rotavat_cli.config import default_config  # noqa: E402
@@ -125,7 +125,7 @@ def calibrate(pred_dir: Path, focal_px: float | None) -> Camera:
 
 def align_and_eval(pred_dir: Path, gt_dir: Path, camera: Camera, out: Path) -> Aligned:
     """Align the prediction into ``camera`` (written to ``out``) and score it against the ground truth."""
-    align_sequence(open_sequence(pred_dir), camera, out, workers=1)
+    align_sequence(open_sequence(pred_dir), camera, out, AlignOptions(jobs=1))
     people = summarize_people_csv(out / "people.csv")
     return Aligned(float(camera.focal_px), float(evaluate(open_sequence(out), open_sequence(gt_dir)).metrics["w_mpjpe"]),
                    people.median_stature_m, people.implausible)

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .alignment import (AlignSummary, AlignTransform, align_frame, align_sequence, apply_transforms, rotavat_transforms,
-                        track_statures)
+from .alignment import (AlignOptions, AlignSummary, AlignTransform, align_frame, align_sequence, apply_transforms,
+                        rotavat_transforms, track_statures)
 from .batch import BatchOptions, run_batch
 from .calibration import CalibrateOptions, CalibrationResult, calibrate_sequence, fit_camera
 from .calibration.pairs import gather_pairs
@@ -30,6 +30,7 @@ from .synth import SynthOptions, write_synth_scene
 
 __all__ = [
     "__version__",
+    "AlignOptions",
     "AlignSummary",
     "AlignTransform",
     "BatchOptions",

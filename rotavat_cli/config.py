@@ -9,16 +9,18 @@ mutated in place), safe to dump next to outputs with ``yaml.safe_dump``.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import math
 import reprlib
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 from .errors import InputError
 from .sequence import read_yaml
 
-__all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config"]
+__all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default"]
 
 DEFAULT_CONFIG_PATH = Path(__file__).resolve().parent / "data" / "default.yaml"
 
@@ -26,6 +28,12 @@ DEFAULT_CONFIG_PATH = Path(__file__).resolve().parent / "data" / "default.yaml"
 def default_config() -> dict:
     """A fresh copy of the packaged defaults."""
     return copy.deepcopy(_read_defaults())
+
+
+def packaged_default(packaged: Callable[[], Any], name: str) -> Any:
+    """A dataclass field defaulting to attribute ``name`` of ``packaged()``: the options instance built
+    from the packaged configs/default.yaml, so the YAML stays the one source of the default."""
+    return dataclasses.field(default_factory=lambda: getattr(packaged(), name))
 
 
 _DEFAULTS_CACHE: dict | None = None
@@ -87,7 +95,7 @@ _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 4
 @functools.lru_cache(maxsize=1)
 def _choices() -> dict[str, tuple[str, ...]]:
     """Keys whose value is one of a few names: each list lives beside the code that uses it."""
-    from .alignment.align import HEIGHT_FROM
+    from .alignment.options import HEIGHT_FROM
     from .alignment.transform import UPRIGHT
     from .batch.plan import EXECUTORS
     from .calibration import METHODS, POINTS, RESIDUALS

@@ -46,8 +46,9 @@ class BatchFailedError(RotavatError):
 
 
 @contextlib.contextmanager
-def input_errors(what: str) -> Iterator[None]:
-    """A ValueError raised inside (a pure function's refusal) becomes an InputError ``"{what}: {message}"``.
+def input_errors(what: object | None = None) -> Iterator[None]:
+    """A ValueError raised inside (a pure function's refusal) becomes an InputError ``"{what}: {message}"``
+    (the message alone when ``what`` is None: it names the option or file already).
 
     >>> with input_errors("--size"):
     ...     raise ValueError("must be positive")
@@ -58,4 +59,4 @@ def input_errors(what: str) -> Iterator[None]:
     try:
         yield
     except ValueError as exc:
-        raise InputError(f"{what}: {exc}") from None
+        raise InputError(str(exc) if what is None else f"{what}: {exc}") from None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import re
 import sys
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import invoke, tree_hash
 
-from rotavat_cli.alignment.align import align_frame, align_sequence, aligned_meta
+from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence, aligned_meta
 from rotavat_cli.camera import Camera
 from rotavat_cli.sequence import Frame, open_sequence, write_frame
 
@@ -112,7 +113,7 @@ def test_obj_sequence_round_trip(scene, tmp_path, runner):
 
 def test_height_from_track_gives_one_stature_per_person(scene, tmp_path):
     cam = open_sequence(scene / "gt").camera
-    align_sequence(open_sequence(scene / "pred"), cam, tmp_path / "t", height_from="track")
+    align_sequence(open_sequence(scene / "pred"), cam, tmp_path / "t", AlignOptions(height_from="track"))
     rows = list(csv.DictReader(open(tmp_path / "t" / "people.csv")))
     by_id: dict[str, set] = {}
     for r in rows:
@@ -134,8 +135,8 @@ def test_bad_option_value_exits_2(scene, tmp_path, runner):
 def test_worker_count_does_not_change_the_output(scene, tmp_path):
     cam = open_sequence(scene / "gt").camera
     seq = open_sequence(scene / "pred")
-    align_sequence(seq, cam, tmp_path / "one", workers=1)
-    align_sequence(seq, cam, tmp_path / "two", workers=2)
+    align_sequence(seq, cam, tmp_path / "one", AlignOptions(jobs=1))
+    align_sequence(seq, cam, tmp_path / "two", AlignOptions(jobs=2))
     for name in seq.frame_names:
         assert (tmp_path / "one" / f"{name}.npz").read_bytes() == (tmp_path / "two" / f"{name}.npz").read_bytes()
     assert (tmp_path / "one" / "people.csv").read_text() == (tmp_path / "two" / "people.csv").read_text()
@@ -185,7 +186,7 @@ def test_drift_columns_equal_the_plain_computation(scene, upright):
     frame = seq.read_frame("000003")
     cam = open_sequence(scene / "gt").camera
     assert seq.intrinsics.focal_px != pytest.approx(cam.focal_px, rel=0.05)  # the method's focal is not the camera's
-    new, cols = align_frame(frame, cam, upright)
+    new, cols = align_frame(frame, cam, AlignOptions(upright=upright))
     mean, peak = _reference_drift_px(frame.data["vertices"], new.data["vertices"], seq.intrinsics.focal_px, cam.focal_px)
     np.testing.assert_allclose(cols["drift_mean_px"], mean, rtol=2e-5)
     np.testing.assert_allclose(cols["drift_max_px"], peak, rtol=2e-5)
@@ -256,3 +257,14 @@ def test_one_rule_picks_the_camera_align_uses():
     assert calls == []
     chosen = camera_for_align(bare, None, calibrate)
     assert chosen.origin == CALIBRATED and chosen.camera.focal_px == 900.0 and calls == ["/data/seq"]
+
+
+def test_align_options_read_their_config_section_and_refuse_bad_values():
+    options = AlignOptions.from_config({"upright": "full", "height_from": "track", "jobs": 3, "stature_range_m": [0.5, 2.5]})
+    assert (options.upright, options.height_from, options.jobs, options.stature_range_m) == ("full", "track", 3, (0.5, 2.5))
+    for bad, message in [({"upright": "tilted"}, "upright must be one of paper, full"),
+                         ({"height_from": "mean"}, "height_from must be one of frame, track"),
+                         ({"jobs": -1}, "jobs must be a whole number"),
+                         ({"stature_range_m": (2.0, 1.0)}, "stature_range_m must be [low, high]")]:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            AlignOptions(**bad)

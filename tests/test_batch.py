@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import invoke, tree_hash
 
-from rotavat_cli.alignment.align import align_sequence
+from rotavat_cli.alignment import AlignOptions, align_sequence
 from rotavat_cli.batch import MARKER, aggregate_rows, discover_sequences
 from rotavat_cli.metrics.evaluate import evaluate
 from rotavat_cli.plain import to_plain
@@ -119,7 +119,7 @@ def test_batch_outputs_equal_the_single_sequence_calls(dataset, tmp_path, runner
     for rel in RELS:
         seq = open_sequence(dataset / "pred" / rel)
         camera, fit = read_camera_yaml(out / rel / "camera.yaml")
-        align_sequence(seq, camera, tmp_path / "ref" / rel, camera_fit=fit, workers=1)
+        align_sequence(seq, camera, tmp_path / "ref" / rel, AlignOptions(jobs=1), camera_fit=fit)
         assert assert_same_tree(out / rel / "aligned", tmp_path / "ref" / rel) == 7  # 3 frames, people.csv, camera, meta, marker
         want = [evaluate(open_sequence(dataset / "pred" / rel), open_sequence(dataset / "gt" / rel)),
                 evaluate(open_sequence(out / rel / "aligned"), open_sequence(dataset / "gt" / rel))]

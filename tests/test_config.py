@@ -60,6 +60,7 @@ def test_cli_config_error_exits_2(tmp_path: Path, runner):
 
 def test_every_options_class_defaults_to_the_packaged_config():
     """The packaged YAML is the one source of defaults: each options class built from it equals its own defaults."""
+    from rotavat_cli.alignment import AlignOptions
     from rotavat_cli.batch import BatchOptions
     from rotavat_cli.calibration import CalibrateOptions
     from rotavat_cli.metrics.evaluate import EvalOptions
@@ -67,6 +68,7 @@ def test_every_options_class_defaults_to_the_packaged_config():
     from rotavat_cli.synth import SynthOptions
 
     config = default_config()
+    assert AlignOptions() == AlignOptions.from_config(config["align"])
     assert CalibrateOptions() == CalibrateOptions.from_config(config["calibrate"])
     assert EvalOptions() == EvalOptions.from_config(config["eval"])
     assert SynthOptions() == SynthOptions.from_config(config["synth"])

@@ -12,7 +12,7 @@ import pytest
 import yaml
 from conftest import invoke
 
-from rotavat_cli.alignment.align import align_frame, align_sequence
+from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence
 from rotavat_cli.alignment.transform import apply_transforms, method_rays_cam, rotavat_transforms
 from rotavat_cli.camera import Camera, reexpress_cam
 from rotavat_cli.errors import InputError
@@ -286,7 +286,7 @@ def test_implausible_statures_are_flagged_and_counted(tmp_path, runner):
     seq = tmp_path / "seq"
     write_frame(seq, Frame("000000", {"vertices": verts.astype(np.float32), "person_ids": np.arange(3)}), "npz")
     write_meta(seq, {"image_size": [1280, 720], "focal_length": 900.0, "focal_kind": "camera"})
-    summary = align_sequence(open_sequence(seq), cam, tmp_path / "out", workers=1)
+    summary = align_sequence(open_sequence(seq), cam, tmp_path / "out", AlignOptions(jobs=1))
     flags = [r["flag"] for r in csv.DictReader(open(tmp_path / "out" / "people.csv"))]
     assert flags == ["", "implausible_stature", "implausible_stature"]
     assert summary.aligned == 3 and summary.implausible == 2 and summary.flagged == {"implausible_stature": 2}

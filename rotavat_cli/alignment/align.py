@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -31,19 +30,18 @@ from ..outputs import check_output_dir
 from ..parallel import cap_workers, ordered_map
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
-from .transform import (FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
+from .options import AlignOptions
+from .transform import (FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
                         rotavat_transforms, transformed_blocks)
 
-__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "STATURE_RANGE_M", "HEIGHT_FROM", "MeshIntrinsics", "AlignSummary",
+__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "MeshIntrinsics", "AlignSummary",
            "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]
 
 PEOPLE_COLUMNS = (
     "frame", "person_id", "x_world_m", "z_world_m", "stature_m", "depth_scale", "rotation_deg",
     "final_scale", "mesh_focal_px", "drift_mean_px", "drift_max_px", "head_drift_px", "flag",
 )
-IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outside the plausible range
-STATURE_RANGE_M = (1.0, 2.3)  # plausible aligned statures (config align.stature_range_m)
-HEIGHT_FROM = ("frame", "track")  # each mesh keeps its stature, or one per person_id
+IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outside the plausible range (AlignOptions)
 
 
 @dataclass(frozen=True)
@@ -164,15 +162,19 @@ def output_dtype(points: np.ndarray) -> np.dtype:
     return points.dtype if points.dtype.kind == "f" else np.dtype(np.float64)
 
 
-def align_frame(frame: Frame, camera: Camera, upright: str = "paper",
-                stature_by_id: dict[int, float] | None = None, intrinsics: Intrinsics | None = None,
-                stature_range_m: tuple[float, float] = STATURE_RANGE_M) -> tuple[Frame, dict[str, np.ndarray]]:
+def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = None,
+                stature_by_id: dict[int, float] | None = None,
+                intrinsics: Intrinsics | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
     """Align one frame into ``camera``: the new frame and per-person columns (see ``PEOPLE_COLUMNS``).
 
+    options: ``upright`` and ``stature_range_m`` are read (default :class:`AlignOptions`);
+    stature_by_id: per person_id stature to keep (``height_from: track``, :func:`track_statures`);
     intrinsics: what the frame's meshes were made with (``Sequence.frame_intrinsics``; None: the
     frame's own keys); what is not stated is the camera's own. People aligned to a stature outside
-    ``stature_range_m`` are flagged ``implausible_stature`` (still aligned).
+    ``options.stature_range_m`` are flagged ``implausible_stature`` (still aligned).
     """
+    options = AlignOptions() if options is None else options
+    upright, stature_range_m = options.upright, options.stature_range_m
     intrinsics = frame.intrinsics if intrinsics is None else intrinsics
     P = frame.n_people
     if P == 0:
@@ -254,11 +256,11 @@ _CHUNK_FRAMES = 8  # frames per worker task: amortises task overhead, keeps memo
 def _align_chunk(task: tuple) -> tuple[list[tuple[int, dict[str, np.ndarray], str]], object]:
     """Read, align and write a few frames: per frame its people count, columns and people.csv rows; and
     what reading them found (``Sequence.frame_notes``: an imported sequence's warnings, from a worker)."""
-    seq, names, camera, out, upright, stature_by_id, stature_range_m = task
+    seq, names, camera, out, options, stature_by_id = task
     results = []
     for name in names:
         frame = seq.read_frame(name)
-        new_frame, cols = align_frame(frame, camera, upright, stature_by_id, seq.frame_intrinsics(frame), stature_range_m)
+        new_frame, cols = align_frame(frame, camera, options, stature_by_id, seq.frame_intrinsics(frame))
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols)))
     return results, seq.frame_notes(names)
@@ -336,36 +338,31 @@ def _group_rows(rows: list[dict]) -> list[tuple[str, list[dict]]]:
     return groups
 
 
-def align_sequence(seq: Sequence, camera: Camera, out: str | Path, upright: str = "paper", height_from: str = "frame",
+def align_sequence(seq: Sequence, camera: Camera, out: str | Path, options: AlignOptions | None = None, *,
                    camera_fit: dict | None = None, progress: Callable[[], None] | None = None,
-                   workers: int = 2, stature_range_m: tuple[float, float] = STATURE_RANGE_M,
                    force: bool = False) -> AlignSummary:
     """Align every frame of ``seq`` into ``out`` (mirrored form) with camera.yaml and people.csv.
 
-    Frames stream through ``workers`` processes (at most one per core and per chunk of frames), a
-    bounded window ahead of the in-order writer of people.csv, so memory stays flat and both cores
-    work (``workers=1``: in this process). ``out`` is replaced only when it is rotavat's own output
-    or empty (``force``: any folder that is not and does not hold an input;
+    Frames stream through ``options.jobs`` processes (0: one per core; never more than the cores or
+    the chunks of frames), a bounded window ahead of the in-order writer of people.csv, so memory
+    stays flat and every core works (``jobs=1``: in this process). ``camera_fit`` is written as
+    camera.yaml's fit block. ``out`` is replaced only when it is rotavat's own output or empty
+    (``force``: any folder that is not and does not hold an input;
     :func:`rotavat_cli.outputs.check_output_dir`).
     """
+    options = AlignOptions() if options is None else options
     out = Path(out)
     check_output_dir(out, [seq.path], force)
-    if height_from not in HEIGHT_FROM:
-        raise InputError(f"height_from must be one of {', '.join(HEIGHT_FROM)}, got {height_from!r}")
-    if upright not in UPRIGHT:
-        raise InputError(f"upright must be one of {', '.join(UPRIGHT)}, got {upright!r}")
-    lo, hi = (float(v) for v in stature_range_m)
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-        raise InputError(f"stature_range_m must be [low, high] metres with 0 <= low < high, got {list(stature_range_m)}")
-    stature_by_id = track_statures(seq, camera, upright) if height_from == "track" else None
+    upright = options.upright
+    stature_by_id = track_statures(seq, camera, upright) if options.height_from == "track" else None
     summary = AlignSummary(out)
     names = seq.frame_names
     chunks = [names[i:i + _CHUNK_FRAMES] for i in range(0, len(names), _CHUNK_FRAMES)]
     with staged_directory(out, "align") as stage:
-        tasks = ((seq, chunk, camera, stage, upright, stature_by_id, (lo, hi)) for chunk in chunks)
+        tasks = ((seq, chunk, camera, stage, options, stature_by_id) for chunk in chunks)
         with atomic_open(stage / "people.csv", "w") as handle:
             csv.writer(handle, lineterminator="\n").writerow(PEOPLE_COLUMNS)
-            for results, notes in ordered_map(_align_chunk, tasks, cap_workers(workers, len(chunks)), processes=True):
+            for results, notes in ordered_map(_align_chunk, tasks, cap_workers(options.jobs, len(chunks)), processes=True):
                 seq.add_frame_notes(notes)
                 for n_people, cols, rows in results:
                     handle.write(rows)

@@ -25,7 +25,7 @@ from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
 from ..alignment.camera_choice import CALIBRATED, AlignCamera, camera_for_align
 from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
-from ..errors import InputError, RotavatError, TaskError
+from ..errors import RotavatError, TaskError, input_errors
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..plain import to_plain
@@ -146,14 +146,14 @@ def _chunk_dir(job: dict, index: int) -> Path:
 def task_align_chunk(job: dict, plan: dict, camera_yaml: dict, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
     _apply_limits(plan)
-    from ..alignment import align_sequence
+    from ..alignment import AlignOptions, align_sequence
 
     seq = open_sequence(job["seq"], read_camera=False)
     camera, fit = camera_from_yaml_dict(camera_yaml), camera_yaml.get("fit") or {}
     part = replace(seq, frame_names=seq.frame_names[start:stop])
-    opts = plan["config"]["align"]  # workers=1: the batch's own workers are the parallelism (no nested pools)
-    align_sequence(part, camera, _chunk_dir(job, index), opts["upright"], opts["height_from"], fit or None, workers=1,
-                   stature_range_m=tuple(opts["stature_range_m"]))
+    # jobs=1: the batch's own workers are the parallelism (no nested pools)
+    options = replace(AlignOptions.from_config(plan["config"]["align"]), jobs=1)
+    align_sequence(part, camera, _chunk_dir(job, index), options, camera_fit=fit or None)
     return {"frames": stop - start}
 
 
@@ -239,12 +239,10 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         start = time.perf_counter()
         paths = [Path(job["seq"])] + ([out / "aligned"] if "align" in steps else []) + ([Path(job["gt"])] if job["gt"] else [])
         camera = out / "aligned" / "camera.yaml" if "align" in steps else state["camera_file"]
-        try:
+        with input_errors():
             figure = FigureOptions.from_config(plan["config"]["render"], Path(camera) if camera else None)
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
         with staged_directory(out / "render", "render") as staging:
-            summary = render_sequences(paths, staging, figure)
+            summary = render_sequences([open_sequence(p) for p in paths], staging, figure)
         row["render"] = {"renderer": summary.renderer, "files": [Path(f).name for f in summary.files]}
         seconds["render"] = time.perf_counter() - start
     row["seconds"] = {**seconds, "total": sum(seconds.values())}

@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from ..alignment import CALIBRATED, GIVEN, AlignCamera, align_sequence, camera_for_align
+from ..alignment import CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_sequence, camera_for_align
+from ..errors import input_errors
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
@@ -32,11 +33,12 @@ def align(
     as_json: JsonOpt = False,
 ) -> None:
     """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
-    opts = config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs)
+    with input_errors("align"):
+        options = AlignOptions.from_config(config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs))
     out = out or beside(seq, "_aligned")
     check_output_dir(out, [seq, *([camera] if camera else [])], force)
-    if opts["jobs"] > cpu_count():
-        info(f"jobs {opts['jobs']}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
+    if options.jobs > cpu_count():
+        info(f"jobs {options.jobs}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
     with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
         given = None if camera is None else AlignCamera(*read_camera_yaml(camera, sequence.image_size), GIVEN, str(camera))
 
@@ -46,8 +48,7 @@ def align(
 
         chosen = camera_for_align(sequence, given, calibrate)
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
-            summary = align_sequence(sequence, chosen.camera, out, opts["upright"], opts["height_from"], chosen.fit or None,
-                                     advance, workers=opts["jobs"], stature_range_m=tuple(opts["stature_range_m"]),
+            summary = align_sequence(sequence, chosen.camera, out, options, camera_fit=chosen.fit or None, progress=advance,
                                      force=force)
     origin = chosen.source
     result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
@@ -58,7 +59,7 @@ def align(
     info(f"aligned {summary.aligned} of {summary.people} people in {summary.frames} frames ({flagged} flagged"
          + (": " + ", ".join(f"{k} {v}" for k, v in summary.flagged.items()) if flagged else "") + ")", quiet)
     if summary.implausible:
-        lo, hi = opts["stature_range_m"]
+        lo, hi = options.stature_range_m
         info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
              "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
     if summary.aligned:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import InputError
+from ..errors import InputError, input_errors
 from ..outputs import beside, check_output_file
 from ..render import RenderStyle, export_frame
 from ._common import ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json
@@ -25,10 +25,8 @@ def export(
 ) -> None:
     """Write one frame as a .glb (glTF 2.0, Y up, metres): people coloured by id, ground quad, camera frustum and camera."""
     opts = config_for(config, "render")
-    try:
+    with input_errors():
         palette = RenderStyle.from_config(opts).palette
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
     if out is not None and out.suffix.lower() != ".glb":
         raise InputError(f"--out must end in .glb, got {out}")
     target = out or beside(seq, f"_{frame}.glb")

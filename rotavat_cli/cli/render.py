@@ -8,9 +8,10 @@ from typing import Annotated
 import typer
 
 from ..atomic import staged_directory
-from ..errors import InputError
+from ..errors import input_errors
 from ..outputs import beside, check_output_dir
 from ..render import VIEWS, FigureOptions, render_sequences
+from ..sequence import open_sequence
 from ._common import (ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar,
                       progress_enabled)
 
@@ -35,15 +36,14 @@ def render(
     """Draw the meshes from the camera (front) and orthographically from the side and top, where floating, sunk and leaning bodies show."""
     opts = config_for(config, "render", views=views, frames=frames, every=every, size=list(size) if size else None,
                       renderer=renderer, gif=gif, glb=glb)
-    try:
+    with input_errors():
         options = FigureOptions.from_config(opts, camera, image)
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
     out = out or beside(seqs[0], "_render")
     check_output_dir(out, [*seqs, *([camera] if camera else []), *([image] if image else [])], force)
+    sequences = [open_sequence(path) for path in seqs]
     with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance, \
             staged_directory(out, "render") as stage:  # the folder is replaced whole: no stale pictures
-        summary = render_sequences(seqs, stage, options, advance)
+        summary = render_sequences(sequences, stage, options, advance)
     summary = summary.moved_to(out)
     if as_json:
         print_json(vars(summary))

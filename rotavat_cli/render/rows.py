@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera, reexpress_cam
-from ..errors import InputError
+from ..errors import InputError, input_errors
 from ..sequence import Sequence, read_camera_yaml
 from .views import RowFrame
 
@@ -47,10 +47,8 @@ def select_frames(n_frames: int, frames: str | None, every: int | None) -> list[
 
 def frame_names(seq: Sequence, frames: str | None, every: int | None) -> list[str]:
     """Names of the frames :func:`select_frames` picks in ``seq``; InputError naming the sequence."""
-    try:
+    with input_errors(seq.label):
         return [seq.frame_names[i] for i in select_frames(len(seq), frames, every)]
-    except ValueError as exc:
-        raise InputError(f"{seq.path}: {exc}") from None
 
 
 def row_labels(paths: list[Path]) -> list[str]:

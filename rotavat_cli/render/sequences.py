@@ -19,13 +19,14 @@ import numpy as np
 
 from ..atomic import atomic_open
 from ..camera import Camera
+from ..config import packaged_default
 from ..errors import InputError
-from ..sequence import Sequence, open_sequence
+from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
 from .raster import RENDERERS, open_rasterizer
 from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
-from .style import RenderStyle, packaged_default
+from .style import RenderStyle
 from .views import RowFrame, parse_views, scene_extents, view_specs
 
 __all__ = ["FigureOptions", "FigureSummary", "render_sequences"]
@@ -90,15 +91,14 @@ class FigureSummary:
         return dataclasses.replace(self, out=str(out), files=files)
 
 
-def _open_all(paths: list[Path], opts: FigureOptions, needs: str) -> tuple[list[Sequence], list[Camera | None]]:
-    """Open the sequences and find each one's camera (an error naming what ``needs`` one if it is missing)."""
-    seqs = [open_sequence(p) for p in paths]
+def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> list[Camera | None]:
+    """Each sequence's camera (``opts.camera_path``, else its own); an error naming what ``needs`` one if it is missing."""
     cameras = [sequence_camera(s, opts.camera_path) for s in seqs]
     if needs:
         for seq, cam in zip(seqs, cameras):
             if cam is None:
                 raise no_camera(seq, needs)
-    return seqs, cameras
+    return cameras
 
 
 def _save_png(path: Path, image: np.ndarray) -> None:
@@ -118,17 +118,19 @@ def _save_gif(path: Path, images: list[np.ndarray], fps: float) -> None:
         frames[0].save(handle, format="GIF", save_all=True, append_images=frames[1:], duration=int(round(1000 / fps)), loop=0)
 
 
-def render_sequences(paths: list[Path], out: Path, opts: FigureOptions,
+def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None = None,
                      progress: Callable[[], None] | None = None) -> FigureSummary:
-    """Render the chosen frames of one or more sequences as labelled grids in ``out`` (PNG per frame, optional GIF/GLB)."""
-    if not paths:
+    """Render the chosen frames of one or more sequences as labelled grids in ``out`` (PNG per frame,
+    optional GIF/GLB): one grid row per sequence, frames named by the first sequence."""
+    opts = FigureOptions() if opts is None else opts
+    if not seqs:
         raise InputError("give at least one sequence directory")
     placed = [view.name for view in view_specs(opts.views) if view.needs_camera]  # views placing rows in the world
     needs = [f"{'/'.join(placed)} views"] if placed else []
     if opts.glb:
         needs.append("the GLB")
-    seqs, cameras = _open_all(paths, opts, " and ".join(needs))
-    labels = row_labels(paths)
+    cameras = _cameras(seqs, opts, " and ".join(needs))
+    labels = row_labels([Path(s.label) for s in seqs])
     names = frame_names(seqs[0], opts.frames, opts.every)
 
     def rows_of(name: str, image_dir: Path | None = None) -> list[RowFrame]:

@@ -9,12 +9,14 @@ is read from it, see :func:`packaged_default`). Every person has the colour
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
-from typing import Any, Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["RGB", "RenderStyle", "parse_color", "person_colors", "vertex_normals", "shade_vertices", "packaged_default"]
+from ..config import packaged_default
+
+__all__ = ["RGB", "RenderStyle", "parse_color", "person_colors", "vertex_normals", "shade_vertices"]
 
 RGB = tuple[float, float, float]  # in [0, 1]
 _AMBIENT = 0.35  # shading: light that reaches every surface
@@ -30,12 +32,6 @@ def parse_color(text: str) -> RGB:
     if len(s) != 6 or any(ch not in "0123456789abcdefABCDEF" for ch in s):
         raise ValueError(f"colour {text!r} must be '#rrggbb'")
     return tuple(int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
-
-
-def packaged_default(packaged: Callable[[], Any], name: str) -> Any:
-    """A dataclass field defaulting to attribute ``name`` of ``packaged()``: the instance built from the
-    packaged configs/default.yaml, so the YAML stays the one source of the default."""
-    return field(default_factory=lambda: getattr(packaged(), name))
 
 
 @functools.lru_cache(maxsize=1)
