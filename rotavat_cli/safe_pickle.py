@@ -1,4 +1,5 @@
-"""Restricted unpickling of untrusted files: numpy arrays, numpy scalars and builtin containers only.
+"""Restricted unpickling of untrusted files: numpy arrays, numpy scalars and builtin containers only
+(``collections.defaultdict`` too, with a builtin type as its factory).
 
 HPS demos save results as pickles (plain ``pickle``, ``joblib.dump``, or object arrays inside
 ``np.savez``). Unpickling runs whatever callable the file names, so a hostile file can execute
@@ -54,7 +55,7 @@ import struct
 import sys
 import zipfile
 import zlib
-from collections import OrderedDict
+from collections import OrderedDict, defaultdict
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -219,6 +220,19 @@ class _JoblibArrayWrapper:
         self.alignment = state.get("numpy_array_alignment_bytes")
 
 
+# Factories a pickled ``collections.defaultdict`` may name: builtin types, whose call builds an empty value.
+_DEFAULT_FACTORIES = (list, dict, set, frozenset, tuple, int, float, complex, str, bytes, bool, OrderedDict)
+
+
+def _defaultdict(factory: Any = None, *rest: Any) -> defaultdict:
+    """``collections.defaultdict(factory)`` as a pickle rebuilds it (items are set afterwards), for a
+    builtin factory only: any other callable would run code on every missing key."""
+    if rest or not (factory is None or factory in _DEFAULT_FACTORIES):
+        raise _Refused(f"defaultdict with factory {getattr(factory, '__name__', type(factory).__name__)!r} "
+                       "is not allowed (only builtin types)")
+    return defaultdict(factory)
+
+
 def _allowed() -> dict[tuple[str, str], Any]:
     """(module, name) -> object handed to the unpickler."""
     table: dict[tuple[str, str], Any] = {}
@@ -226,6 +240,7 @@ def _allowed() -> dict[tuple[str, str], Any]:
                  "complex", "bool", "slice", "range"):
         table[("builtins", name)] = getattr(builtins, name)
     table[("collections", "OrderedDict")] = OrderedDict
+    table[("collections", "defaultdict")] = _defaultdict
     table[("copyreg", "_reconstructor")] = _reconstructor
     table[("_codecs", "encode")] = _codecs_encode
     for core in ("numpy.core", "numpy._core"):

@@ -245,3 +245,26 @@ def test_decompression_bomb_is_capped(tmp_path):
     (tmp_path / "bomb.pkl").write_bytes(zlib.compress(b"\x80\x04" + b"N" * (1 << 20)))
     with limits.applied(small), pytest.raises(InputError, match=r"decompresses to more than 64\.0 KiB \(limit: limits\.max_file_mb\)"):
         safe_pickle.load_file(tmp_path / "bomb.pkl")
+
+
+@pytest.mark.parametrize("protocol", [0, 2, 4, 5])
+def test_defaultdict_with_a_builtin_factory_is_read(tmp_path, protocol):
+    """WHAM saves a collections.defaultdict of per-track dicts with joblib (wham_output.pkl)."""
+    from collections import defaultdict
+
+    tracks = defaultdict(dict)
+    tracks[0]["pose"] = np.arange(6.0).reshape(2, 3)
+    tracks[3]["frame_ids"] = np.array([4, 5])
+    path = tmp_path / "wham_output.pkl"
+    path.write_bytes(F.joblib_bytes(tracks, protocol=protocol) if protocol >= 2 else pickle.dumps(tracks, protocol))
+    loaded = safe_pickle.load_file(path)
+    assert isinstance(loaded, defaultdict) and loaded.default_factory is dict
+    assert loaded[0]["pose"].tolist() == [[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]] and loaded[3]["frame_ids"].tolist() == [4, 5]
+
+
+def test_defaultdict_with_another_factory_is_refused():
+    """Only builtin types may be a factory: an allowed global that is not one (numpy.dtype) is refused too."""
+    from collections import defaultdict
+
+    with pytest.raises(InputError, match="d.pkl: defaultdict with factory 'dtype' is not allowed"):
+        safe_pickle.loads(pickle.dumps(defaultdict(np.dtype)), "d.pkl")

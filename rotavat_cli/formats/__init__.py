@@ -30,7 +30,7 @@ from ..errors import InputError
 from ..outputs import check_output_dir
 from ..plain import to_plain
 from ..sequence import Sequence, write_camera_yaml, write_frame, write_meta
-from . import agora, bedlam, bev, cliff, fourdhumans, multihmr, spec
+from . import agora, bedlam, bev, cliff, fourdhumans, glamr, gvhmr, hybrik, multihmr, pymafx, slahmr, spec, tram, trace, wham
 from ._common import ImportedSequence, ImportOptions
 from .smpl import BodyModel, load_body_model
 from .source import forget, open_imported
@@ -48,7 +48,7 @@ __all__ = [
 
 
 # ---- registry: one module per tool, each exporting READERS and sniff ---------------------------
-_MODULES = (cliff, bev, fourdhumans, multihmr, spec, agora, bedlam)
+_MODULES = (cliff, bev, fourdhumans, multihmr, spec, agora, bedlam, wham, gvhmr, tram, hybrik, pymafx, slahmr, glamr, trace)
 READERS: dict[str, Callable[[Path, ImportOptions], ImportedSequence]] = {}
 for _module in _MODULES:
     READERS.update(_module.READERS)

@@ -17,11 +17,12 @@ import numpy as np
 from ..camera import Camera, project_cam_to_px
 from ..errors import InputError
 from ..sequence import Frame, validate_frame
+from .keypoints import feet_heads_px, recipe_for
 from .smpl import BodyModel
 
 __all__ = ["ImportOptions", "ImportedSequence", "FrameNotes", "Conclusion", "fail", "npz_has_keys", "single_file",
            "need_image_size", "as_array", "get", "padded_square", "project_px", "image_size_from_header",
-           "people_frame", "frame_names", "natural_key", "base_meta", "no_model_warning", "model_faces"]
+           "people_frame", "feet_heads_from", "frame_names", "natural_key", "base_meta", "no_model_warning", "model_faces"]
 
 
 # ---- shared types --------------------------------------------------------------------------
@@ -211,8 +212,15 @@ def image_size_from_header(path: Path) -> tuple[int, int] | None:
 def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.ndarray | None = None,
                  joints: np.ndarray | None = None, keypoints_2d: np.ndarray | None = None,
                  person_ids: np.ndarray | None = None, faces: np.ndarray | None = None,
-                 n_verts: int | None = None, extra: Mapping[str, np.ndarray] | None = None) -> Frame:
-    """A validated contract frame; people with non-finite vertices or joints are dropped (with a warning)."""
+                 n_verts: int | None = None, extra: Mapping[str, np.ndarray] | None = None,
+                 keypoints_layout: str | None = None) -> Frame:
+    """A validated contract frame; people with non-finite vertices or joints are dropped (with a warning).
+
+    keypoints_layout: the layout of ``keypoints_2d`` (:mod:`.keypoints`); when it has a recipe and
+    the frame has no meshes, ``feet_2d``/``heads_2d`` (mid-sole, crown) are written from them, so
+    calibration and joint-level alignment work without a body model (meshes give their own
+    landmarks, which take precedence: :func:`feet_heads_from`).
+    """
     arrays = {"vertices": vertices, "joints": joints, "keypoints_2d": keypoints_2d, "person_ids": person_ids}
     counts = {k: len(v) for k, v in arrays.items() if v is not None}
     if len(set(counts.values())) > 1:
@@ -242,9 +250,21 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
         del data["person_ids"]
     if not data:
         data["person_ids"] = np.zeros(0, np.int64)
+    if keypoints_layout is not None and "keypoints_2d" in data and "vertices" not in data:
+        found = feet_heads_px(data["keypoints_2d"], keypoints_layout)
+        if found is not None and np.isfinite(found[0]).any() and np.isfinite(found[1]).any():
+            data["feet_2d"], data["heads_2d"] = (points.astype(np.float32) for points in found[:2])
     data.update(extra or {})
     validate_frame(data, str(source))
     return Frame(name, data, str(source))
+
+
+def feet_heads_from(keypoints_layout: str | None, has_vertices: bool) -> str | None:
+    """meta.yaml ``import.feet_heads_from``: which points give the foot and head pixels of an import."""
+    if has_vertices:
+        return "mesh landmarks (mid-sole, crown vertices)"
+    recipe = None if keypoints_layout is None else recipe_for(keypoints_layout)
+    return None if recipe is None or not recipe.crown else f"keypoints_2d, {keypoints_layout.split(' ', 1)[0]}: {recipe.describes}"
 
 
 def frame_names(sources: list[str], warnings: list[str]) -> list[str]:

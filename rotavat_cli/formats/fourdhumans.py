@@ -32,9 +32,12 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get,
-                      model_faces, no_model_warning, padded_square, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, get, model_faces, no_model_warning, padded_square, people_frame)
 from .smpl import lbs
+
+
+_KEYPOINTS_LAYOUT = "phalp44 (OpenPose-25 + 19 extra)"
 
 
 def sniff(path: Path) -> str | None:
@@ -128,7 +131,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=p["joints"],
                             keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
                             faces=model_faces(model, None if verts is None else verts.shape[1]),
-                            n_verts=None if model is None else model.n_verts)
+                            n_verts=None if model is None else model.n_verts, keypoints_layout=_KEYPOINTS_LAYOUT)
 
     meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="4dhumans")
     meta["import"].update({
@@ -136,7 +139,8 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         "image_size_from": "--image-size" if opts.image_size else "PHALP 'size'",
         "joints_layout": "smpl24" if model is not None else "phalp44 (OpenPose-25 + 19 extra)",
         "root_joint": 0 if model is not None else 8,
-        "keypoints_2d_layout": "phalp44 (OpenPose-25 + 19 extra)",
+        "keypoints_2d_layout": _KEYPOINTS_LAYOUT,
+        "feet_heads_from": feet_heads_from(_KEYPOINTS_LAYOUT, model is not None),
         "conventions": f"camera frame = OpenCV, metres; vertices = SMPL(smpl) + camera; focal = 5000 * S / 256 "
                        f"(S = {side}); only detections with tracked_time == 0",
     })
