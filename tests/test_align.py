@@ -268,3 +268,46 @@ def test_align_options_read_their_config_section_and_refuse_bad_values():
                          ({"stature_range_m": (2.0, 1.0)}, "stature_range_m must be [low, high]")]:
         with pytest.raises(ValueError, match=re.escape(message)):
             AlignOptions(**bad)
+
+
+def _joints_only(frame: Frame, intrinsics) -> Frame:
+    """The frame as a joints-only import has it: no meshes; feet_2d/heads_2d = the mesh landmarks' pixels."""
+    from rotavat_cli.camera import project_cam_to_px
+    from rotavat_cli.landmarks import foot_head_points
+
+    feet, heads = foot_head_points(frame.data["vertices"])
+    focal = intrinsics.focals_px(frame.n_people)
+    data = {k: v for k, v in frame.data.items() if k not in ("vertices", "faces")}
+    data["feet_2d"] = project_cam_to_px(feet, focal, intrinsics.principal_point).astype(np.float32)
+    data["heads_2d"] = project_cam_to_px(heads, focal, intrinsics.principal_point).astype(np.float32)
+    return Frame(frame.name, data, frame.source)
+
+
+def test_joint_level_alignment_matches_the_mesh_alignment(scene):
+    """Without meshes, the joints are aligned from feet_2d/heads_2d at their nearest joints' depth: within
+    2% of what the mesh alignment puts them at, far nearer the truth than the prediction."""
+    seq, gt = open_sequence(scene / "pred"), open_sequence(scene / "gt")
+    cam = gt.camera
+    for name in seq.frame_names[:3]:
+        frame = seq.read_frame(name)
+        intrinsics = seq.frame_intrinsics(frame)
+        with_mesh, cols_mesh = align_frame(frame, cam, intrinsics=intrinsics)
+        joints_only, cols = align_frame(_joints_only(frame, intrinsics), cam, intrinsics=intrinsics)
+        assert set(joints_only.data) == set(_joints_only(frame, intrinsics).data)  # joints moved, nothing added
+        assert (cols["flag"] == "").all()
+        depth = np.linalg.norm(with_mesh.data["joints"], axis=-1).mean()
+        gap = np.linalg.norm(joints_only.data["joints"] - with_mesh.data["joints"], axis=-1)
+        assert gap.max() < 0.02 * depth, (gap.max(), depth)
+        np.testing.assert_allclose(cols["stature_m"], cols_mesh["stature_m"], rtol=0.03)
+        truth = gt.read_frame(name).data["joints"]
+        assert np.linalg.norm(joints_only.data["joints"] - truth, axis=-1).mean() < \
+            0.2 * np.linalg.norm(frame.data["joints"] - truth, axis=-1).mean()
+
+
+def test_a_frame_without_meshes_or_2d_points_is_refused(scene):
+    seq = open_sequence(scene / "pred")
+    frame = seq.read_frame("000000")
+    bare = Frame(frame.name, {k: v for k, v in frame.data.items() if k not in ("vertices", "faces", "feet_2d", "heads_2d")},
+                 frame.source)
+    with pytest.raises(Exception, match="'joints' with 'feet_2d' and 'heads_2d'"):
+        align_frame(bare, open_sequence(scene / "gt").camera, intrinsics=seq.frame_intrinsics(frame))
