@@ -345,3 +345,27 @@ def test_pool_workers_get_one_blas_thread_and_the_driver_env_is_restored(monkeyp
     assert (env["OMP_NUM_THREADS"], env["OPENBLAS_NUM_THREADS"], env["MKL_NUM_THREADS"]) == ("1", "1", "3")
     assert "OMP_NUM_THREADS" not in os.environ and "OPENBLAS_NUM_THREADS" not in os.environ
     assert os.environ["MKL_NUM_THREADS"] == "3"
+
+
+def test_ground_truth_in_a_tool_format_is_found_and_imported_with_gt_from(tmp_path, runner):
+    """--gt-from: GT/<rel> in a format's own files (here a folder per sequence) is found by its importer,
+    imported into OUT/<rel>/gt, and scores the prediction (the same scene: every person matched, 0 mm)."""
+    model_path = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
+    model = F.load_model(model_path)
+    cam = F.scene_camera((640, 480), 443.4 / 512 * 640)
+    rng = np.random.default_rng(5)
+    for rel in ("site/cam1", "cam2"):
+        scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(4)]
+                 for _ in range(3)]
+        F.write_bev(tmp_path / "pred" / rel, scene, (640, 480))
+        F.write_bev(tmp_path / "gt" / rel, scene, (640, 480))
+    args = ["--out", tmp_path / "out", "--from", "bev", "--smpl-model", model_path, "--image-size", "640", "480",
+            "--steps", "eval", "--jobs", "1", "--json"]
+    result = invoke(runner, "batch", tmp_path / "pred", "--gt-root", tmp_path / "gt", "--gt-from", "bev", *args)
+    assert result.exit_code == 0, result.stderr
+    for rel in ("site/cam1", "cam2"):
+        assert len(open_sequence(tmp_path / "out" / rel / "gt")) == 3
+        (before,) = metrics_of(tmp_path / "out", rel)
+        assert before["matched"] == 12 and before["metrics"]["w_mpjpe"] == pytest.approx(0.0, abs=1e-3)
+    missing = invoke(runner, "batch", tmp_path / "pred", "--gt-from", "bev", *args)
+    assert missing.exit_code == 2 and "--gt-from needs --gt-root" in missing.stderr

@@ -381,3 +381,27 @@ def test_cli_renders_every_registry_view(runner, scene, tmp_path, name):
 def test_cli_refuses_an_unknown_view_listing_the_registry(runner, scene, tmp_path):
     result = invoke(runner, "render", scene / "gt", "--views", "back", "--out", tmp_path / "fig")
     assert result.exit_code == 2 and f"choose from {', '.join(VIEWS)}" in " ".join(result.stderr.split())
+
+
+def test_render_and_export_read_a_tool_output_with_from(runner, tmp_path):
+    """--from on render (the first SEQ) and export: the same pictures and glTF as after `rotavat import`."""
+    import _format_fixtures as F
+
+    camera = F.scene_camera()
+    model_path = F.write_synthetic_smpl(tmp_path / "smpl.npz")  # BEV's meshes take their faces from the model
+    src = F.write_bev(tmp_path / "bev", F.default_scene(F.load_model(model_path), camera), camera.image_size)
+    imported = tmp_path / "x" / "bev"  # named like the source: the row labels are the same
+    assert invoke(runner, "import", "--from", "bev", src, imported, "--smpl-model", model_path, "-q").exit_code == 0
+    cam = tmp_path / "cam.yaml"
+    assert invoke(runner, "calibrate", imported, "--out", cam, "--focal", camera.focal_px, "-q").exit_code == 0
+    common = ["--camera", cam, "--size", *map(str, SIZE), "--renderer", "fallback", "-q"]
+    a = invoke(runner, "render", "--from", "bev", src, "--smpl-model", model_path, "--out", tmp_path / "a", *common)
+    b = invoke(runner, "render", imported, "--out", tmp_path / "b", *common)
+    assert a.exit_code == 0 and b.exit_code == 0, a.stderr + b.stderr
+    png = sorted((tmp_path / "b").glob("*.png"))[0].name
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "a" / png)), np.asarray(Image.open(tmp_path / "b" / png)))
+    e1 = invoke(runner, "export", "--from", "bev", src, "--smpl-model", model_path, "--camera", cam, "--out", tmp_path / "a.glb",
+                "-q")
+    e2 = invoke(runner, "export", imported, "--camera", cam, "--out", tmp_path / "b.glb", "-q")
+    assert e1.exit_code == 0 and e2.exit_code == 0, e1.stderr + e2.stderr
+    assert (tmp_path / "a.glb").read_bytes() == (tmp_path / "b.glb").read_bytes()

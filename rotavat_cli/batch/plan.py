@@ -34,6 +34,7 @@ class BatchOptions:
     steps: tuple[str, ...] = STEPS
     gt_root: Path | None = None
     fmt: str | None = None  # importer format of the sequences (--from)
+    gt_fmt: str | None = None  # importer format of the ground truth under gt_root (--gt-from)
     image_size: tuple[int, int] | None = None  # --from: original image size
     smpl_model: Path | None = None  # --from: body model for parameter-only formats
     executor: str = "local"  # local | dask
@@ -127,12 +128,15 @@ def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[
         with input_errors("render"):
             FigureOptions.from_config(options.config["render"])
     found = discover_sequences(root, options.fmt, exclude=[out] + ([gt_root] if gt_root else []))
+    gt_sources = dict(discover_sequences(gt_root, options.gt_fmt, exclude=[out])) \
+        if options.gt_fmt and gt_root is not None and "eval" in steps else {}
     if not found:
         what = f"{options.fmt} outputs" if options.fmt else "sequences (folders of *.npz frames or of OBJ frame folders)"
         raise InputError(f"{root}: no {what} found")
     plan = {"steps": list(steps), "config": options.config, "chunk_frames": options.chunk_frames,
             "gt_root": str(gt_root) if gt_root else None,
-            "import": {"format": options.fmt, "image_size": list(options.image_size) if options.image_size else None,
+            "import": {"format": options.fmt, "gt_format": options.gt_fmt,
+                       "image_size": list(options.image_size) if options.image_size else None,
                        "smpl_model": str(Path(options.smpl_model).resolve()) if options.smpl_model else None}}
     plan["digests"] = _step_digests(plan)
     jobs = []
@@ -140,9 +144,13 @@ def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[
     for index, (rel, path) in enumerate(found):
         target = out_abs / rel
         gt = gt_root / rel if gt_root is not None and "eval" in steps else None
+        if gt is not None and options.gt_fmt:  # the GT source found by its importer; imported into OUT/<rel>/gt
+            gt = gt_sources.get(rel, gt)
         job = {"rel": rel, "index": index, "source": str(path.resolve()),
                "seq": str(target / "input") if options.fmt else str(path.resolve()), "out": str(target),
-               "gt": str(gt) if gt is not None else None, "frames_hint": None if options.fmt else frames_hint(path)}
+               "gt": str(target / "gt") if gt is not None and options.gt_fmt else (str(gt) if gt is not None else None),
+               "gt_source": str(gt) if gt is not None else None,
+               "frames_hint": None if options.fmt else frames_hint(path)}
         inputs = {"sequence": fingerprint(path, exclude=[out_abs] + ([gt_root] if gt_root else []))}
         if gt is not None:
             inputs["gt"] = fingerprint(gt) if gt.exists() else {"files": 0, "bytes": 0, "newest_mtime_ns": 0, "digest": "missing"}

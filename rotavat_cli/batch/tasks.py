@@ -25,7 +25,7 @@ from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
 from ..alignment.camera_choice import CALIBRATED, AlignCamera, camera_for_align
 from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
-from ..errors import RotavatError, TaskError, input_errors
+from ..errors import InputError, RotavatError, TaskError, input_errors
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..plain import to_plain
@@ -104,6 +104,16 @@ def task_prepare(job: dict, plan: dict) -> dict:
                                   smpl_model=imp["smpl_model"], overwrite=True)
         result["warnings"] += [str(w) for w in summary.get("warnings", [])]
         result["seconds"]["import"] = time.perf_counter() - start
+    if imp.get("gt_format") and job["gt"]:  # --gt-from: the ground truth in its dataset's own format
+        from ..formats import import_sequence
+
+        start = time.perf_counter()
+        if not Path(job["gt_source"]).exists():
+            raise InputError(f"{job['gt_source']}: no {imp['gt_format']} ground truth for this sequence (--gt-from)")
+        summary = import_sequence(job["gt_source"], job["gt"], imp["gt_format"], image_size=imp["image_size"],
+                                  smpl_model=imp["smpl_model"], overwrite=True)
+        result["warnings"] += [f"ground truth: {w}" for w in summary.get("warnings", [])]
+        result["seconds"]["import"] = result["seconds"].get("import", 0.0) + time.perf_counter() - start
     seq_dir = Path(job["seq"])
     seq = open_sequence(seq_dir)
     result["frames"] = len(seq)

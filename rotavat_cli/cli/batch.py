@@ -30,6 +30,7 @@ def batch(
     chunk_frames: Annotated[int | None, typer.Option(help="Align/eval longer sequences as tasks of this many frames.", min=1)] = None,
     force: Annotated[bool, typer.Option("--force", help="Redo sequences whose outputs are already complete; write into an OUT that rotavat did not write (never into ROOT or GT).")] = False,
     from_: FromOpt = None,
+    gt_from: Annotated[str | None, typer.Option("--gt-from", help="Ground truth under --gt-root in a dataset's own format (agora, bedlam, ...): GT/<rel> is found by that importer and imported into OUT/<rel>/gt.")] = None,
     image_size: ImageSizeOpt = None,
     smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
@@ -44,7 +45,10 @@ def batch(
     """
     cfg = use_config(config, {"batch": {"steps": steps, "executor": executor, "jobs": jobs, "scheduler": scheduler,
                                          "chunk_frames": chunk_frames}})
-    options = BatchOptions.from_config(cfg, gt_root=gt_root, fmt=from_, image_size=image_size, smpl_model=smpl_model, force=force)
+    if gt_from is not None and gt_root is None:
+        raise InputError("--gt-from needs --gt-root (the ground truth in that format, mirroring ROOT's tree)")
+    options = BatchOptions.from_config(cfg, gt_root=gt_root, fmt=from_, gt_fmt=gt_from, image_size=image_size,
+                                       smpl_model=smpl_model, force=force)
     if options.scheduler and options.executor != "dask":
         if executor is not None:
             raise InputError("--scheduler is for --executor dask")

@@ -10,15 +10,19 @@ import typer
 from ..errors import InputError, input_errors
 from ..outputs import beside, check_output_file
 from ..render import RenderStyle, export_frame
-from ._common import ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
+                      input_sequence, print_json)
 
 
 def export(
-    seq: Annotated[Path, typer.Argument(help="Sequence directory.", file_okay=False)],
+    seq: Annotated[Path, typer.Argument(help="Sequence directory (with --from: the HPS tool's output).")],
     frame: Annotated[int, typer.Option(help="Frame index (negative counts from the end).")] = 0,
     out: Annotated[Path | None, typer.Option(help="Output .glb file; default <SEQ>_<frame>.glb beside SEQ.", dir_okay=False)] = None,
     camera: Annotated[Path | None, typer.Option(help="camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
     force: ForceOpt = False,
+    from_: FromOpt = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
@@ -31,7 +35,8 @@ def export(
         raise InputError(f"--out must end in .glb, got {out}")
     target = out or beside(seq, f"_{frame}.glb")
     check_output_file(target, [seq, *([camera] if camera else [])], force)
-    summary = export_frame(seq, target, frame, camera, palette)
+    with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
+        summary = export_frame(sequence, target, frame, camera, palette)
     if as_json:
         print_json(summary)
         return

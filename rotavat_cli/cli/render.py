@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Annotated
 
@@ -11,13 +12,12 @@ from ..atomic import staged_directory
 from ..errors import input_errors
 from ..outputs import beside, check_output_dir
 from ..render import VIEWS, FigureOptions, render_sequences
-from ..sequence import open_sequence
-from ._common import (ConfigOpt, ForceOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar,
-                      progress_enabled)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
+                      input_sequence, print_json, progress_bar, progress_enabled)
 
 
 def render(
-    seqs: Annotated[list[Path], typer.Argument(help="Sequence directories: one grid row each (e.g. pred/ pred_aligned/).", file_okay=False)],
+    seqs: Annotated[list[Path], typer.Argument(help="Sequence directories: one grid row each (e.g. pred/ pred_aligned/); with --from the first is the HPS tool's output.")],
     camera: Annotated[Path | None, typer.Option(help="camera.yaml for every row; default each SEQ/camera.yaml.", dir_okay=False)] = None,
     frames: Annotated[str | None, typer.Option(help="Frame indices, comma-separated (e.g. 0,10,-1); default the first.")] = None,
     every: Annotated[int | None, typer.Option(help="Render every N-th frame instead.", min=1)] = None,
@@ -29,6 +29,9 @@ def render(
     gif: Annotated[bool | None, typer.Option("--gif/--no-gif", help="Also write render.gif of the rendered frames.")] = None,
     glb: Annotated[bool | None, typer.Option("--glb/--no-glb", help="Also write a glTF scene (.glb) per frame.")] = None,
     force: ForceOpt = False,
+    from_: FromOpt = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
@@ -40,10 +43,12 @@ def render(
         options = FigureOptions.from_config(opts, camera, image)
     out = out or beside(seqs[0], "_render")
     check_output_dir(out, [*seqs, *([camera] if camera else []), *([image] if image else [])], force)
-    sequences = [open_sequence(path) for path in seqs]
-    with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance, \
-            staged_directory(out, "render") as stage:  # the folder is replaced whole: no stale pictures
-        summary = render_sequences(sequences, stage, options, advance)
+    with contextlib.ExitStack() as inputs:
+        sequences = [inputs.enter_context(input_sequence(path, from_ if i == 0 else None, image_size, smpl_model,
+                                                         quiet=quiet or as_json)) for i, path in enumerate(seqs)]
+        with progress_bar("rendering", None, progress_enabled(quiet, as_json)) as advance, \
+                staged_directory(out, "render") as stage:  # the folder is replaced whole: no stale pictures
+            summary = render_sequences(sequences, stage, options, advance)
     summary = summary.moved_to(out)
     if as_json:
         print_json(vars(summary))

@@ -30,7 +30,7 @@ import numpy as np
 from .. import __version__
 from ..atomic import atomic_open
 from ..camera import Camera
-from ..sequence import open_sequence
+from ..sequence import Sequence
 from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
 from .style import RGB, RenderStyle, person_colors
 from .views import RowFrame
@@ -174,19 +174,19 @@ def read_glb_json(path: str | Path) -> dict:
     return json.loads(data[20:20 + chunk_len].decode("utf-8"))
 
 
-def export_frame(path: Path, out: Path, frame: int = 0, camera_path: Path | None = None,
+def export_frame(seq: Sequence, out: Path, frame: int = 0, camera_path: Path | None = None,
                  palette: tuple[RGB, ...] | None = None) -> dict:
     """Write frame ``frame`` (index; negative from the end) of a sequence as a ``.glb`` scene; returns a summary.
 
-    palette: person colours (default the packaged ``render.palette``).
+    camera_path: a camera.yaml (default the sequence's own camera); palette: person colours
+    (default the packaged ``render.palette``).
     """
-    seq = open_sequence(path)
     camera = sequence_camera(seq, camera_path)
     if camera is None:
         raise no_camera(seq, "GLB's world frame")
     name = frame_names(seq, str(frame), None)[0]
-    row = read_row(seq, name, row_labels([path])[0], camera)
+    row = read_row(seq, name, row_labels([Path(seq.label)])[0], camera)
     write_glb(out, build_scene([row], camera, RenderStyle().palette if palette is None else palette), camera)
-    return {"out": str(out), "sequence": str(path), "frame": name, "people": int(np.asarray(row.verts_cam).shape[0]),
+    return {"out": str(out), "sequence": seq.label, "frame": name, "people": int(np.asarray(row.verts_cam).shape[0]),
             "image_size": list(camera.image_size), "aspect_ratio": camera.image_size[0] / camera.image_size[1],
             "yfov_deg": float(np.rad2deg(camera.vertical_fov_rad))}
