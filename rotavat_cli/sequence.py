@@ -551,6 +551,17 @@ class Sequence:
         base = Intrinsics(self.image_size, self.intrinsics.focal_px, self.intrinsics.principal_point)
         return base.override(frame.intrinsics).with_defaults()
 
+    def require_static_frame(self, frame: Frame, image_size: tuple[int, int] | None = None) -> None:
+        """InputError when ``frame`` was seen by another camera than ``image_size`` (default the
+        sequence's): a frame stating another image size (photos of different sizes imported as one
+        sequence) cannot share a static camera with the others."""
+        expected = self.image_size if image_size is None else tuple(image_size)
+        size = frame.intrinsics.image_size
+        if size is not None and expected is not None and tuple(size) != tuple(expected):
+            raise InputError(f"{frame.source}: image size {size[0]}x{size[1]} differs from "
+                             f"{expected[0]}x{expected[1]}: these frames are not one static camera's (e.g. photos of "
+                             "different sizes); calibrate and align each image size as a sequence of its own")
+
     def frame_path(self, name: str) -> Path:
         """File (npz) or folder (obj) of a frame (a sequence directory's; ValueError for other sources)."""
         source = self.frame_source

@@ -222,3 +222,20 @@ def test_a_sequence_over_any_frame_source(tmp_path: Path):
     with pytest.raises(ValueError, match="not files"):
         seq.frame_path("a")
     assert not (tmp_path / "nowhere").exists()
+
+
+def test_frames_of_another_image_size_are_refused_by_calibrate_and_align(tmp_path, runner):
+    """Photos of different sizes imported as one sequence are not one static camera: calibrate and align
+    refuse them with one line naming the frame (BEV's image mode writes each photo's own size)."""
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=3, frames=4, people=5))
+    seq = open_sequence(tmp_path / "s" / "pred")
+    frame = seq.read_frame(seq.frame_names[2])
+    write_frame(tmp_path / "s" / "pred", frame.replace(image_size=np.array([1666, 2500])), "npz")
+    cal = invoke(runner, "calibrate", tmp_path / "s" / "pred", "--out", tmp_path / "cam.yaml")
+    assert cal.exit_code == 2 and "image size 1666x2500 differs from 1280x720" in cal.stderr
+    assert cal.stderr.count("\n") == 1 and "000002" in cal.stderr
+    aligned = invoke(runner, "align", "--in", tmp_path / "s" / "pred", "--camera", tmp_path / "s" / "gt" / "camera.yaml",
+                     "--out", tmp_path / "a")
+    assert aligned.exit_code == 2 and "not one static camera's" in aligned.stderr

@@ -310,6 +310,7 @@ def _align_chunk(task: tuple) -> tuple[list[tuple[int, dict[str, np.ndarray], st
     results = []
     for name in names:
         frame = seq.read_frame(name)
+        seq.require_static_frame(frame, camera.image_size)
         new_frame, cols = align_frame(frame, camera, options, stature_by_id, seq.frame_intrinsics(frame))
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols)))

@@ -57,6 +57,7 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     feet, heads, index, ids, sources = [], [], [], [], set()
     tracked = True
     for i, frame in enumerate(seq.frames()):
+        seq.require_static_frame(frame)
         tracked &= frame.n_people == 0 or frame.get("person_ids") is not None
         f, h, src = frame_foot_head_px(frame, seq.frame_intrinsics(frame))
         if len(f):

@@ -1,12 +1,178 @@
-"""wham: importer being written (issue 17); registered, reads nothing yet."""
+"""WHAM (``--from wham``): the ``wham_output.pkl`` that ``demo.py --save_pkl`` writes.
+
+Source: yohanshin/WHAM @2b54f77 ``demo.py`` (``run``: ``results = defaultdict(dict)`` filled per
+track, ``joblib.dump(results, 'wham_output.pkl')``), ``lib/models/smpl.py`` (``SMPL.get_output``:
+the hip-centred ``offset``; ``convert_pare_to_full_img_cam``, ``full_perspective_projection``),
+``lib/models/wham.py`` (``Network.forward_smpl``: ``trans_cam = output.full_cam``),
+``lib/data/datasets/dataset_custom.py`` (``CustomDataset``: the intrinsics), ``lib/utils/imutils.py``
+(``compute_cam_intrinsics``), ``lib/vis/run_vis.py`` (``run_vis_on_demo``: renders ``verts`` as they
+are with that camera).
+
+- File: a joblib dump of a ``defaultdict`` keyed by track id; per track, N = the frames it was
+  seen in: ``pose`` (N, 72) SMPL axis-angle, global orientation in the camera frame; ``trans``
+  (N, 3); ``betas`` (N, 10); ``verts`` (N, 6890, 3); ``frame_ids`` (N,) 0-based video frame
+  indices; ``pose_world`` / ``trans_world`` (N, 72) / (N, 3): WHAM's own gravity-aligned world
+  trajectory (SLAM camera motion), not read here: the contract is the camera frame.
+- Frame: ``verts = SMPL(pose, betas) - offset + trans_cam`` and ``trans = trans_cam - offset``
+  (``offset`` = the mid-hip of WHAM's joint regressor), so ``verts = SMPL(pose, betas) + trans``:
+  ``trans`` is SMPL's ``transl`` in the camera frame. OpenCV axes (``full_perspective_projection``
+  divides by z and applies K), metres.
+- Focal: ``compute_cam_intrinsics``: f = sqrt(W^2 + H^2), principal point = image centre
+  (rule ``cliff``; ``--calib`` only reaches the SLAM, never these intrinsics).
+- Image size: not stored (the demo reads it from the video): ``--image-size`` is required.
+- Stored: meshes, not joints, no 2D keypoints (ViTPose's are in ``tracking_results.pth``). Joints
+  (SMPL-24) come from posing ``--smpl-model`` with ``pose``, ``betas``, ``trans``; without it the
+  frames hold the meshes only (feet and heads from their landmarks).
+- Frames: one per video frame index seen in any track (frames where WHAM tracked nobody are
+  not in the file and not imported), named by that index; ``person_ids`` = track ids.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
-READERS: dict = {}
+import numpy as np
+
+from .. import safe_pickle
+from ..focal import ASSUMED, focal_from_rule
+from ..sequence import Frame
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
+                      feet_heads_from, frame_names, get, model_faces, need_image_size, people_frame)
+from .smpl import BodyModel, lbs
+
+__all__ = ["sniff", "read_wham", "READERS"]
+
+_MAX_SNIFF_BYTES = 512 << 20
+_POSED_MISMATCH_M = 0.01  # the model reproduces WHAM's own meshes to float32 round-off when it is WHAM's SMPL
 
 
 def sniff(path: Path) -> str | None:
-    """Nothing recognised yet."""
+    """'wham' for a pickle whose values are per-track dicts holding ``frame_ids`` and ``verts``."""
+    if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > _MAX_SNIFF_BYTES:
+        return None
+    data = safe_pickle.load_file(path)
+    if isinstance(data, Mapping) and data and all(
+            isinstance(track, Mapping) and "frame_ids" in track and "verts" in track for track in data.values()):
+        return "wham"
     return None
+
+
+def _track_id(key: object, source: Path) -> int:
+    """A track key as an int (WHAM's keys are the tracker's integer ids)."""
+    if isinstance(key, (bool, np.bool_)) or not isinstance(key, (int, np.integer)):
+        raise fail(source, f"track key {key!r} is not an integer track id")
+    return int(key)
+
+
+def _track_arrays(track: Mapping, source: str, model: BodyModel | None) -> dict[str, np.ndarray]:
+    """One track's arrays, validated: verts (N, V, 3), frame_ids (N,), and pose/betas/trans for a model."""
+    verts = as_array(get(track, "verts", source), "verts", source, ndim=3, last=(3,))
+    frame_ids = as_array(get(track, "frame_ids", source), "frame_ids", source, ndim=1, kinds="iu")
+    n_rows = len(verts)
+    if len(frame_ids) != n_rows:
+        raise fail(source, f"'frame_ids' has {len(frame_ids)} rows but 'verts' has {n_rows}")
+    if n_rows and frame_ids.min() < 0:
+        raise fail(source, "'frame_ids' holds negative frame indices")
+    out = {"verts": verts, "frame_ids": frame_ids.astype(np.int64)}
+    if model is not None:
+        if verts.shape[1] != model.n_verts:
+            raise fail(source, f"'verts' have {verts.shape[1]} vertices but --smpl-model {model.name} has {model.n_verts}")
+        for key, width in (("pose", 72), ("trans", 3)):
+            out[key] = as_array(get(track, key, source), key, source, ndim=2, last=(width,))
+        out["betas"] = as_array(get(track, "betas", source), "betas", source, ndim=2)
+        for key in ("pose", "betas", "trans"):
+            if len(out[key]) != n_rows:
+                raise fail(source, f"'{key}' has {len(out[key])} rows but 'verts' has {n_rows}")
+    return out
+
+
+def _rows_by_frame(tracks: dict[int, dict[str, np.ndarray]]) -> dict[int, list[tuple[int, int]]]:
+    """Video frame index -> [(track id, row)] in track-id order."""
+    rows: dict[int, list[tuple[int, int]]] = {}
+    for tid in sorted(tracks):
+        for row, frame_id in enumerate(tracks[tid]["frame_ids"].tolist()):
+            rows.setdefault(frame_id, []).append((tid, row))
+    return rows
+
+
+def _posed_joints(model: BodyModel, tracks: dict, picks: list[tuple[int, int]],
+                  verts_cam: np.ndarray) -> tuple[np.ndarray, float]:
+    """SMPL-24 camera-frame joints (P, 24, 3) of ``picks`` posed on ``model``, and how far (m) the
+    posed meshes lie from WHAM's own ``verts_cam`` (P, V, 3) at worst."""
+    pose = np.stack([tracks[t]["pose"][r] for t, r in picks])
+    betas = np.stack([tracks[t]["betas"][r] for t, r in picks])
+    trans = np.stack([tracks[t]["trans"][r] for t, r in picks])
+    posed_verts, joints = lbs(model, betas, pose, trans)
+    return joints, float(np.nanmax(np.abs(posed_verts - verts_cam), initial=0.0))
+
+
+def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """WHAM ``wham_output.pkl`` -> contract frames (camera frame; WHAM's world trajectory is not read)."""
+    image_size = need_image_size(opts, src, "WHAM reads it from the video")
+    data = safe_pickle.load_file(src)
+    if not isinstance(data, Mapping) or not data:
+        raise fail(src, "not a WHAM output (expected a non-empty dict of tracks)")
+    model = opts.body_model
+    if model is not None and model.kind != "smpl":
+        raise fail(src, f"WHAM uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+    tracks: dict[int, dict[str, np.ndarray]] = {}
+    for key, track in data.items():
+        tid = _track_id(key, src)
+        if not isinstance(track, Mapping):
+            raise fail(src, f"track {tid} is not a dict")
+        tracks[tid] = _track_arrays(track, f"{src} [track {tid}]", model)
+    rows = _rows_by_frame(tracks)
+    if not rows:
+        raise fail(src, "no tracked frames (every track is empty)")
+    frame_ids = sorted(rows)
+    width = max(6, len(str(frame_ids[-1])))
+    warnings: list[str] = []
+    names = frame_names([f"{i:0{width}d}" for i in frame_ids], warnings)
+    faces = model_faces(model, model.n_verts if model is not None else None)
+    if model is None:
+        warnings.append("wham stores meshes but no joints, and no --smpl-model was given: imported meshes only "
+                        "(no joints: MPJPE-type metrics are unavailable; pass the SMPL model WHAM used for SMPL-24 joints)")
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        frame_id = frame_ids[index]
+        picks = rows[frame_id]
+        source = f"{src} [frame {frame_id}]"
+        verts = np.stack([tracks[t]["verts"][r] for t, r in picks])
+        joints = None
+        if model is not None:
+            joints, notes.facts["posed_mismatch_m"] = _posed_joints(model, tracks, picks, verts)
+        return people_frame(names[index], source, notes.warnings, vertices=verts, joints=joints,
+                            person_ids=np.array([t for t, _ in picks], dtype=np.int64), faces=faces)
+
+    def conclude(all_notes: list[FrameNotes]) -> Conclusion:
+        worst = max((n.facts.get("posed_mismatch_m", 0.0) for n in all_notes), default=0.0)
+        found = Conclusion()
+        if model is not None:
+            found.import_meta["model_vs_wham_verts_max_m"] = round(worst, 6)
+            if worst > _POSED_MISMATCH_M:
+                found.warnings.append(f"{src}: --smpl-model {model.name} posed with WHAM's pose/betas/trans lies up to "
+                                      f"{100 * worst:.1f} cm from WHAM's own meshes (another model or gender?): "
+                                      "meshes are WHAM's, joints the model's")
+        return found
+
+    focal = focal_from_rule("cliff", image_size)
+    principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
+    meta = base_meta("wham", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="cliff")
+    meta["import"].update({
+        "source_frames": [int(i) for i in frame_ids],
+        "image_size_from": "--image-size",
+        "joints_layout": "smpl24" if model is not None else None,
+        "root_joint": 0 if model is not None else None,
+        "keypoints_2d_layout": None,
+        "feet_heads_from": feet_heads_from(None, True),
+        "person_ids": "WHAM track ids",
+        "ignored": "pose_world, trans_world (WHAM's world trajectory); the camera frame is kept",
+        "conventions": "camera frame = OpenCV, metres; vertices = WHAM 'verts' (= SMPL(pose, betas) + trans); "
+                       "focal = sqrt(W^2 + H^2), principal point = image centre; frames = video frame indices "
+                       "with at least one track",
+    })
+    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
+
+
+READERS = {"wham": read_wham}
