@@ -39,6 +39,9 @@ FOCAL_KINDS = (CAMERA, ASSUMED)
 BEV_FOCAL_ON_512 = 443.4  # ROMP simple_romp/bev/post_parser.py: perspective_projection(focal_length=443.4), 512 px input
 _PHALP_FOCAL_ON_256 = 5000.0  # 4D-Humans hmr2/configs: EXTRA.FOCAL_LENGTH 5000 at MODEL.IMAGE_SIZE 256
 _HYBRIK_FOCAL_ON_256 = 1000.0  # HybrIK scripts/demo_video.py: focal 1000 for a 256 px box
+_TRACE_FOCAL_ON_512 = 548.0  # ROMP simple_romp/trace2/utils/utils.py: focal_length = 548 on the 512 px input (50 deg)
+_PYMAFX_FOCAL_PX = 5000.0  # PyMAF-X apps/demo_smplx.py: convert_to_full_img_cam(focal_length=5000.) on the full image
+_GLAMR_FOCAL_PX = 1000.0  # GLAMR pose_est/hybrik_demo/demo.py: cam_K focal 1000 on the full image (HybrIK inside)
 
 
 @dataclass(frozen=True)
@@ -67,11 +70,31 @@ def _phalp(width: int, height: int) -> float:
     return _PHALP_FOCAL_ON_256 / 256.0 * max(width, height)
 
 
+def _trace(width: int, height: int) -> float:
+    return _TRACE_FOCAL_ON_512 / 512.0 * max(width, height)
+
+
+def _pymafx(width: int, height: int) -> float:
+    return _PYMAFX_FOCAL_PX  # the same on every image, whatever its size
+
+
+def _half_sum(width: int, height: int) -> float:
+    return 0.5 * (width + height)
+
+
+def _glamr(width: int, height: int) -> float:
+    return _GLAMR_FOCAL_PX  # the same on every image, whatever its size
+
+
 FOCAL_RULES: dict[str, FocalRule] = {rule.name: rule for rule in (
     FocalRule("cliff", "sqrt(W^2 + H^2) (the image diagonal)", "CLIFF, WHAM, GVHMR", _diagonal),
     FocalRule("bev", "443.4 / 512 * max(W, H) (60 deg field of view on the padded square)", "BEV", _bev),
     FocalRule("romp", "max(W, H) / (2 tan 30 deg) (60 deg field of view on the padded square)", "ROMP", _fov60_square),
     FocalRule("4dhumans", "5000 / 256 * max(W, H)", "4D-Humans, PHALP, HMR 2.0", _phalp),
+    FocalRule("trace", "548 / 512 * max(W, H) (50 deg field of view on the padded square)", "TRACE", _trace),
+    FocalRule("pymafx", "5000 px whatever the image size (principal point at the image centre)", "PyMAF-X", _pymafx),
+    FocalRule("slahmr", "(W + H) / 2 (its default intrinsics when none are given)", "SLAHMR", _half_sum),
+    FocalRule("glamr", "1000 px whatever the image size (principal point at the image centre)", "GLAMR", _glamr),
 )}
 
 

@@ -67,7 +67,7 @@ from . import limits as _limits
 from .errors import InputError
 from .limits import human_bytes
 
-__all__ = ["loads", "load_file", "load_npy", "load_npy_bytes", "load_npz", "open_npz", "NpzArchive"]
+__all__ = ["loads", "load_file", "load_torch", "load_npy", "load_npy_bytes", "load_npz", "open_npz", "NpzArchive"]
 
 _MAX_NPY_HEADER = 10_000  # numpy's own default limit for .npy headers
 _CHUNK = 1 << 24  # bytes decompressed or copied at a time
@@ -281,10 +281,12 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
 
     dispatch = pickle._Unpickler.dispatch.copy()  # noqa: SLF001
 
-    def __init__(self, file: io.BytesIO, budget: _Budget | None = None) -> None:
+    def __init__(self, file: io.BytesIO, budget: _Budget | None = None, depth: int = 0) -> None:
         super().__init__(file, encoding="latin1")
         self._raw = file
         self._budget = budget or _Budget()
+        self._depth = depth  # storages pickled inside storages (safe_torch)
+        self._torch_builder: Any = None
         self.dispatch = _CountingDispatch(type(self).dispatch)
         self.dispatch.budget = self._budget
 
@@ -297,7 +299,24 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
         try:
             return _ALLOWED[(module, name)]
         except (KeyError, TypeError):
-            raise _Refused(f"refused to unpickle global '{module}.{name}' {_REFUSAL}") from None
+            pass
+        found = self._torch_global(module, name) if isinstance(module, str) and module.startswith("torch") else None
+        if found is None:
+            raise _Refused(f"refused to unpickle global '{module}.{name}' {_REFUSAL}")
+        return found
+
+    def _torch_global(self, module: str, name: str) -> Any:
+        """torch's tensor-rebuilding globals, mapped to inert numpy builders (:mod:`rotavat_cli.safe_torch`)."""
+        from . import safe_torch  # safe_torch builds on this module: imported when a pickle names torch
+
+        if self._torch_builder is None:
+            self._torch_builder = safe_torch._Builder(self._budget, self._depth)
+        return safe_torch.torch_global(module, name, self._torch_builder)
+
+    @property
+    def named_torch(self) -> bool:
+        """Whether the pickle named one of torch's globals (its result may hold storages to resolve)."""
+        return self._torch_builder is not None
 
     def persistent_load(self, pid: Any) -> Any:
         raise _Refused("refused a persistent id (pickles that reference external objects are not allowed)")
@@ -528,7 +547,12 @@ def _check_expansion(obj: Any) -> None:
 def _load_stream(file: io.BytesIO, source: str) -> Any:
     """Unpickle one object from ``file``; every failure becomes a one-line InputError."""
     try:
-        value = _RestrictedUnpickler(file).load()
+        unpickler = _RestrictedUnpickler(file)
+        value = unpickler.load()
+        if unpickler.named_torch:  # torch tensors pickled by plain pickle (np.save of a dict of tensors)
+            from .safe_torch import resolve
+
+            value = resolve(value)
         _check_expansion(value)
         return value
     except _Refused as exc:
@@ -634,12 +658,24 @@ def _decompress(data: bytes, source: str) -> bytes:
 
 
 def load_file(path: str | Path) -> Any:
-    """Unpickle a ``.pkl`` file written by ``pickle.dump`` or ``joblib.dump`` (any compression)."""
+    """Unpickle a ``.pkl`` file written by ``pickle.dump`` or ``joblib.dump`` (any compression), or a
+    ``torch.save`` file (zip archive or legacy stream: :func:`load_torch`)."""
     path = Path(path)
     data = _read_bytes(path)
     if not data:
         raise InputError(f"{path}: empty file")
+    from . import safe_torch
+
+    if safe_torch.is_torch_zip(data) or safe_torch.is_legacy_torch(data):
+        return safe_torch.load_torch_bytes(data, str(path))
     return _load_stream(io.BytesIO(_decompress(data, str(path))), str(path))
+
+
+def load_torch(path: str | Path) -> Any:
+    """Read a ``torch.save`` file without torch: plain containers of numpy arrays (:mod:`rotavat_cli.safe_torch`)."""
+    from .safe_torch import load_torch as _load
+
+    return _load(path)
 
 
 # ---- .npy ------------------------------------------------------------------------------------

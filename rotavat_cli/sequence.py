@@ -23,7 +23,7 @@ import yaml
 
 from . import limits
 from .atomic import atomic_open, atomic_write_text
-from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict
+from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict, people_not_in_front
 from .errors import InputError, input_errors
 from .focal import focal_kind_or_default
 from .outputs import TEXT_HEADER
@@ -658,8 +658,14 @@ def summarize_sequence(seq: Sequence) -> dict:
     """Validate every frame and summarise: form, frames, people, keys, sizes, intrinsics, camera."""
     people, keys, verts, joints, kps, ids = [], set(), set(), set(), set(), set()
     frame_sizes = set()
+    centred = behind = 0
     for frame in seq.frames():
         people.append(frame.n_people)
+        points = frame.get("vertices") if frame.get("vertices") is not None else frame.get("joints")
+        if points is not None and frame.n_people:
+            is_centred, is_behind = people_not_in_front(points)
+            centred += int(is_centred.sum())
+            behind += int((is_behind & ~is_centred).sum())
         keys.update(frame.data.keys())
         if frame.get("vertices") is not None and frame.n_people:
             verts.add(int(frame.data["vertices"].shape[1]))
@@ -687,6 +693,9 @@ def summarize_sequence(seq: Sequence) -> dict:
         "joint_counts": sorted(joints),
         "keypoint_counts": sorted(kps),
         "image_size": list(image_size) if image_size else None,
+        "image_sizes": [list(size) for size in sorted(frame_sizes)],
+        "people_root_centred": centred,
+        "people_behind_camera": behind,
         "focal_px": intr.focal_px,
         "focal_kind": seq.focal_kind,
         "focal_rule": seq.meta.get("focal_rule"),

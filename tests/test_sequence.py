@@ -239,3 +239,45 @@ def test_frames_of_another_image_size_are_refused_by_calibrate_and_align(tmp_pat
     aligned = invoke(runner, "align", "--in", tmp_path / "s" / "pred", "--camera", tmp_path / "s" / "gt" / "camera.yaml",
                      "--out", tmp_path / "a")
     assert aligned.exit_code == 2 and "not one static camera's" in aligned.stderr
+
+
+def test_info_warns_of_root_centred_and_behind_camera_people_and_of_several_image_sizes(tmp_path, runner):
+    """AGORA's sample predictions are root-centred: info says why calibrate will find no usable pairs."""
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=3, frames=3, people=4))
+    pred = tmp_path / "s" / "pred"
+    seq = open_sequence(pred)
+    frame = seq.read_frame("000000")
+    verts, joints = frame.data["vertices"], frame.data["joints"]
+    roots = joints[:, :1]
+    centred = frame.replace(vertices=verts - roots, joints=joints - roots)  # translation zero: 4 people at the camera
+    write_frame(pred, centred, "npz")
+    behind = seq.read_frame("000001")
+    flipped = behind.data["vertices"].copy()
+    flipped[0, :, 2] *= -1.0  # one person behind the camera
+    write_frame(pred, behind.replace(vertices=flipped), "npz")
+    write_frame(pred, seq.read_frame("000002").replace(image_size=np.array([640, 480])), "npz")
+    result = invoke(runner, "info", pred)
+    text = " ".join(result.stderr.split())  # the console wraps lines
+    assert result.exit_code == 0
+    assert "4 people are centred on the camera" in text and "1 people are partly at or behind" in text
+    assert "frames of 2 image sizes (640x480, 1280x720)" in text
+    summary = json.loads(invoke(runner, "info", pred, "--json").stdout)
+    assert (summary["people_root_centred"], summary["people_behind_camera"]) == (4, 1)
+
+
+def test_calibrate_leaves_out_root_centred_people_and_says_so(tmp_path, runner):
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=3, frames=2, people=3))
+    pred = tmp_path / "s" / "pred"
+    seq = open_sequence(pred)
+    for name in seq.frame_names:
+        frame = seq.read_frame(name)
+        roots = frame.data["joints"][:, :1]
+        data = {k: v for k, v in frame.data.items() if k not in ("feet_2d", "heads_2d")}  # pairs from the meshes
+        data.update(vertices=frame.data["vertices"] - roots, joints=frame.data["joints"] - roots)
+        write_frame(pred, Frame(name, data, frame.source), "npz")
+    result = invoke(runner, "calibrate", pred, "--out", tmp_path / "cam.yaml")
+    assert result.exit_code == 2 and "6 people were left out, root-centred or behind the camera" in result.stderr

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import project_cam_to_px
+from ..camera import people_not_in_front, project_cam_to_px
 from ..errors import InputError
 from ..landmarks import foot_head_points
 from ..sequence import Frame, Intrinsics, Sequence
@@ -31,6 +31,7 @@ class FootHeadPairs:
     tracked: bool  # every frame with people carries person_ids
     n_frames: int
     source: str  # "2d" (explicit points), "mesh" (projected landmarks) or "mixed"
+    not_in_front: int = 0  # meshes dropped: root-centred or behind the camera (camera.people_not_in_front)
 
 
 def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, str]:
@@ -53,13 +54,22 @@ def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray
 
 
 def gather_pairs(seq: Sequence) -> FootHeadPairs:
-    """Pool every frame's foot/head pixel pairs (non-finite pairs dropped), one frame at a time."""
+    """Pool every frame's foot/head pixel pairs (non-finite pairs dropped), one frame at a time.
+
+    Meshes that are root-centred or behind the camera (never placed in the camera frame) give no
+    pair; ``not_in_front`` counts them, so a refusal can say why.
+    """
     feet, heads, index, ids, sources = [], [], [], [], set()
     tracked = True
+    not_in_front = 0
     for i, frame in enumerate(seq.frames()):
         seq.require_static_frame(frame)
         tracked &= frame.n_people == 0 or frame.get("person_ids") is not None
         f, h, src = frame_foot_head_px(frame, seq.frame_intrinsics(frame))
+        if src == "mesh":  # a mesh that is not where the camera saw it projects to meaningless pixels
+            off = np.logical_or(*people_not_in_front(frame.data["vertices"]))
+            f[off], h[off] = np.nan, np.nan
+            not_in_front += int(off.sum())
         if len(f):
             sources.add(src)
         feet.append(f)
@@ -71,4 +81,5 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     keep = np.all(np.isfinite(feet_px), axis=1) & np.all(np.isfinite(heads_px), axis=1)
     source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
     return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
-                         np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source)
+                         np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source,
+                         not_in_front)

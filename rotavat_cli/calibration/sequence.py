@@ -100,7 +100,9 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
             per_frame = {"frames_fitted": len(spread.frame_ids), "frames_skipped": len(spread.skipped),
                          "median": spread.median, "iqr": spread.iqr}
     except DegenerateSceneError as exc:
-        raise DegenerateSceneError(f"{seq.path}: {exc}") from None
+        why = (f"; {pairs.not_in_front} people were left out, root-centred or behind the camera (not placed in the "
+               "camera frame: see rotavat info)") if pairs.not_in_front else ""
+        raise DegenerateSceneError(f"{seq.label}: {exc}{why}") from None
     except ValueError as exc:
         raise InputError(f"{seq.path}: {exc}") from None
     if "focal_px" in result.fixed:

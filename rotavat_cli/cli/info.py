@@ -6,10 +6,12 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..sequence import open_sequence, summarize_sequence
 from ._common import ConfigOpt, JsonOpt, QuietOpt, console, print_json, use_config, warn_ignored
+from ._common import info as say
 
 
 def info(
@@ -46,6 +48,25 @@ def info(
     for key, value in rows:
         table.add_row(key, value)
     console.print(table)
+    for warning in sequence_warnings(summary):
+        say(f"[yellow]warning:[/] {escape(warning)}", quiet)
+
+
+def sequence_warnings(summary: dict) -> list[str]:
+    """What in a summarised sequence stops calibrate or align from giving a right answer, and why."""
+    warnings = []
+    if len(summary["image_sizes"]) > 1:
+        sizes = ", ".join("x".join(map(str, size)) for size in summary["image_sizes"])
+        warnings.append(f"{summary['path']}: frames of {len(summary['image_sizes'])} image sizes ({sizes}) are not one "
+                        "static camera's: calibrate and align refuse them; split them into one sequence per camera")
+    if summary["people_root_centred"]:
+        warnings.append(f"{summary['path']}: {summary['people_root_centred']} people are centred on the camera (their "
+                        "translation is zero: a root-centred output, not placed in the camera frame); they cannot be "
+                        "calibrated or aligned: import the tool's camera-frame output (its translation) instead")
+    if summary["people_behind_camera"]:
+        warnings.append(f"{summary['path']}: {summary['people_behind_camera']} people are partly at or behind the camera "
+                        "(z <= 0): not what the camera saw; check the file's camera frame and translation")
+    return warnings
 
 
 def _focal_cell(summary: dict) -> str:

@@ -1,12 +1,297 @@
-"""hybrik: importer being written (issue 17); registered, reads nothing yet."""
+"""HybrIK (``--from hybrik``): the ``res.pk`` that ``scripts/demo_video.py --save-pk`` writes.
+
+Source: Jeff-sjtu/HybrIK @802e1b8 ``scripts/demo_video.py`` (``res_db``, ``xyxy2xywh``, the
+per-person ``focal``, ``pk.dump(res_db)``), ``configs/256x192_adam_lr1e-3-hrw48_cam_2x_w_pw3d_3dhp.yaml``
+(the demo's config: ``FOCAL_LENGTH: 1000``, ``IMAGE_SIZE: [256, 256]``, ``BBOX_3D_SHAPE: 2200``),
+@403d1ae ``hybrik/models/HRNetWithCam.py`` (``HRNetSMPLCam.forward``: uvd -> camera xyz,
+``cam_root``, ``transl``), ``hybrik/utils/presets/simple_transform_3d_smpl_cam.py``
+(``test_transform``: the box, ``img_center``), @9bf86ce ``hybrik/models/layers/smpl/SMPL.py``
+(``SMPL_layer.hybrik``: ``JOINT_NAMES`` of the 29 joints, root-centred outputs); the 5 leaf joints
+are SMPL vertices 411 (head top), 2445 / 5905 (middle fingertips), 3216 / 6617 (big toes)
+(``hybrik/models/layers/smpl/lbs.py``, ``leaf_number``).
+
+- File: a plain pickle of a dict of stacked arrays, one row per processed image (the demo
+  follows one person: the first detection, then the box of largest IoU with the previous one;
+  images with no detection are skipped): ``pred_xyz_29`` (N, 29, 3) root-relative, in units of
+  the depth factor ``bbox_3d_shape / 1000`` m; ``pred_uvd`` (N, 29, 3): u, v in [-0.5, 0.5] of
+  the crop box, d root-relative depth; ``pred_cam_root`` (N, 3) the root joint in the camera
+  frame (m); ``transl`` (N, 3) = ``cam_root`` minus the (zero) root of the root-centred SMPL
+  output; ``pred_thetas`` (N, 216) = 24 rotation matrices (older versions: (N, 96) quaternions);
+  ``pred_betas`` (N, 10); ``bbox`` (N, 4) xyxy of the square crop box (detection x 1.25);
+  ``height``, ``width`` (N,) px; ``img_path`` (N,); and ``pred_xyz_17``, ``pred_xyz_24_struct``,
+  ``pred_scores``, ``pred_camera``, ``pred_phi``, ``transl_camsys`` (not needed here).
+- Frame: camera-frame joints = ``pred_xyz_29 * depth_factor + pred_cam_root``; OpenCV axes (the
+  heatmap's u right, v down, depth forward), metres.
+- Focal: 1000 px for the 256 px input, so f = 1000 / 256 * box width px on the original image,
+  **one per person** (``focal_length`` (P,) in each frame); principal point = image centre.
+- 2D: ``(cx, cy) + uv * w`` (box centre and side w; the box is square), exactly the projection
+  of the camera-frame joints with that focal.
+- Depth factor: 2.2 m in the demo's config, 2.0 m in configs without ``BBOX_3D_SHAPE``
+  (``HRNetSMPLCam.__init__`` default); read here from the file itself, as the value for which
+  the camera-frame joints reproject onto ``pred_uvd``.
+- Meshes: ``SMPL(pred_thetas, pred_betas)`` with ``--smpl-model``, placed with its pelvis joint at
+  ``transl`` (meshes and joints then agree). HybrIK's own render centres the mesh on the
+  H36M-regressed pelvis instead (``J_regressor_h36m``, not part of SMPL's ``.npz``): the two
+  differ by the offset between the two pelvis definitions.
+- Joints: SMPL-24 = the first 24 of the 29 (``JOINT_NAMES``), or the posed model's with
+  ``--smpl-model``. 2D layout ``hybrik29``: SMPL-24, then head (top), left/right middle
+  (fingertips), left/right big toe.
+- HybrIK-X (``scripts/demo_video_x.py``, SMPL-X) writes a ``res.pk`` too, without
+  ``pred_xyz_29``: refused (its SMPL-X pose needs HybrIK-X's own kid shape space).
+- Rows sharing an ``img_path`` are people of one frame (the demo writes one per image); with
+  one person per frame the demo's single tracked person gets ``person_ids`` 0.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
-READERS: dict = {}
+import numpy as np
+
+from .. import safe_pickle
+from ..focal import ASSUMED, hybrik_focal_px
+from ..sequence import Frame
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, get, model_faces, no_model_warning, people_frame, project_px)
+from .smpl import BodyModel, lbs, pose_to_matrices
+
+__all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px"]
+
+# SMPL_layer.JOINT_NAMES: SMPL's 24 (its 'left_thumb'/'right_thumb' are SMPL's hand joints) + 5 leaves.
+HYBRIK29_JOINT_NAMES = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2", "left_ankle",
+    "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar", "right_collar", "jaw",
+    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
+    "left_thumb", "right_thumb", "head", "left_middle", "right_middle", "left_bigtoe", "right_bigtoe",
+)
+_N_JOINTS = len(HYBRIK29_JOINT_NAMES)
+_KEYPOINTS_LAYOUT = "hybrik29 (SMPL-24 + head top, middle fingertips, big toes)"
+# bbox_3d_shape / 1000 (m) of HybrIK's configs: 2200 (the demo's hrw48 config), 2000 (the default).
+_DEPTH_FACTORS_M = (2.2, 2.0)
+_DEPTH_FACTOR_SNAP = 0.01  # a fitted factor within 1 % of a config's is that config's
+_REPROJECTION_TOL_PX = 1.0  # the demo's own joints reproject to ~1e-4 px (float32); anything near 1 px is another camera
+_DEMO_DEPTH_FACTOR_M = 2.2  # used when the file has no pred_uvd to recover it from
+_MAX_SNIFF_BYTES = 512 << 20
 
 
 def sniff(path: Path) -> str | None:
-    """Nothing recognised yet."""
+    """'hybrik' for a pickle of HybrIK's ``res_db``: a dict with ``pred_uvd``, ``transl`` and ``img_path``."""
+    if not (path.is_file() and path.suffix in (".pk", ".pkl")) or path.stat().st_size > _MAX_SNIFF_BYTES:
+        return None
+    data = safe_pickle.load_file(path)
+    if isinstance(data, Mapping) and "img_path" in data and "transl" in data and (
+            "pred_xyz_29" in data or "pred_uvd" in data):
+        return "hybrik"
     return None
+
+
+# ---- geometry (pure) -------------------------------------------------------------------------
+def box_geometry(bbox_xyxy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (N, 2) px and widths (N,) px of xyxy boxes (N, 4)."""
+    return 0.5 * (bbox_xyxy[:, :2] + bbox_xyxy[:, 2:]), bbox_xyxy[:, 2] - bbox_xyxy[:, 0]
+
+
+def uvd_to_px(uvd: np.ndarray, bbox_xyxy: np.ndarray) -> np.ndarray:
+    """HybrIK's box-normalised uv (N, K, 2|3) -> original-image pixels (N, K, 2): centre + uv * side."""
+    centre, side = box_geometry(bbox_xyxy)
+    return centre[:, None] + uvd[..., :2] * side[:, None, None]
+
+
+def joints_cam(xyz_rel: np.ndarray, root_cam: np.ndarray, depth_factor_m: float) -> np.ndarray:
+    """Camera-frame joints (N, K, 3) m from root-relative ``xyz_rel`` (N, K, 3, depth-factor units)
+    and the camera-frame root (N, 3) m."""
+    return xyz_rel * depth_factor_m + root_cam[:, None]
+
+
+def fitted_depth_factor_m(xyz_rel: np.ndarray, uv_px: np.ndarray, root_cam: np.ndarray, focal_px: np.ndarray,
+                          principal_point: tuple[float, float]) -> float:
+    """The depth factor s (m) for which ``xyz_rel * s + root_cam`` projects onto ``uv_px``.
+
+    xyz_rel: (N, K, 3); uv_px: (N, K, 2); root_cam: (N, 3) m; focal_px: (N,). Linear least squares
+    of ``(u - c) (Z s + R_z) = f (X s + R_x)`` (and the same in v) over every joint.
+    """
+    rows, rhs = [], []
+    for axis in (0, 1):
+        offset = uv_px[..., axis] - principal_point[axis]  # (N, K)
+        rows.append(offset * xyz_rel[..., 2] - focal_px[:, None] * xyz_rel[..., axis])
+        rhs.append(focal_px[:, None] * root_cam[:, None, axis] - offset * root_cam[:, None, 2])
+    a, b = np.concatenate(rows).ravel(), np.concatenate(rhs).ravel()
+    ok = np.isfinite(a) & np.isfinite(b)
+    denominator = float(a[ok] @ a[ok])
+    return float(a[ok] @ b[ok]) / denominator if denominator > 0 else float("nan")
+
+
+def reprojection_rms_px(xyz_rel, uv_px, root_cam, focal_px, principal_point, depth_factor_m: float) -> float:
+    """RMS (px) between ``uv_px`` (N, K, 2) and the camera-frame joints projected with ``focal_px`` (N,)."""
+    projected = project_px(joints_cam(xyz_rel, root_cam, depth_factor_m), focal_px[:, None], principal_point)
+    return float(np.sqrt(np.nanmean(np.sum((projected - uv_px) ** 2, axis=-1))))
+
+
+def choose_depth_factor_m(xyz_rel, uv_px, root_cam, focal_px, principal_point) -> tuple[float, float]:
+    """(depth factor m, its reprojection RMS px): a config's value when the fit is within 1 % of it.
+
+    Raises ValueError when no factor makes the joints reproject onto ``uv_px``.
+    """
+    fitted = fitted_depth_factor_m(xyz_rel, uv_px, root_cam, focal_px, principal_point)
+    if not np.isfinite(fitted) or fitted <= 0:
+        raise ValueError("pred_xyz_29 and pred_uvd do not determine a depth factor")
+    known = [s for s in _DEPTH_FACTORS_M if abs(fitted - s) <= _DEPTH_FACTOR_SNAP * s]
+    factor = known[0] if known else fitted
+    rms = reprojection_rms_px(xyz_rel, uv_px, root_cam, focal_px, principal_point, factor)
+    if not rms <= _REPROJECTION_TOL_PX:
+        raise ValueError(f"pred_xyz_29 does not reproject onto pred_uvd through HybrIK's camera (best depth "
+                         f"factor {fitted:.3f} m leaves {rms:.1f} px)")
+    return factor, rms
+
+
+# ---- reading ---------------------------------------------------------------------------------
+def _image_size(data: Mapping, n_rows: int, src: Path, opts: ImportOptions,
+                warnings: list[str]) -> tuple[tuple[int, int], str]:
+    """(W, H) from 'width' / 'height' (one size for the whole file), or --image-size; and which."""
+    widths = as_array(get(data, "width", src), "width", src, ndim=1).reshape(-1)
+    heights = as_array(get(data, "height", src), "height", src, ndim=1).reshape(-1)
+    if len(widths) != n_rows or len(heights) != n_rows:
+        raise fail(src, f"'width'/'height' must have one entry per row ({n_rows})")
+    sizes = {(int(w), int(h)) for w, h in zip(widths.tolist(), heights.tolist())}
+    if len(sizes) != 1 or min(next(iter(sizes))) <= 0:
+        raise fail(src, f"expected one positive image size for all rows, got {sorted(sizes)[:3]}")
+    stored = next(iter(sizes))
+    if opts.image_size is not None and opts.image_size != stored:
+        warnings.append(f"{src}: --image-size {opts.image_size[0]}x{opts.image_size[1]} differs from the stored "
+                        f"{stored[0]}x{stored[1]}; using --image-size")
+        return opts.image_size, "--image-size"
+    return stored, "HybrIK 'width'/'height'"
+
+
+def _rows(data: Mapping, src: Path) -> dict[str, np.ndarray]:
+    """The arrays the import needs, validated: one row per (image, person)."""
+    if "pred_xyz_29" not in data and "pred_uvd" in data:
+        raise fail(src, "a HybrIK-X (SMPL-X, demo_video_x.py) res.pk: it has no 'pred_xyz_29' camera joints and its "
+                        "SMPL-X pose uses HybrIK-X's own kid shape space; not supported")
+    xyz = as_array(get(data, "pred_xyz_29", src), "pred_xyz_29", src, ndim=3, last=(_N_JOINTS, 3))
+    n_rows = len(xyz)
+    out = {"xyz": xyz}
+    out["transl"] = as_array(get(data, "transl", src), "transl", src, ndim=2, last=(3,))
+    root = data.get("pred_cam_root")
+    out["root"] = out["transl"] if root is None else as_array(root, "pred_cam_root", src, ndim=2, last=(3,))
+    out["bbox"] = as_array(get(data, "bbox", src), "bbox", src, ndim=2, last=(4,))
+    if data.get("pred_uvd") is not None:
+        out["uvd"] = as_array(data["pred_uvd"], "pred_uvd", src, ndim=3, last=(_N_JOINTS, 3))
+    paths = get(data, "img_path", src)
+    if not isinstance(paths, (np.ndarray, list, tuple)) or np.ndim(paths) != 1 or not all(isinstance(p, str) for p in paths):
+        raise fail(src, "'img_path' must be a list of image paths")
+    out["img_path"] = np.asarray([str(p) for p in paths])
+    for key, value in out.items():
+        if len(value) != n_rows:
+            raise fail(src, f"'{key if key != 'xyz' else 'pred_xyz_29'}' has {len(value)} rows but 'pred_xyz_29' has {n_rows}")
+    widths = box_geometry(out["bbox"])[1]
+    if n_rows and not (np.all(np.isfinite(widths)) and widths.min() > 0):
+        raise fail(src, "'bbox' must hold boxes [x1, y1, x2, y2] with x2 > x1 (HybrIK's focal scales with the box width)")
+    return out
+
+
+def _pose_params(data: Mapping, n_rows: int, src: Path, warnings: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """(rotations (N, 24, 3, 3), betas (N, B)) or None (warned) when the thetas are quaternions."""
+    thetas = as_array(get(data, "pred_thetas", src), "pred_thetas", src)
+    betas = as_array(get(data, "pred_betas", src), "pred_betas", src, ndim=2)
+    if len(thetas) != n_rows or len(betas) != n_rows:
+        raise fail(src, f"'pred_thetas'/'pred_betas' must have {n_rows} rows")
+    if thetas.reshape(n_rows, -1).shape[1] == 24 * 4:
+        warnings.append(f"{src}: 'pred_thetas' holds quaternions (an older HybrIK); they are not read: joints only, "
+                        "no meshes")
+        return None
+    try:
+        return pose_to_matrices(thetas.reshape(n_rows, -1), 24), betas
+    except ValueError:
+        raise fail(src, f"'pred_thetas' must be 24 rotation matrices per row, got shape {list(thetas.shape)}") from None
+
+
+def _frames(img_paths: np.ndarray) -> list[tuple[str, list[int]]]:
+    """(image path, its rows) in first-appearance order."""
+    groups: dict[str, list[int]] = {}
+    for row, path in enumerate(img_paths.tolist()):
+        groups.setdefault(path, []).append(row)
+    return list(groups.items())
+
+
+def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """HybrIK ``res.pk`` -> contract frames with one focal per person."""
+    data = safe_pickle.load_file(src)
+    if not isinstance(data, Mapping):
+        raise fail(src, f"not a HybrIK res.pk (expected a dict of arrays, got {type(data).__name__})")
+    rows = _rows(data, src)
+    n_rows = len(rows["xyz"])
+    if n_rows == 0:
+        raise fail(src, "holds no detections")
+    warnings: list[str] = []
+    image_size, size_from = _image_size(data, n_rows, src, opts, warnings)
+    principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
+    focal_px = hybrik_focal_px(box_geometry(rows["bbox"])[1])  # (N,)
+    if "uvd" in rows:
+        uv_px = uvd_to_px(rows["uvd"], rows["bbox"])
+        try:
+            depth_factor, rms = choose_depth_factor_m(rows["xyz"], uv_px, rows["root"], focal_px, principal_point)
+        except ValueError as exc:
+            raise fail(src, str(exc)) from None
+        depth_from = f"fitted to pred_uvd (reprojection rms {rms:.2g} px)"
+    else:
+        uv_px, depth_factor, depth_from = None, _DEMO_DEPTH_FACTOR_M, "demo_video.py's config (no pred_uvd to check it)"
+        warnings.append(f"{src}: no 'pred_uvd': depth factor {depth_factor} m assumed (demo_video.py's config); "
+                        "2D keypoints are the projected joints")
+    if depth_factor not in _DEPTH_FACTORS_M:
+        warnings.append(f"{src}: depth factor {depth_factor:.4f} m is none of HybrIK's configs' ({_DEPTH_FACTORS_M}); "
+                        "used as fitted")
+    joints29 = joints_cam(rows["xyz"], rows["root"], depth_factor)
+    if uv_px is None:
+        uv_px = project_px(joints29, focal_px[:, None], principal_point)
+    model = opts.body_model
+    pose = None
+    if model is not None:
+        if model.kind != "smpl":
+            raise fail(src, f"HybrIK uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+        pose = _pose_params(data, n_rows, src, warnings)
+    elif "pred_thetas" in data:
+        warnings.append(no_model_warning("HybrIK"))
+    frames = _frames(rows["img_path"])
+    names = frame_names([Path(path).stem for path, _ in frames], warnings)
+    tracked = all(len(picks) == 1 for _, picks in frames)  # the demo's single IoU-tracked person
+    faces = model_faces(model, None if pose is None else model.n_verts)
+
+    def posed(picks: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Camera-frame meshes and SMPL-24 joints, the model's pelvis joint at ``transl``."""
+        rot, betas = pose
+        verts, joints = lbs(model, betas[picks], rot[picks])
+        shift = rows["transl"][picks] - joints[:, 0]
+        return verts + shift[:, None], joints + shift[:, None]
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        path, picks = frames[index]
+        source = f"{src} [{path}]"
+        verts, joints = posed(picks) if pose is not None else (None, joints29[picks, :24])
+        return people_frame(names[index], source, notes.warnings, vertices=verts, joints=joints,
+                            keypoints_2d=uv_px[picks], faces=faces,
+                            person_ids=np.zeros(1, np.int64) if tracked else None,
+                            extra={"focal_length": focal_px[picks].astype(np.float64)},
+                            keypoints_layout=_KEYPOINTS_LAYOUT)
+
+    meta = base_meta("hybrik", src, opts, image_size, None, principal_point, focal_kind=ASSUMED)
+    meta["import"].update({
+        "source_frames": [Path(path).name for path, _ in frames],
+        "image_size_from": size_from,
+        "joints_layout": "smpl24",
+        "root_joint": 0,
+        "keypoints_2d_layout": _KEYPOINTS_LAYOUT,
+        "feet_heads_from": feet_heads_from(_KEYPOINTS_LAYOUT, pose is not None),
+        "focal_per_person": "1000 / 256 * bbox width (frame key focal_length, one per person)",
+        "depth_factor_m": float(depth_factor),
+        "depth_factor_from": depth_from,
+        "person_ids": "0: the demo's one tracked person" if tracked else None,
+        "conventions": "camera frame = OpenCV, metres; joints = pred_xyz_29 * depth factor + pred_cam_root"
+                       + ("; vertices = SMPL(pred_thetas, pred_betas), pelvis joint at transl" if pose is not None else "")
+                       + "; principal point = image centre",
+    })
+    return ImportedSequence(tuple(names), build, meta, warnings)
+
+
+READERS = {"hybrik": read_hybrik}

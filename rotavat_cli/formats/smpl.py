@@ -48,6 +48,7 @@ __all__ = [
     "lbs",
     "posed_joints",
     "SMPLX_TO_SMPL24",
+    "SMPLH_TO_SMPL24",
     "joints_to_smpl24",
     "SMPL_PARENTS",
     "toy_chain_model",
@@ -57,6 +58,9 @@ __all__ = [
 # (22, 23) have no SMPL-X twin: the middle finger's first joint (SMPL-X 28 'left_middle1',
 # 43 'right_middle1', vchoutas/smplx joint_names.py) is the nearest stand-in (an approximation).
 SMPLX_TO_SMPL24 = tuple(range(22)) + (28, 43)
+# SMPL-H (52 joints) has the same 22 body joints, then 15 joints per hand without SMPL-X's jaw and eyes:
+# the same stand-ins are 25 'left_middle1' and 40 'right_middle1' (smplx joint_names.py SMPLH_JOINT_NAMES).
+SMPLH_TO_SMPL24 = tuple(range(22)) + (25, 40)
 
 _REQUIRED = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table")
 
@@ -283,13 +287,15 @@ def _rigid_transforms(rot: np.ndarray, joints: np.ndarray, parents: np.ndarray) 
 
 
 def joints_to_smpl24(joints: np.ndarray) -> tuple[np.ndarray, str]:
-    """SMPL-24 joints from SMPL (24 or 45 = 24 + vertex joints) or SMPL-X (55 / 127) joint sets.
+    """SMPL-24 joints from SMPL (24 or 45 = 24 + vertex joints), SMPL-H (52) or SMPL-X (55 / 127) joint sets.
 
     Returns (joints (P, 24, 3), note); raises ValueError for other joint counts.
     """
     n = joints.shape[1]
     if n in (24, 45):  # SMPL kinematic joints first (smplx.SMPL appends 21 vertex joints)
         return joints[:, :24], "smpl24"
+    if n == 52:  # SMPL-H kinematic joints
+        return joints[:, list(SMPLH_TO_SMPL24)], "smpl24 (from SMPL-H: hands = middle1 joints)"
     if n in (55, 127, 144):  # SMPL-X kinematic joints first (55), then vertex/face joints
         return joints[:, list(SMPLX_TO_SMPL24)], "smpl24 (from SMPL-X: hands = middle1 joints)"
     raise ValueError(f"cannot map {n} joints to SMPL-24")
