@@ -100,11 +100,12 @@ def _choices() -> dict[str, tuple[str, ...]]:
     from .batch.plan import EXECUTORS
     from .calibration import METHODS, POINTS, RESIDUALS
     from .metrics import ENGINES
-    from .metrics.evaluate import MATCHES
+    from .metrics.evaluate import MATCHES, PROTOCOL_NAMES
     from .render import RENDERERS
 
     return {"calibrate.method": METHODS, "calibrate.residual": RESIDUALS, "calibrate.points": POINTS,
             "align.upright": UPRIGHT, "align.height_from": HEIGHT_FROM, "eval.match": MATCHES, "eval.engine": ENGINES,
+            "eval.protocol": PROTOCOL_NAMES,
             "render.renderer": RENDERERS, "batch.executor": EXECUTORS}
 
 

@@ -42,7 +42,7 @@ and what was refused, never "a bad pickle".
 >>> load_torch_bytes(b"PK\\x05\\x06" + bytes(18), "empty.pt")
 Traceback (most recent call last):
 ...
-rotavat_cli.errors.InputError: empty.pt: torch archive: no '<name>/data.pkl' record (not a torch.save archive)
+rotavat_cli.errors.InputError: empty.pt: torch archive: no '<name>/data.pkl' record (the pickle of a torch.save archive)
 """
 
 from __future__ import annotations
@@ -295,6 +295,7 @@ def _static_globals() -> dict[tuple[str, str], Any]:
         table[("torch", name)] = dtype
     for alias, name in _DTYPE_ALIASES.items():
         table[("torch", alias)] = _DTYPES[name]
+    table[("torch.storage", "UntypedStorage")] = table[("torch", "UntypedStorage")]  # how torch >= 2.0 names it
     table[("torch", "Size")] = _torch_size
     table[("torch", "Tensor")] = table[("torch._tensor", "Tensor")] = _TENSOR
     table[("torch.nn.parameter", "Parameter")] = _PARAMETER
@@ -383,11 +384,11 @@ def _read_record(archive: zipfile.ZipFile, name: str, declared: int | None = Non
 def _archive_prefix(archive: zipfile.ZipFile) -> str:
     """The ``<name>`` of ``<name>/data.pkl`` (torch names the archive after the file)."""
     names = archive.namelist()
+    if any(n.count("/") == 1 and n.endswith("/constants.pkl") for n in names):  # torch's _is_torchscript_zip
+        raise _sp._Refused("a TorchScript model archive (torch.jit.save), not data saved with torch.save")
     pickles = [n for n in names if n.count("/") == 1 and n.endswith("/data.pkl")]
     if not pickles:
-        if any(n.endswith("/constants.pkl") for n in names):
-            raise _sp._Refused("a TorchScript model archive (torch.jit.save), not data saved with torch.save")
-        raise _sp._Refused("no '<name>/data.pkl' record (not a torch.save archive)")
+        raise _sp._Refused("no '<name>/data.pkl' record (the pickle of a torch.save archive)")
     if len(pickles) > 1:
         raise _sp._Refused(f"{len(pickles)} data.pkl records (expected one)")
     return pickles[0][:-len("/data.pkl")]
@@ -457,27 +458,28 @@ def _load_legacy(data: bytes, budget: _sp._Budget, depth: int) -> Any:
     return value
 
 
+_FIRST_RECORDS = (b"data.pkl", b".format_version", b".storage_alignment", b"byteorder", b"version")
+
+
 def is_torch_zip(data: bytes) -> bool:
-    """True for bytes that open as a zip archive holding a ``<name>/data.pkl`` record."""
-    if data[:4] != b"PK\x03\x04":
+    """True for a zip archive whose first record is one of ``torch.save``'s (``<name>/data.pkl``, or
+    ``<name>/.format_version`` & co.), read from the first local header: a truncated archive, or one
+    missing records, is still recognised (and reported) as a torch archive."""
+    if len(data) < 30 or data[:4] != b"PK\x03\x04":
         return False
-    try:
-        names = zipfile.ZipFile(io.BytesIO(data)).namelist()
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError):
-        return False
-    return any(n.count("/") == 1 and n.endswith("/data.pkl") for n in names)
+    (name_length,) = struct.unpack("<H", data[26:28])
+    first = data[30:30 + name_length].split(b"/")
+    return len(first) == 2 and bool(first[0]) and first[1] in _FIRST_RECORDS
 
 
 def is_legacy_torch(data: bytes) -> bool:
-    """True for bytes starting with the pickled legacy magic number (``torch.save(..., _use_new_zipfile_serialization=False)``)."""
-    magic = pickle_int_prefix(MAGIC_NUMBER)
-    return any(data.startswith(prefix) for prefix in magic)
-
-
-def pickle_int_prefix(value: int) -> tuple[bytes, ...]:
-    """How protocols 2-5 start a pickle of a big int (``PROTO n`` then ``LONG1``)."""
-    body = value.to_bytes((value.bit_length() + 8) // 8, "little", signed=True)
-    return tuple(bytes([0x80, proto, 0x8A, len(body)]) + body for proto in range(2, 6))
+    """True for bytes starting with the pickled legacy magic number (``torch.save(...,
+    _use_new_zipfile_serialization=False)``): ``PROTO n``, a ``FRAME`` from protocol 4 on, ``LONG1``."""
+    if len(data) < 4 or data[0] != 0x80 or not 2 <= data[1] <= 5:
+        return False
+    position = 11 if data[2] == 0x95 else 2  # FRAME + its 8-byte length
+    body = MAGIC_NUMBER.to_bytes((MAGIC_NUMBER.bit_length() + 8) // 8, "little", signed=True)
+    return data[position:position + 2 + len(body)] == bytes([0x8A, len(body)]) + body
 
 
 def _is_tar(data: bytes) -> bool:
@@ -485,7 +487,8 @@ def _is_tar(data: bytes) -> bool:
 
 
 def _load_blob(data: bytes, budget: _sp._Budget, depth: int) -> Any:
-    """A torch file's bytes (zip archive or legacy stream) -> its object, storages read, tensors resolved."""
+    """A torch file's bytes (zip archive or legacy stream) -> its object, storages read (tensors of a legacy
+    stream may still be deferred: :func:`resolve`)."""
     if _is_tar(data):
         raise _sp._Refused("the pre-1.0 tar layout of torch.save is not supported (re-save with a recent PyTorch)")
     if data[:2] == b"PK":
@@ -494,7 +497,7 @@ def _load_blob(data: bytes, budget: _sp._Budget, depth: int) -> Any:
         value = _load_legacy(data, budget, depth)
     else:
         raise _sp._Refused("neither a torch zip archive nor a legacy torch stream")
-    return resolve(value)
+    return value
 
 
 def resolve(value: Any) -> Any:
@@ -539,7 +542,7 @@ def load_torch_bytes(data: bytes, source: str) -> Any:
     containers of numpy arrays; every failure is a one-line InputError naming ``source``."""
     budget = _sp._Budget()
     try:
-        value = _load_blob(data, budget, 0)
+        value = resolve(_load_blob(data, budget, 0))
         _sp._check_expansion(value)
         return value
     except _sp._Refused as exc:

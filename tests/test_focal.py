@@ -186,7 +186,7 @@ def test_camera_height_from_the_command_line(tmp_path, runner):
     result = invoke(runner, "calibrate", scene / "pred", "--camera-height", str(true.height_m), "--out",
                     tmp_path / "c.yaml")
     assert result.exit_code == 0, result.stderr
-    assert "person_height_m" in result.stderr and "fixed: given" in result.stderr
+    assert "person_height_m" in result.stdout and "fixed: given" in result.stdout
     written = yaml.safe_load((tmp_path / "c.yaml").read_text())
     assert written["height_m"] == true.height_m and written["fit"]["person_height"] == "estimated"
     assert abs(written["fit"]["person_height_m"] - 1.70) < 0.15
@@ -248,13 +248,13 @@ def test_the_table_never_calls_an_estimated_parameter_fixed(tmp_path, runner):
     result = invoke(runner, "calibrate", root / "pred", "--out", tmp_path / "c.yaml")
     assert result.exit_code == 0, result.stderr
     written = yaml.safe_load((tmp_path / "c.yaml").read_text())
-    table = [line for line in result.stderr.splitlines() if line.startswith("│")]
+    table = [line for line in result.stdout.splitlines() if line.startswith("│")]
     for key in ("focal_px", "pitch_deg", "roll_deg", "height_m"):
         row = next(line for line in table if key in line)
         assert "fixed" not in row and f"{written['fit']['std'][key]:.3f}" in row, row  # estimated: its std
     assert _std_cell(math.inf, None) == "undetermined" and _std_cell(None, "given") == "fixed: given"
     given = invoke(runner, "calibrate", root / "pred", "--focal", "1000", "--no-roll", "--out", tmp_path / "g.yaml")
-    rows = {key: next(line for line in given.stderr.splitlines() if line.startswith("│") and key in line)
+    rows = {key: next(line for line in given.stdout.splitlines() if line.startswith("│") and key in line)
             for key in ("focal_px", "roll_deg")}
     assert "fixed: given" in rows["focal_px"] and "fixed: 0" in rows["roll_deg"]
 

@@ -692,3 +692,36 @@ def test_camera_errors_wraps_angles_and_reports_percentages():
     assert got["height_pct"] == pytest.approx(5.0)
     with pytest.raises(ValueError, match="pred camera is missing roll_deg"):
         camera_errors({k: v for k, v in pred.items() if k != "roll_deg"}, gt)
+
+
+# --------------------------------------------------------------------------- memory layout (issue 18, bug 1)
+
+
+def _layouts(points: np.ndarray) -> dict[str, np.ndarray]:
+    """The same (P, N, 3) values in C order, Fortran order, a fancy-indexed subset's layout, a strided view."""
+    reordered = points[:, [1, 0, *range(2, points.shape[1])]]  # non-contiguous, like pj[:, list(--joints)]
+    strided = np.repeat(points, 2, axis=1)[:, ::2]
+    return {"C": np.ascontiguousarray(points), "F": np.asfortranarray(points),
+            "fancy": reordered[:, [1, 0, *range(2, points.shape[1])]], "strided": strided}
+
+
+def test_every_metric_is_the_same_for_any_memory_layout(fused):
+    """The root shift wrote through a reshape of a non-contiguous array (a copy), so mpjpe turned into
+    w_mpjpe (~2000 mm instead of ~100 here). Every metric must give the same numbers for any layout."""
+    rng = np.random.default_rng(18)
+    gt = rng.normal(scale=0.3, size=(3, 24, 3)) + [0.0, 0.0, 5.0]
+    pred = gt + rng.normal(scale=0.05, size=gt.shape) + [0.3, 0.1, 2.0]
+    by_hand = np.linalg.norm((pred - pred[:, :1]) - (gt - gt[:, :1]), axis=-1).mean(axis=1) * 1000.0
+    assert np.all(by_hand < 200.0) and np.all(mpjpe(pred, gt, "none") > 1900.0)  # the two differ by far
+    rot = _rot_x(10.0)
+    for name, (p, g) in {k: (v, _layouts(gt)[k]) for k, v in _layouts(pred).items()}.items():
+        assert p.tolist() == pred.tolist(), name
+        np.testing.assert_allclose(mpjpe(p, g, "root"), by_hand, rtol=1e-12, err_msg=name)
+        np.testing.assert_allclose(pve(p, g, "root", p[:, 0], g[:, 0]), by_hand, rtol=1e-12, err_msg=name)
+        np.testing.assert_allclose(point_errors_mm(p, g, "root", p[:, 0], g[:, 0]).mean(1), by_hand, rtol=1e-12)
+        np.testing.assert_allclose(mpjpe(p, g, "procrustes"), mpjpe(pred, gt, "procrustes"), rtol=1e-12)
+        np.testing.assert_allclose(w_spec_mpjpe(p, g, rot, rot), by_hand, rtol=1e-10, err_msg=name)
+        errs = fused(p, g, pred_verts=p, gt_verts=g)
+        np.testing.assert_allclose(errs["mpjpe"], by_hand, rtol=1e-12, err_msg=name)
+        np.testing.assert_allclose(errs["pve"], by_hand, rtol=1e-6, err_msg=name)
+        np.testing.assert_allclose(errs["pa_pve"], mpjpe(pred, gt, "procrustes"), rtol=1e-5, err_msg=name)

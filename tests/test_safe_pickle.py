@@ -4,6 +4,8 @@ with a one-line InputError and without running any code."""
 from __future__ import annotations
 
 import io
+import re
+import zipfile
 import os
 import pickle
 import subprocess
@@ -268,3 +270,179 @@ def test_defaultdict_with_another_factory_is_refused():
 
     with pytest.raises(InputError, match="d.pkl: defaultdict with factory 'dtype' is not allowed"):
         safe_pickle.loads(pickle.dumps(defaultdict(np.dtype)), "d.pkl")
+
+
+# ---- torch files (rotavat_cli.safe_torch): read without torch, written by hand (tests/_fixtures_torch.py) ----
+import _fixtures_torch as T  # noqa: E402
+
+from rotavat_cli import safe_torch  # noqa: E402
+
+REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
+
+
+def _torch_sample() -> tuple[dict, dict]:
+    """(fixture object, the arrays a reader must give back): dtypes, strided and shared views, 0-d, empty, nesting."""
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((3, 4)).astype(np.float32)
+    shared = T.tensor(np.arange(12, dtype=np.float64))
+    obj = {"f32": T.tensor(a), "transposed": T.transposed(a), "i64": T.tensor(np.arange(-2, 3)),
+           "i32": T.tensor(np.arange(6, dtype=np.int32).reshape(2, 3)), "i16": T.tensor(np.array([-7, 8], np.int16)),
+           "i8": T.tensor(np.array([-1, 2], np.int8)), "u8": T.tensor(np.array([1, 255], np.uint8)),
+           "f16": T.tensor(np.array([1.5, -2.0], np.float16)), "bool": T.tensor(np.array([True, False])),
+           "zero_d": T.tensor(np.float32(2.5)), "empty": T.tensor(np.zeros((0, 3), np.float32)),
+           "shared": shared, "shared_view": T.Tensor(shared.storage, 2, (2, 3), (1, 2)),
+           "nested": [{"x": T.tensor(np.ones(2, np.int32))}, (1, "s", None)], "python": 3.5}
+    want = {"f32": a, "transposed": a, "i64": np.arange(-2, 3), "i32": np.arange(6, dtype=np.int32).reshape(2, 3),
+            "i16": np.array([-7, 8], np.int16), "i8": np.array([-1, 2], np.int8), "u8": np.array([1, 255], np.uint8),
+            "f16": np.array([1.5, -2.0], np.float16), "bool": np.array([True, False]), "zero_d": np.array(2.5, np.float32),
+            "empty": np.zeros((0, 3), np.float32), "shared": np.arange(12.0),
+            "shared_view": np.array([[2.0, 4.0, 6.0], [3.0, 5.0, 7.0]])}
+    return obj, want
+
+
+def _assert_torch_sample(got: dict, want: dict) -> None:
+    for key, value in want.items():
+        assert got[key].dtype == value.dtype and got[key].shape == value.shape, key
+        np.testing.assert_array_equal(got[key], value, err_msg=key)
+    assert got["nested"][0]["x"].tolist() == [1, 1] and got["nested"][1] == (1, "s", None) and got["python"] == 3.5
+    assert got["shared"].base is None or got["shared"].base is not got["shared_view"].base  # independent copies
+
+
+@pytest.mark.parametrize("form", ["zip", "zip_protocol3", "legacy", "big_endian"])
+def test_torch_save_files_read_without_torch(tmp_path, form):
+    obj, want = _torch_sample()
+    data = {"zip": lambda: T.torch_zip_bytes(obj), "zip_protocol3": lambda: T.torch_zip_bytes(obj, protocol=3),
+            "legacy": lambda: T.legacy_bytes(obj), "big_endian": lambda: T.torch_zip_bytes(obj, byteorder="big")}[form]()
+    path = tmp_path / "x.pt"
+    path.write_bytes(data)
+    _assert_torch_sample(safe_pickle.load_file(path), want)  # load_file opens torch files transparently
+    _assert_torch_sample(safe_pickle.load_torch(path), want)
+
+
+def test_np_save_of_torch_tensors_reads_each_storage_blob(tmp_path):
+    """TRAM's hps_track_k.npy: np.save of a dict of tensors; each storage is torch.storage._load_from_bytes(b)."""
+    rotmat = np.broadcast_to(np.eye(3, dtype=np.float32), (4, 24, 3, 3)).copy()
+    path = T.np_save_tensors(tmp_path / "hps_track_0.npy", {"pred_rotmat": T.tensor(rotmat),
+                                                            "frame": T.tensor(np.array([0, 1, 5, 6])),
+                                                            "pred_trans": T.transposed(np.arange(6.0).reshape(2, 3))})
+    got = safe_pickle.load_npy(path).item()
+    assert got["pred_rotmat"].shape == (4, 24, 3, 3) and np.array_equal(got["pred_rotmat"][2, 7], np.eye(3))
+    assert got["frame"].tolist() == [0, 1, 5, 6] and got["frame"].dtype == np.int64
+    assert got["pred_trans"].tolist() == [[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]
+
+
+@pytest.mark.skipif(not (REALFILES / "gvhmr").is_dir(), reason="shared real files absent")
+def test_real_gvhmr_archive_matches_torch_load():
+    """Values measured with torch 2.13's own torch.load (outside the project) on the same file."""
+    data = safe_pickle.load_file(REALFILES / "gvhmr" / "tennis" / "hmr4d_results.pt")
+    incam = data["smpl_params_incam"]
+    assert {k: v.shape for k, v in incam.items()} == {"body_pose": (312, 63), "betas": (312, 10), "global_orient": (312, 3),
+                                                      "transl": (312, 3)}
+    np.testing.assert_allclose(incam["transl"][0], [-0.0539887, 0.41385126, 4.1407447], rtol=1e-6)  # stored with stride (1, 312)
+    np.testing.assert_allclose(data["K_fullimg"][0], [[1085.2391, 0, 406], [0, 1085.2391, 360], [0, 0, 1]], rtol=1e-7)
+    assert data["net_outputs"]["model_output"]["pred_context"].shape == (1, 312, 512)
+
+
+# ---- hostile and broken torch files: one line, naming the file as a torch archive, nothing run ----
+def _torch_file(tmp_path: Path, obj, **kw) -> Path:
+    path = tmp_path / "hmr4d_results.pt"
+    path.write_bytes(T.torch_zip_bytes(obj, name="hmr4d_results", **kw))
+    return path
+
+
+def _torch_error(path: Path) -> str:
+    with pytest.raises(InputError) as info:
+        safe_pickle.load_file(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: torch archive: ") and "\n" not in message and "pickle (" not in message
+    return message
+
+
+def test_torch_archive_naming_os_system_is_refused_without_running(tmp_path):
+    marker = tmp_path / "pwned"
+    path = _torch_file(tmp_path, {"a": T.tensor(np.ones(2)), "b": T.Call(T.Global("os", "system"), (f"touch {marker}",))})
+    assert "refused to unpickle global 'os.system' (only tensors, numpy arrays" in _torch_error(path)
+    assert not marker.exists()
+
+
+def test_hostile_storage_blob_inside_a_plain_pickle_is_refused(tmp_path):
+    """A _load_from_bytes blob is itself a pickle: its globals go through the same allow-list."""
+    marker = tmp_path / "pwned"
+
+    class EvilStorage(T.Storage):
+        def __reduce__(self):
+            inner = T.legacy_bytes(T.Call(T.Global("os", "system"), (f"touch {marker}",)))
+            return T._load_from_bytes, (inner,)
+
+    path = T.np_save_tensors(tmp_path / "hps_track_0.npy", {"x": T.Tensor(EvilStorage(np.ones(2)), 0, (2,), (1,))})
+    with pytest.raises(InputError, match=r"hps_track_0\.npy: refused to unpickle global 'os\.system'"):
+        safe_pickle.load_npy(path)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("make, needle", [
+    (lambda t: _torch_file(t, {"a": T.tensor(np.ones(4))}, drop=("data/0",)), r"record 'hmr4d_results/data/0' is missing"),
+    (lambda t: _torch_file(t, {"a": T.tensor(np.ones(4))}, resize={"0": 8}),
+     r"record 'hmr4d_results/data/0' holds 8 bytes, its storage declares 32"),
+    (lambda t: _torch_file(t, {"a": T.Tensor(T.Storage(np.ones(2), declared=2_000_000_000), 0, (2,), (1,))}),
+     r"storage declares 14\.9 GiB \(torch\.float64 x 2,000,000,000; limit 1\.0 GiB: limits\.max_array_mb\)"),
+    (lambda t: _torch_file(t, {"a": T.Tensor(T.Storage(np.ones(12)), 10, (5,), (1,))}),
+     r"tensor of size \[5\] \(offset 10, stride \[1\]\) reaches element 14 of storage '0', which holds 12"),
+    (lambda t: _torch_file(t, {"a": T.Tensor(T.Storage(np.ones(1)), 0, (10**6, 10**6), (0, 0))}),
+     r"array declares 7\.3 TiB"),
+    (lambda t: _torch_file(t, {"a": 1}, drop=("data.pkl",)), r"no '<name>/data\.pkl' record"),
+])
+def test_broken_torch_archives_give_one_line_before_allocating(tmp_path, make, needle):
+    assert re.search(needle, _torch_error(make(tmp_path)))
+
+
+def test_truncated_or_garbled_torch_archive_is_still_named_a_torch_archive(tmp_path):
+    path = _torch_file(tmp_path, {"a": T.tensor(np.arange(1000.0))})
+    F.truncate(path, 0.5)
+    assert "corrupt" in _torch_error(path)
+    legacy = tmp_path / "legacy.pt"
+    legacy.write_bytes(T.legacy_bytes({"a": T.tensor(np.arange(1000.0))})[:-100])
+    assert "truncated torch stream (storage" in _torch_error(legacy)
+
+
+def test_other_torch_layouts_are_refused_by_name(tmp_path):
+    script = tmp_path / "model.pt"  # torch.jit.save: code and constants.pkl, no data.pkl of saved data
+    with zipfile.ZipFile(script, "w") as archive:
+        archive.writestr("model/data.pkl", b"")
+        archive.writestr("model/constants.pkl", b"")
+    tar = io.BytesIO()
+    import tarfile
+
+    with tarfile.open(fileobj=tar, mode="w") as archive:
+        info = tarfile.TarInfo("storages")
+        archive.addfile(info, io.BytesIO(b""))
+    (tmp_path / "old.pt").write_bytes(tar.getvalue())
+    with pytest.raises(InputError, match=r"old\.pt: torch archive: the pre-1\.0 tar layout"):
+        safe_pickle.load_torch(tmp_path / "old.pt")
+    with pytest.raises(InputError, match=r"model\.pt: torch archive: a TorchScript model archive \(torch\.jit\.save\)"):
+        safe_pickle.load_file(script)
+
+
+def test_torch_persistent_ids_other_than_storages_are_refused(tmp_path):
+    class ModulePid(T.Storage):
+        pass
+
+    buf = io.BytesIO()
+
+    class Pickler(pickle.Pickler):
+        def persistent_id(self, value):
+            return ("module", "Linear", "nn.py", "source") if isinstance(value, ModulePid) else None
+
+    Pickler(buf, protocol=2).dump({"m": ModulePid(np.ones(1))})
+    path = tmp_path / "m.pt"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("m/data.pkl", buf.getvalue())
+    assert "refused persistent id 'module' (only storages are allowed)" in _torch_error(path)
+
+
+def test_torch_globals_map_only_to_inert_builders():
+    assert ("torch._utils", "_rebuild_tensor_v2") in safe_torch.TORCH_GLOBALS
+    assert not any(name in ("load", "jit", "_load", "eval") or module == "torch.serialization"
+                   for module, name in safe_torch.TORCH_GLOBALS)
+    with pytest.raises(InputError, match=r"refused to unpickle global 'torch\.load'"):
+        safe_pickle.loads(b"\x80\x02ctorch\nload\n.", "x.pkl")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -150,7 +151,7 @@ def test_info_json_and_input_untouched(npz_seq: Path, runner):
 
 def test_info_table(npz_seq: Path, runner):
     result = invoke(runner, "info", npz_seq)
-    assert result.exit_code == 0 and "640x480" in result.stderr
+    assert result.exit_code == 0 and "640x480" in result.stdout
 
 
 def test_version_and_help(runner):
@@ -259,7 +260,7 @@ def test_info_warns_of_root_centred_and_behind_camera_people_and_of_several_imag
     write_frame(pred, behind.replace(vertices=flipped), "npz")
     write_frame(pred, seq.read_frame("000002").replace(image_size=np.array([640, 480])), "npz")
     result = invoke(runner, "info", pred)
-    text = " ".join(result.stderr.split())  # the console wraps lines
+    text = " ".join(result.stderr.split())  # the warnings are diagnostics (stderr); the console wraps lines
     assert result.exit_code == 0
     assert "4 people are centred on the camera" in text and "1 people are partly at or behind" in text
     assert "frames of 2 image sizes (640x480, 1280x720)" in text
@@ -281,3 +282,30 @@ def test_calibrate_leaves_out_root_centred_people_and_says_so(tmp_path, runner):
         write_frame(pred, Frame(name, data, frame.source), "npz")
     result = invoke(runner, "calibrate", pred, "--out", tmp_path / "cam.yaml")
     assert result.exit_code == 2 and "6 people were left out, root-centred or behind the camera" in result.stderr
+
+
+def test_results_go_to_stdout_and_diagnostics_to_stderr(tmp_path):
+    """`rotavat info SEQ > f.txt` keeps the table; warnings, progress and errors stay on stderr (real processes)."""
+    import subprocess
+    import sys
+
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=2, frames=2, people=3))
+    pred = tmp_path / "s" / "pred"
+    frame = open_sequence(pred).read_frame("000001")
+    write_frame(pred, frame.replace(image_size=np.array([640, 480])), "npz")  # a warning to print
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([str(Path(sys.executable).parent / "rotavat"), *args], capture_output=True, text=True,
+                              env={**os.environ, "COLUMNS": "200"})
+
+    info = run("info", str(pred))
+    assert info.returncode == 0 and "sequence" in info.stdout and "1280x720" in info.stdout
+    assert "warning:" in info.stderr and "warning:" not in info.stdout
+    synth = run("synth", str(tmp_path / "t"), "--frames", "2", "--people", "2")
+    assert synth.stdout.startswith("wrote 2 frames x 2 people") and synth.stderr == ""
+    cal = run("calibrate", str(tmp_path / "s" / "gt"), "--out", str(tmp_path / "cam.yaml"))
+    assert cal.returncode == 0 and "focal_px" in cal.stdout and "wrote" in cal.stdout
+    bad = run("info", str(tmp_path / "nowhere"))
+    assert bad.returncode == 2 and bad.stdout == "" and bad.stderr.startswith("error:")

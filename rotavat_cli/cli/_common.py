@@ -1,4 +1,5 @@
-"""Shared CLI plumbing: the stderr console, the one error handler, progress, JSON output."""
+"""Shared CLI plumbing: the two consoles (results on stdout, diagnostics on stderr), the one error
+handler, progress, JSON output."""
 
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ from ..limits import configure as configure_limits
 from ..plain import to_plain
 from ..sequence import Sequence, open_sequence
 
-console = Console(stderr=True)
+console = Console(stderr=True)  # diagnostics: progress, notes, warnings, errors
+results = Console()  # what a command produces for a human (tables, its summary): `rotavat info SEQ > f.txt` keeps it
 
 ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file overriding configs/default.yaml (flags override it).", dir_okay=False)]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no summary on stderr.")]
@@ -197,6 +199,12 @@ def print_json(data: Any) -> None:
 
 
 def info(message: str, quiet: bool) -> None:
-    """A human message on stderr unless --quiet."""
+    """A diagnostic (a note, a warning) on stderr unless --quiet."""
     if not quiet:
         console.print(message, highlight=False)
+
+
+def report(message: Any, quiet: bool) -> None:
+    """A result for a human (a table, the command's summary line) on stdout unless --quiet."""
+    if not quiet:
+        results.print(message, highlight=False, soft_wrap=isinstance(message, str))

@@ -13,7 +13,7 @@ from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json, progress_bar, progress_enabled)
+                      input_sequence, print_json, progress_bar, progress_enabled, report)
 from .calibrate import run_calibration
 
 
@@ -56,14 +56,14 @@ def align(
         print_json(result)
         return
     flagged = sum(summary.flagged.values())
-    info(f"aligned {summary.aligned} of {summary.people} people in {summary.frames} frames ({flagged} flagged"
+    report(f"aligned {summary.aligned} of {summary.people} people in {summary.frames} frames ({flagged} flagged"
          + (": " + ", ".join(f"{k} {v}" for k, v in summary.flagged.items()) if flagged else "") + ")", quiet)
     if summary.implausible:
         lo, hi = options.stature_range_m
         info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
              "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
     if summary.aligned:
-        info(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
+        report(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
              f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m",
              quiet)
-    info(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)
+    report(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)

@@ -16,7 +16,7 @@ from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
 from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json,
-                      progress_enabled, use_config)
+                      progress_enabled, report, use_config)
 
 
 def batch(
@@ -61,19 +61,19 @@ def batch(
         _say(f"jobs {options.jobs}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
     display = _Display(progress_enabled(quiet, as_json), quiet or as_json)
     with display.progress:
-        report = run_batch(root, out, options, display)
-    counts = report.aggregate["counts"]
+        batch_report = run_batch(root, out, options, display)
+    counts = batch_report.aggregate["counts"]
     if as_json:
         print_json({"report_json": str(out / REPORT_JSON), "report_md": str(out / REPORT_MD), "counts": counts,
-                    "failed": [{"sequence": r["sequence"], "reason": r["reason"]} for r in report.failed],
-                    "aggregate": report.aggregate, "workers": report.worker_stats})
+                    "failed": [{"sequence": r["sequence"], "reason": r["reason"]} for r in batch_report.failed],
+                    "aggregate": batch_report.aggregate, "workers": batch_report.worker_stats})
     else:
-        _say(f"{counts['done']} done, {counts['skipped']} skipped (complete), {counts['failed']} failed of "
-             f"{counts['sequences']} sequences in {report.seconds:.1f} s ({report.executor}, {report.workers} worker(s))"
-             + _headline(report.aggregate), quiet)
-        _say(f"wrote {out / REPORT_JSON} and {out / REPORT_MD}", quiet)
-    if report.failed:
-        raise BatchFailedError(f"{len(report.failed)} of {counts['sequences']} sequences failed (reasons above and "
+        report(f"{counts['done']} done, {counts['skipped']} skipped (complete), {counts['failed']} failed of "
+               f"{counts['sequences']} sequences in {batch_report.seconds:.1f} s ({batch_report.executor}, "
+               f"{batch_report.workers} worker(s))" + _headline(batch_report.aggregate), quiet)
+        report(f"wrote {out / REPORT_JSON} and {out / REPORT_MD}", quiet)
+    if batch_report.failed:
+        raise BatchFailedError(f"{len(batch_report.failed)} of {counts['sequences']} sequences failed (reasons above and "
                                f"in {out / REPORT_MD})")
 
 

@@ -15,8 +15,8 @@ from ..camera import camera_parameters
 from ..errors import InputError
 from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
-                      info, input_sequence, print_json)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
+                      input_sequence, print_json, report)
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
@@ -79,8 +79,8 @@ def calibrate(
         print_json(summary)
         return
     if not quiet:
-        console.print(_table(summary))
-    info(f"wrote {target}", quiet)
+        report(_table(summary), quiet)
+    report(f"wrote {target}", quiet)
 
 
 def _table(summary: dict) -> Table:

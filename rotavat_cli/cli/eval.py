@@ -11,9 +11,9 @@ import typer
 from rich.table import Table
 
 from ..errors import GateError
-from ..metrics.evaluate import PER_PERSON_HEADER, EvalOptions, evaluate, parse_joints, write_per_person_csv
-from ..metrics.report import (check_gates, format_value, metric_value, parse_gate, report_paths, report_rows,
-                              write_reports)
+from ..metrics.evaluate import PER_PERSON_SIGNATURE, EvalOptions, evaluate, parse_joints, write_per_person_csv
+from ..metrics.report import (check_gate_metrics, check_gate_rows, check_gates, format_value, metric_label,
+                              metric_value, parse_gate, report_paths, report_rows, write_reports)
 from ..outputs import check_output_file
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
                       info, input_sequence, print_json, progress_bar, progress_enabled)
@@ -30,6 +30,7 @@ def eval_(
     iou_threshold: Annotated[float | None, typer.Option(help="agora: min keypoint-box IoU of a match.")] = None,
     joints: Annotated[str | None, typer.Option(help="Joint subset used by both sides: '0-23', '0,1,2' or SMPL names.")] = None,
     engine: Annotated[str | None, typer.Option(help="Vertex metrics: auto (numba if installed), numpy, numba ('rotavat[fast]').")] = None,
+    protocol: Annotated[str | None, typer.Option(help="Whose metric definitions: paper (default), spec, agora, bedlam, wham (docs/metrics.md).")] = None,
     force: ForceOpt = False,
     from_: FromOpt = None,
     gt_from: Annotated[str | None, typer.Option("--gt-from", help="Read GT in a dataset's own format (agora, bedlam, ...), converted on the fly.")] = None,
@@ -39,17 +40,19 @@ def eval_(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Score predictions against ground truth: MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera."""
+    """Score predictions against ground truth: MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera, temporal."""
     opts = config_for(config, "eval", match=match, threshold_px=threshold_px, iou_threshold=iou_threshold,
-                      engine=engine)
+                      engine=engine, protocol=protocol)
     gates = [parse_gate(text) for text in fail_if or []]
     options = EvalOptions.from_config(opts, parse_joints(joints))
     preds = pred or [Path(".")]
+    check_gate_rows(gates, preds)
+    check_gate_metrics(gates, options.protocol)
     inputs = [*preds, gt]
     for target in report_paths(out):
         check_output_file(target, inputs, force)
     if per_person:
-        check_output_file(per_person, inputs, force, signature=PER_PERSON_HEADER.encode())
+        check_output_file(per_person, inputs, force, signature=PER_PERSON_SIGNATURE.encode())
     with ExitStack() as stack:
         gt_seq = stack.enter_context(input_sequence(gt, gt_from, image_size, smpl_model, quiet=quiet or as_json))
         pred_seqs = [stack.enter_context(input_sequence(p, from_, image_size, smpl_model, quiet=quiet or as_json))
@@ -65,6 +68,9 @@ def eval_(
                     "predictions": [r.as_dict() for r in results]})
     elif not quiet:
         console.print(_table(results))
+        for r in results:
+            for note in r.notes:
+                info(f"{Path(r.pred).name or r.pred} ({r.protocol}): {note}", quiet)
         info(f"wrote {json_path} and {md_path}", quiet)
     if reasons:
         raise GateError("quality gate failed: " + "; ".join(reasons))
@@ -72,7 +78,8 @@ def eval_(
 
 def _table(results) -> Table:
     """Rich table: one row per metric, one column per prediction, plus the change of the last vs the first."""
-    table = Table(title="rotavat eval (mm; lean and pitch/roll in °; camera in %)")
+    protocols = ", ".join(sorted({r.protocol for r in results}))
+    table = Table(title=f"rotavat eval, protocol {protocols} (each metric: protocol, unit; camera: ° and %)")
     table.add_column("metric")
     for r in results:
         table.add_column(Path(r.pred).name or r.pred, justify="right")
@@ -85,5 +92,6 @@ def _table(results) -> Table:
         if len(results) > 1:
             first, last = values[0], values[-1]
             change = [f"{100.0 * (last - first) / abs(first):+.0f}%" if math.isfinite(first) and math.isfinite(last) and first else ""]
-        table.add_row(metric, *(format_value(metric, v) for v in values), *change)
+        label = metric_label(next((r for r in results if metric in r.metrics), results[0]), metric)
+        table.add_row(label, *(format_value(metric, v) for v in values), *change)
     return table

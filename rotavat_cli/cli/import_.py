@@ -10,7 +10,8 @@ from rich.markup import escape
 
 from ..errors import InputError
 from ..formats import available_formats, detect_format, import_sequence
-from ._common import ConfigOpt, JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled, use_config
+from ._common import (ConfigOpt, JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled, report,
+                      use_config)
 
 _FORMATS = ", ".join(available_formats())
 
@@ -44,7 +45,7 @@ def import_(
         info(f"[yellow]warning:[/] {escape(str(warning))}", quiet)
     size = summary["image_size"]
     focal = summary["focal_px"]
-    info(f"imported {summary['frames']} frames ({summary['people']} people, {summary['empty_frames']} empty) "
+    report(f"imported {summary['frames']} frames ({summary['people']} people, {summary['empty_frames']} empty) "
          f"from {fmt} into {out}: {'meshes' if summary['has_vertices'] else 'no meshes'}, "
          f"joints {summary['joints_layout'] or 'none'}, image {f'{size[0]}x{size[1]}' if size else 'size unknown'}, "
          f"focal {f'{focal:.1f} px' if focal else 'per frame'}"

@@ -10,7 +10,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..sequence import open_sequence, summarize_sequence
-from ._common import ConfigOpt, JsonOpt, QuietOpt, console, print_json, use_config, warn_ignored
+from ._common import ConfigOpt, JsonOpt, QuietOpt, print_json, report, use_config, warn_ignored
 from ._common import info as say
 
 
@@ -47,7 +47,7 @@ def info(
                  f"f {cam['focal_px']:.1f} px, pitch {cam['pitch_deg']:.2f}°, roll {cam['roll_deg']:.2f}°, height {cam['height_m']:.2f} m"))
     for key, value in rows:
         table.add_row(key, value)
-    console.print(table)
+    report(table, False)  # the command's result: --quiet silences its warnings only
     for warning in sequence_warnings(summary):
         say(f"[yellow]warning:[/] {escape(warning)}", quiet)
 

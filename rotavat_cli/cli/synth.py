@@ -10,7 +10,7 @@ import typer
 
 from ..errors import input_errors
 from ..synth import SynthOptions, hps_focal_px, random_camera, write_synth_scene
-from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, info, print_json, progress_bar, progress_enabled
+from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, print_json, progress_bar, progress_enabled, report
 
 
 def synth(
@@ -42,7 +42,7 @@ def synth(
     if as_json:
         print_json(summary)
     cam = summary["camera"]
-    info(f"wrote {summary['frames']} frames x {summary['people']} people to {out}/gt and {out}/pred "
+    report(f"wrote {summary['frames']} frames x {summary['people']} people to {out}/gt and {out}/pred "
          f"(camera: f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, roll {cam['roll_deg']:.1f}°, "
          f"height {cam['height_m']:.2f} m; HPS focal {summary['hps_focal_px']:.0f} px, rule "
          f"{summary['hps_focal_rule']})", quiet or as_json)

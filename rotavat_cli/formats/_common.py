@@ -22,7 +22,8 @@ from .smpl import BodyModel
 
 __all__ = ["ImportOptions", "ImportedSequence", "FrameNotes", "Conclusion", "fail", "npz_has_keys", "single_file",
            "need_image_size", "as_array", "get", "padded_square", "project_px", "image_size_from_header",
-           "people_frame", "feet_heads_from", "frame_names", "natural_key", "base_meta", "no_model_warning", "model_faces"]
+           "people_frame", "feet_heads_from", "frame_names", "natural_key", "base_meta", "no_model_warning", "model_faces",
+           "ROOT_AT_CENTRE_M", "unplaced_people", "placement_warnings", "conclude_placement"]
 
 
 # ---- shared types --------------------------------------------------------------------------
@@ -213,13 +214,16 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
                  joints: np.ndarray | None = None, keypoints_2d: np.ndarray | None = None,
                  person_ids: np.ndarray | None = None, faces: np.ndarray | None = None,
                  n_verts: int | None = None, extra: Mapping[str, np.ndarray] | None = None,
-                 keypoints_layout: str | None = None) -> Frame:
+                 keypoints_layout: str | None = None, facts: dict[str, Any] | None = None) -> Frame:
     """A validated contract frame; people with non-finite vertices or joints are dropped (with a warning).
 
     keypoints_layout: the layout of ``keypoints_2d`` (:mod:`.keypoints`); when it has a recipe and
     the frame has no meshes, ``feet_2d``/``heads_2d`` (mid-sole, crown) are written from them, so
     calibration and joint-level alignment work without a body model (meshes give their own
-    landmarks, which take precedence: :func:`feet_heads_from`).
+    landmarks, which take precedence: :func:`feet_heads_from`). A person missing a recipe point
+    gets a NaN row (calibration drops the pair, align flags the person).
+    facts: the frame's ``FrameNotes.facts``; when given, the count of people not placed in the
+    camera (:func:`unplaced_people`) is recorded there for :func:`conclude_placement`.
     """
     arrays = {"vertices": vertices, "joints": joints, "keypoints_2d": keypoints_2d, "person_ids": person_ids}
     counts = {k: len(v) for k, v in arrays.items() if v is not None}
@@ -252,19 +256,59 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
         data["person_ids"] = np.zeros(0, np.int64)
     if keypoints_layout is not None and "keypoints_2d" in data and "vertices" not in data:
         found = feet_heads_px(data["keypoints_2d"], keypoints_layout)
-        if found is not None and np.isfinite(found[0]).any() and np.isfinite(found[1]).any():
+        if found is not None:
             data["feet_2d"], data["heads_2d"] = (points.astype(np.float32) for points in found[:2])
+    if facts is not None:
+        facts["unplaced"] = [int(unplaced_people(data.get("vertices"), data.get("joints")).sum()), int(keep.sum())]
     data.update(extra or {})
     validate_frame(data, str(source))
     return Frame(name, data, str(source))
+
+
+# ---- people not placed in the camera ---------------------------------------------------------
+ROOT_AT_CENTRE_M = 0.5  # a root this close to the camera centre is a root-centred body, not a person in view
+
+
+def unplaced_people(vertices_cam: np.ndarray | None, joints_cam: np.ndarray | None) -> np.ndarray:
+    """(P,) bool: people whose root (joint 0, else the vertices' mean) lies within ``ROOT_AT_CENTRE_M`` of
+    the camera centre, or with any point at or behind the camera plane (z <= 0).
+
+    vertices_cam: (P, V, 3) or None; joints_cam: (P, J, 3) or None; camera frame, metres. Such people
+    were written without their translation (root-centred output) or in another frame: calibration
+    and align cannot use them, root-aligned metrics (MPJPE, PVE, PA-*) still can.
+    """
+    points = vertices_cam if vertices_cam is not None and vertices_cam.shape[1] else joints_cam
+    if points is None or len(points) == 0 or points.shape[1] == 0:
+        return np.zeros(0 if points is None else len(points), dtype=bool)
+    points = np.asarray(points, dtype=np.float64)
+    root = joints_cam[:, 0] if joints_cam is not None and joints_cam.shape[1] else points.mean(axis=1)
+    at_centre = np.linalg.norm(np.asarray(root, dtype=np.float64), axis=-1) < ROOT_AT_CENTRE_M
+    behind = (points[..., 2] <= 0.0).any(axis=1)
+    return at_centre | behind
+
+
+def placement_warnings(unplaced: int, people: int, source: Any) -> list[str]:
+    """The warning for ``unplaced`` of ``people`` people not placed in the camera (none when 0)."""
+    if unplaced == 0:
+        return []
+    scope = "every person" if unplaced == people else f"{unplaced} of {people} people"
+    return [f"{source}: {scope} at the camera centre or (partly) behind the camera (z <= 0): root-centred output "
+            "(no translation) or another frame, not people placed in the camera; calibrate and align cannot use "
+            "them (root-aligned metrics such as MPJPE, PVE and PA-MPJPE still apply)"]
+
+
+def conclude_placement(notes: list[FrameNotes], source: Any) -> list[str]:
+    """Sum every frame's ``unplaced`` fact (:func:`people_frame` ``facts=``) into one warning."""
+    counts = [n.facts["unplaced"] for n in notes if n.facts.get("unplaced")]
+    return placement_warnings(sum(c[0] for c in counts), sum(c[1] for c in counts), source)
 
 
 def feet_heads_from(keypoints_layout: str | None, has_vertices: bool) -> str | None:
     """meta.yaml ``import.feet_heads_from``: which points give the foot and head pixels of an import."""
     if has_vertices:
         return "mesh landmarks (mid-sole, crown vertices)"
-    recipe = None if keypoints_layout is None else recipe_for(keypoints_layout)
-    return None if recipe is None or not recipe.crown else f"keypoints_2d, {keypoints_layout.split(' ', 1)[0]}: {recipe.describes}"
+    recipe = recipe_for(keypoints_layout)
+    return None if recipe is None else f"keypoints_2d, {keypoints_layout.split(' ', 1)[0]}: {recipe.describes}"
 
 
 def frame_names(sources: list[str], warnings: list[str]) -> list[str]:

@@ -15,6 +15,13 @@ at 3840x2160), ``agora_evaluation/projection.py`` (``project2d``: ``smpl2opencv`
   name as ``project_2d`` does: ``hdri`` 50 mm, ``cam00``-``cam03`` 18 mm, ``ag2`` 28 mm, else
   28 mm. Principal point = image centre. Default image size 3840x2160 (``--image-size 1280 720``
   for the small release: 2D joints are rescaled by W / 3840).
+- 2D: ``joints`` hold as many points as the model's joints: 24 (the prediction format's SMPL
+  joints), 45 (``smplx.create(model_type='smpl')``: SMPL-24 + 21 vertex joints, as AGORA's own
+  ground truth and sample predictions) or 127 / 144 (SMPL-X); the ``keypoints_2d_layout`` says
+  which (formats/keypoints.py) and, without meshes, gives the feet and heads.
+- Placement: AGORA's evaluation aligns roots, so a prediction may be root-centred (``transl`` = 0,
+  as its own sample predictions are): such people sit at the camera centre, half behind it; the
+  import says how many (``_common.unplaced_people``), and calibrate/align cannot use them.
 - No track ids: AGORA images are independent (person ids are per image).
 """
 
@@ -29,8 +36,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
-                      get, model_faces, natural_key, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
+                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
+from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width
@@ -87,6 +95,12 @@ def _pose_params(params: Mapping, model_joints: int, pose2rot: bool, source: Pat
     expression = params.get("expression")
     expression = None if expression is None else as_array(expression, "expression", source).reshape(-1)
     return pose, betas, transl, expression
+
+
+def _keypoints_layout(n_points: int) -> str:
+    """Layout of AGORA's 'joints' (K, 2) by their count (24, 45, 127, 144), as meta.yaml states it."""
+    layout = layout_by_count(n_points)
+    return f"{layout} ('joints', rescaled from 3840x2160)" if layout else f"agora{n_points} ('joints', rescaled from 3840x2160)"
 
 
 def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
@@ -150,13 +164,20 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
             raise fail(paths[0], "people of one image must all have vertices of the same size")
         n_verts = stacked["vertices"].shape[1]
         extra = {} if constant_focal else {"focal_length": np.float64(focals[image])}
+        kp = stacked["keypoints_2d"]
+        kp_layout = None if kp is None else _keypoints_layout(kp.shape[1])
+        notes.facts["keypoints_2d_layout"] = kp_layout
         return people_frame(names[index], f"{src} [{image}]", notes.warnings, vertices=stacked["vertices"],
-                            joints=stacked["joints"], keypoints_2d=stacked["keypoints_2d"],
-                            faces=model_faces(model, n_verts), n_verts=n_verts, extra=extra)
+                            joints=stacked["joints"], keypoints_2d=kp, faces=model_faces(model, n_verts),
+                            n_verts=n_verts, extra=extra, keypoints_layout=kp_layout, facts=notes.facts)
 
     def conclude(notes: list[FrameNotes]) -> Conclusion:
-        return Conclusion({"joints_layout": next((n.facts["joints_layout"] for n in notes
-                                                  if n.facts.get("joints_layout")), None)})
+        def first(key: str) -> object:
+            return next((n.facts[key] for n in notes if n.facts.get(key)), None)
+
+        kp_layout = first("keypoints_2d_layout")
+        return Conclusion({"joints_layout": first("joints_layout"), "keypoints_2d_layout": kp_layout,
+                           "feet_heads_from": feet_heads_from(kp_layout, True)}, conclude_placement(notes, src))
 
     meta = base_meta("agora", src, opts, image_size, next(iter(focals.values())) if constant_focal else None,
                      principal_point, focal_kind=CAMERA)
@@ -164,7 +185,6 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
         "source_frames": [image for image, _ in groups],
         "image_size_from": "--image-size" if opts.image_size else "AGORA default 3840x2160",
         "root_joint": 0,
-        "keypoints_2d_layout": "smpl24 ('joints', rescaled from 3840x2160)",
         "conventions": "camera frame = OpenCV, metres; focal = focal_mm / 36 mm * W (hdri 50, cam00-03 18, "
                        "else 28 mm); principal point = image centre",
     })

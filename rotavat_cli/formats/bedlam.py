@@ -16,6 +16,9 @@ Source: pixelite1201/BEDLAM ``data_processing/df_full_body.py`` (``get_params``,
 - Meshes need ``--smpl-model`` (SMPLX_NEUTRAL.npz; BEDLAM uses the neutral model with 11 betas,
   BEDLAM2 16). Without it only the 2D keypoints are imported.
 - ``person_ids``: the subject names (``sub``) mapped to integers in sorted order.
+- ``gtkps``: ``project(joints3d, cam_trans, CAM_INT)`` of the posed model's joints, homogeneous
+  (x, y, 1): 127 SMPL-X joints (``smplx.create`` without face contour), 45 for the SMPL variant;
+  without ``--smpl-model`` they give the feet and heads (formats/keypoints.py, layout by count).
 """
 
 from __future__ import annotations
@@ -27,8 +30,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, model_faces,
-                      natural_key, npz_has_keys, people_frame, single_file)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, model_faces, natural_key, npz_has_keys, people_frame, single_file)
+from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
@@ -90,6 +94,7 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     images = sorted(set(imgname), key=natural_key)
     names = frame_names([Path(i).stem for i in images], warnings)
     faces = model_faces(model, None if model is None else model.n_verts)
+    kp_layout = layout_by_count(gtkps.shape[1]) if gtkps is not None else None
 
     def build(index: int, notes: FrameNotes) -> Frame:
         image = images[index]
@@ -102,7 +107,7 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
             vertices, joints55 = lbs(model, betas[rows], pose[rows], trans[rows] + cam_ext[rows, :3, 3])
             joints = joints_to_smpl24(joints55)[0]
         return people_frame(names[index], f"{path} [{image}]", notes.warnings, vertices=vertices, joints=joints,
-                            keypoints_2d=kp, person_ids=ids, faces=faces, extra=extra)
+                            keypoints_2d=kp, person_ids=ids, faces=faces, extra=extra, keypoints_layout=kp_layout)
 
     meta = base_meta("bedlam", path, opts, image_size, float(fx[0]) if n_rows and constant_focal else None, principal_point,
                      focal_kind=CAMERA)
@@ -111,7 +116,9 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
         "image_size_from": "--image-size" if opts.image_size else "cam_int principal point",
         "joints_layout": layout,
         "root_joint": 0,
-        "keypoints_2d_layout": f"bedlam gtkps ({gtkps.shape[1]} joints)" if gtkps is not None else None,
+        "keypoints_2d_layout": (f"{kp_layout or 'bedlam'} (gtkps, {gtkps.shape[1]} joints)" if gtkps is not None
+                                else None),
+        "feet_heads_from": feet_heads_from(kp_layout, model is not None),
         "person_ids": "subject names in sorted order: " + ", ".join(subjects) if subjects else None,
         "conventions": "camera frame = OpenCV, metres: vertices = SMPL-X(pose_cam, shape, trans_cam) + cam_ext[:3, 3]; "
                        "intrinsics = cam_int",

@@ -40,11 +40,15 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names, get,
-                      model_faces, natural_key, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, get, model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _NET_INPUT = 512
+# simple_romp's joints (romp/smpl.py VertexJointSelector): SMPL-24, 21 vertex joints, 9 regressed extra, 17 H36M;
+# older ROMP releases stop at 54 (formats/keypoints.py)
+_LAYOUT_BEV = "romp71 (SMPL-24, 21 vertex joints, 9 extra, 17 H36M)"
+_LAYOUT_ROMP = _LAYOUT_BEV
 
 
 def _is_results_npz(path: Path) -> bool:
@@ -85,10 +89,12 @@ def _sources(src: Path) -> list[tuple[str, Callable[[], dict]]]:
 
 
 def _image_stem(name: str) -> str:
-    """Image stem of a result name: drop the extension and the '__<model id>_<threshold>' suffix
-    ``bev -m video`` adds to its file names (``saver(..., prefix=f'_{model_id}_{center_thresh}')``)."""
+    """Image stem of a result name: drop the extension and the suffix simple_romp's ``ResultSaver`` adds
+    (``save_path = <image stem>_<prefix>``): ``_<center_thresh>`` in image mode (``image_1_0.08`` ->
+    ``image_1``), ``__<model id>_<center_thresh>`` in video mode. Other names are kept."""
     stem = Path(name).stem if Path(name).suffix.lower() in (".png", ".jpg", ".jpeg", ".npz") else name
-    return re.sub(r"__\d+_\d+(\.\d+)?$", "", stem)
+    stem = re.sub(r"__\d+_\d+(\.\d+)?$", "", stem)
+    return re.sub(r"(?<=.)_\d*\.\d+$", "", stem)
 
 
 def _load_results(path: Path) -> dict:
@@ -171,60 +177,128 @@ def _infer_image_size(norm: np.ndarray, pix: np.ndarray, source: str) -> tuple[t
     return (side - 2 * left, side - 2 * top), left, top
 
 
+_VIDEO_NAME = re.compile(r"__\d+_\d+(\.\d+)?$")  # ResultSaver's video-mode suffix: one video, one image size
+
+
+def _check_family(results: dict, fmt: str, source: str) -> None:
+    """InputError for a BEV result read as ROMP or the other way round (SMPL+A betas: 11 = BEV, 10 = ROMP)."""
+    betas = results.get("smpl_betas") if isinstance(results, dict) else None
+    n_betas = np.shape(betas)[-1] if betas is not None and np.ndim(betas) >= 1 else None
+    joints = results.get("joints") if isinstance(results, dict) else None
+    n_joints = np.shape(joints)[1] if joints is not None and np.ndim(joints) == 3 else "no"
+    if fmt == "romp" and n_betas == 11:
+        raise fail(source, f"this is a BEV result (11 SMPL+A shape parameters, {n_joints} joints), not ROMP's: "
+                           "read it with --from bev")
+    if fmt == "bev" and n_betas == 10:
+        raise fail(source, f"this is a ROMP result (10 SMPL shape parameters, {n_joints} joints), not BEV's: "
+                           "read it with --from romp")
+
+
+def _frame_geometry(results: dict, source: str, fmt: str, opts: ImportOptions) -> tuple[tuple[int, int], int, int] | None:
+    """((W, H), left, top) of one result's image, fitted from its pj2d_org (None when it cannot be)."""
+    people = _people(results, source, fmt, opts)
+    norm = _normalized_xy(people, fmt)
+    if norm is None or people["keypoints_2d"] is None or not len(norm):
+        return None
+    return _infer_image_size(norm, people["keypoints_2d"], source)
+
+
+def _geometry_of(size: tuple[int, int]) -> tuple[tuple[int, int], int, int]:
+    side = max(size)
+    return tuple(size), (side - size[0]) // 2, (side - size[1]) // 2
+
+
+def _geometries(src: Path, sources: list, fmt: str, opts: ImportOptions, warnings: list[str]) -> tuple[list, str]:
+    """Every frame's ((W, H), left, top) and where the sizes came from.
+
+    --image-size: that size for every frame. A video (``video_results.npz`` or video-mode file names):
+    one size, fitted on the first frames that allow it. Otherwise (image mode: photos, perhaps of
+    different sizes) each frame's own size, fitted on its own 2D keypoints; a frame whose size cannot
+    be fitted takes the others' when they agree, else the import is refused.
+    """
+    if opts.image_size is not None:
+        return [_geometry_of(opts.image_size)] * len(sources), "--image-size"
+    per_image_files = [src] if src.is_file() else [p for p in src.glob("*.npz") if p.name != "video_results.npz"]
+    video = not per_image_files or per_image_files == [src] and src.name == "video_results.npz" or (
+        len(sources) > 1 and all(_VIDEO_NAME.search(Path(name).stem) for name, _ in sources))
+    found: list = []
+    for name, load in (sources[:50] if video else sources):
+        results = load()
+        _check_family(results, fmt, f"{src} [{name}]")
+        found.append(_frame_geometry(results, f"{src} [{name}]", fmt, opts))
+        if video and found[-1] is not None:
+            break
+    known = {g for g in found if g is not None}
+    if not known:
+        raise fail(src, f"the image size is not stored in {fmt} results and could not be inferred from "
+                        "'pj2d_org'; pass --image-size W H")
+    if video or len(known) == 1:
+        (geometry,) = known if len(known) == 1 else [next(g for g in found if g is not None)]
+        size = geometry[0]
+        warnings.append(f"{src}: image size {size[0]}x{size[1]} inferred from the 2D keypoints "
+                        "(+-1 px when the padding is odd); pass --image-size W H to be exact")
+        return [geometry] * len(sources), "inferred from pj2d_org"
+    missing = [sources[i][0] for i, g in enumerate(found) if g is None]
+    if missing:
+        raise fail(src, f"the images differ in size and the size of '{missing[0]}' could not be inferred from its "
+                        "'pj2d_org' (one --image-size cannot serve images of different sizes): import the images "
+                        "of each size separately with --image-size W H")
+    sizes = ", ".join(sorted({f"{g[0][0]}x{g[0][1]}" for g in found}))
+    warnings.append(f"{src}: the images differ in size ({sizes}): each frame carries its own image_size, "
+                    "focal_length and principal_point, inferred from its 2D keypoints (+-1 px when the padding is "
+                    "odd); a static-camera calibration needs the frames of one size")
+    return found, "inferred from pj2d_org, per image (the images differ in size)"
+
+
 def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
     sources = _sources(src)
     warnings: list[str] = []
-    if opts.image_size is not None:
-        image_size = opts.image_size
-        side, left, top = max(image_size), (max(image_size) - image_size[0]) // 2, (max(image_size) - image_size[1]) // 2
-        size_origin = "--image-size"
-    else:
-        found = None
-        for name, load in sources[:50]:
-            people = _people(load(), f"{src} [{name}]", fmt, opts)
-            norm = _normalized_xy(people, fmt)
-            if norm is not None and people["keypoints_2d"] is not None and len(norm):
-                found = _infer_image_size(norm, people["keypoints_2d"], f"{src} [{name}]")
-                if found:
-                    break
-        if found is None:
-            raise fail(src, f"the image size is not stored in {fmt} results and could not be inferred from "
-                            "'pj2d_org'; pass --image-size W H")
-        image_size, left, top = found
-        side = max(image_size)
-        size_origin = "inferred from pj2d_org"
-        warnings.append(f"{src}: image size {image_size[0]}x{image_size[1]} inferred from the 2D keypoints "
-                        "(+-1 px when the padding is odd); pass --image-size W H to be exact")
-    focal = focal_from_rule(fmt, image_size)
+    if opts.image_size is not None:  # the geometry needs no frame: check the family on the first one
+        _check_family(sources[0][1](), fmt, f"{src} [{sources[0][0]}]")
+    geometries, size_origin = _geometries(src, sources, fmt, opts, warnings)
+    per_frame = len({g[0] for g in geometries}) > 1
+    intrinsics = [(focal_from_rule(fmt, size), (max(size) / 2.0 - left, max(size) / 2.0 - top))
+                  for size, left, top in geometries]
     if fmt == "romp":
         warnings.append("romp is weak-perspective: cam_trans is its rough depth (2/s), meshes reproject only "
                         "approximately in the 60-degree camera")
-    principal_point = (side / 2.0 - left, side / 2.0 - top)
     model = opts.body_model
     names = frame_names([_image_stem(name) for name, _ in sources], warnings)
     # BEV's meshes come whole: of the model, only its triangles are used (the rest need not stay loaded)
     people_opts = opts if fmt == "romp" else replace(opts, body_model=None)
     model_verts = None if model is None else model.n_verts
     faces = model_faces(model, model_verts)
+    layout = _LAYOUT_BEV if fmt == "bev" else _LAYOUT_ROMP
 
     def build(index: int, notes: FrameNotes) -> Frame:
         name, load = sources[index]
         source = f"{src} [{name}]"
         people = _people(load(), source, fmt, people_opts)
         verts = people["vertices"]
+        extra = {}
+        if per_frame:  # photos of different sizes: each frame states its own intrinsics (contract frame keys)
+            focal, principal_point = intrinsics[index]
+            extra = {"image_size": np.asarray(geometries[index][0], np.int64), "focal_length": np.float64(focal),
+                     "principal_point": np.asarray(principal_point, np.float64)}
+        kp = people["keypoints_2d"]
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=people["joints"],
-                            keypoints_2d=people["keypoints_2d"], person_ids=people["person_ids"],
-                            faces=faces if verts is not None and verts.shape[1] == model_verts else None)
+                            keypoints_2d=kp, person_ids=people["person_ids"],
+                            faces=faces if verts is not None and verts.shape[1] == model_verts else None, extra=extra,
+                            keypoints_layout=layout if kp is None or kp.shape[1] != 54 else "romp54")
 
-    meta = base_meta(fmt, src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule=fmt)
+    size, focal, principal_point = (None, None, None) if per_frame else (geometries[0][0], *intrinsics[0])
+    meta = base_meta(fmt, src, opts, size, focal, principal_point, focal_kind=ASSUMED, focal_rule=fmt)
+    sides = sorted({max(g[0]) for g in geometries})
     meta["import"].update({
         "source_frames": [name for name, _ in sources],
         "image_size_from": size_origin,
         "joints_layout": "smpl24",
         "root_joint": 0,
-        "keypoints_2d_layout": "romp71 (SMPL-24, 21 vertex joints, 9 extra, 17 H36M)" if fmt == "bev" else "romp54/71",
+        "keypoints_2d_layout": layout,
+        "feet_heads_from": "mesh landmarks (mid-sole, crown vertices); keypoints_2d for frames without meshes: "
+                           + str(feet_heads_from(layout, False)),
         "conventions": f"camera frame = OpenCV, metres; vertices = verts + cam_trans; 60-degree FOV on the "
-                       f"centred padded square (S = {side})",
+                       f"centred padded square (S = {', '.join(map(str, sides))})",
     })
     return ImportedSequence(tuple(names), build, meta, warnings)
 

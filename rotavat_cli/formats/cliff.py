@@ -15,6 +15,10 @@ Source: huawei-noah/noah-research ``CLIFF/demo.py`` (and the multi-person fork h
 - Image size: not stored; read from the image files' headers when ``imgname`` paths exist,
   else ``--image-size`` is required.
 - Meshes: CLIFF stores parameters only; vertices need ``--smpl-model`` (an SMPL model).
+- Without a model: ``keypoints_2d`` are CLIFF's ``pred_joints`` projected with its own camera (the
+  pixels it drew), in their layout (``smpl45``, or ``spin49`` for the fork: formats/keypoints.py),
+  and give ``feet_2d``/``heads_2d``. With a model the meshes give them (mesh landmarks) and no
+  keypoints are written.
 """
 
 from __future__ import annotations
@@ -26,8 +30,10 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
-                      image_size_from_header, model_faces, no_model_warning, npz_has_keys, people_frame, single_file)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, image_size_from_header, model_faces, no_model_warning, npz_has_keys, people_frame,
+                      project_px, single_file)
+from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
@@ -119,6 +125,7 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     use_ids = all(len(np.unique(track_col[frame_index == i])) == int((frame_index == i).sum())
                   for i in np.unique(frame_index))
     n_rows = n_params if model is not None else n_det
+    kp_layout = None if model is not None else layout_by_count(pred_joints.shape[1])
     faces = model_faces(model, None if model is None else model.n_verts)
     names = frame_names([Path(str(n)).stem for n in imgnames], warnings)
 
@@ -131,10 +138,11 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
                 raise fail(path, str(exc)) from None
         else:
             vertices, frame_joints = None, joints[rows]
+        keypoints = None if model is not None else project_px(pred_joints[rows], focal, principal_point)
         return people_frame(
             names[i], f"{path} [image {i}]", notes.warnings, vertices=vertices, joints=frame_joints,
-            person_ids=track_col[rows] if use_ids else None,
-            faces=faces, n_verts=None if vertices is None else vertices.shape[1])
+            keypoints_2d=keypoints, person_ids=track_col[rows] if use_ids else None,
+            faces=faces, n_verts=None if vertices is None else vertices.shape[1], keypoints_layout=kp_layout)
 
     meta = base_meta("cliff", path, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="cliff")
     meta["import"].update({
@@ -142,6 +150,8 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
         "image_size_from": size_origin,
         "joints_layout": layout,
         "root_joint": 8 if layout == "spin49" else 0,
+        "keypoints_2d_layout": None if kp_layout is None else f"{kp_layout} (pred_joints projected with focal_l)",
+        "feet_heads_from": feet_heads_from(kp_layout, model is not None),
         "conventions": "camera frame = OpenCV, metres; focal = image diagonal; vertices = SMPL(pose, shape) + global_t",
     })
     return ImportedSequence(tuple(names), build, meta, warnings)

@@ -1,12 +1,169 @@
-"""gvhmr: importer being written (issue 17); registered, reads nothing yet."""
+"""GVHMR (``tools/demo/demo.py``): ``hmr4d_results.pt``, a ``torch.save`` of SMPL-X parameters.
+
+Source: zju3dv/GVHMR @cb702cd ``tools/demo/demo.py`` (``load_data_dict``: ``K_fullimg =
+estimate_K(width, height).repeat(length, 1, 1)``; ``__main__``: ``torch.save(pred,
+paths.hmr4d_results)``; ``render_incam``: ``smplx(**pred["smpl_params_incam"])`` rendered with
+``K = pred["K_fullimg"][0]``), ``hmr4d/model/gvhmr/gvhmr_pl_demo.py`` (``DemoPL.predict``: the
+keys of ``pred``), ``hmr4d/model/gvhmr/pipeline/gvhmr_pipeline.py`` (``Pipeline.forward``:
+``pred_smpl_params_incam`` = ``body_pose`` (63), ``betas`` (10), ``global_orient`` (3),
+``transl = compute_transl_full_cam(pred_cam, bbx_xys, K_fullimg)``), ``hmr4d/utils/geo/hmr_cam.py``
+(``estimate_focal_length``, ``estimate_K``, ``compute_transl_full_cam``),
+``hmr4d/utils/smplx_utils.py`` (``make_smplx("supermotion")``: neutral SMPL-X, 10 betas, hand PCA
+with ``flat_hand_mean=False``), ``hmr4d/configs/demo.yaml`` (``paths.hmr4d_results =
+outputs/demo/<video>/hmr4d_results.pt``).
+
+- File: a torch zip archive (read by :func:`rotavat_cli.safe_pickle.load_torch`, without torch)
+  holding ``{"smpl_params_global": {...}, "smpl_params_incam": {"body_pose" (L, 63),
+  "betas" (L, 10), "global_orient" (L, 3), "transl" (L, 3)}, "K_fullimg" (L, 3, 3),
+  "net_outputs": {...}}``, L = the video's frames. One person: GVHMR follows the one track of
+  ``Tracker.get_one_track`` (``person_ids`` = 0).
+- Frame: ``SMPL-X(global_orient, body_pose, betas) + transl`` (``smpl_params_incam``, axis-angle)
+  is the camera frame: OpenCV axes, metres; ``smpl_params_global`` (gravity-view world) is not used.
+- Focal: ``K_fullimg`` = ``estimate_K``: f = sqrt(W^2 + H^2) (the ``cliff`` rule), principal point
+  = image centre. It is GVHMR's guess, never the camera's: ``focal_kind: assumed``, with
+  ``focal_rule: cliff`` when K equals the rule (a K edited into the demo is kept, without a rule).
+- Image size: twice K's principal point (estimate_K puts it at (W/2, H/2)), or ``--image-size``.
+- Nothing else is stored: no joints, no 2D keypoints (VitPose's are in ``preprocess/vitpose.pt``),
+  so the import needs ``--smpl-model`` (SMPL-X, e.g. ``SMPLX_NEUTRAL.npz``); joints are SMPL-X's
+  mapped to SMPL-24. Jaw, eyes and hands are posed at rest with a zero hand pose (flat hands), where
+  GVHMR's renderer shows its model's mean hand pose: only finger vertices differ.
+"""
 
 from __future__ import annotations
 
+import zipfile
+from collections.abc import Mapping
 from pathlib import Path
 
-READERS: dict = {}
+import numpy as np
+
+from .. import safe_pickle
+from ..focal import ASSUMED, focal_from_rule
+from ..sequence import Frame
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, get, model_faces, people_frame)
+from .smpl import joints_to_smpl24, lbs
+
+_RESULTS = "hmr4d_results.pt"
+_PARAMS = ("global_orient", "body_pose", "betas", "transl")
+_RULE_RTOL = 1e-5  # K is float32: the rule's focal comes back within a few 1e-7 of itself
+
+
+def _results_file(path: Path) -> Path | None:
+    """The results file of ``path``: itself (a .pt/.pth file), or ``hmr4d_results.pt`` inside a folder."""
+    if path.is_dir():
+        path = path / _RESULTS
+    return path if path.is_file() and path.suffix in (".pt", ".pth") else None
 
 
 def sniff(path: Path) -> str | None:
-    """Nothing recognised yet."""
-    return None
+    """'gvhmr' for a torch archive whose pickle names ``smpl_params_incam`` and ``K_fullimg`` (read
+    from the zip's ``data.pkl`` record alone: no tensor is loaded)."""
+    file = _results_file(path)
+    if file is None or not zipfile.is_zipfile(file):
+        return None
+    with zipfile.ZipFile(file) as archive:
+        pickles = [info for info in archive.infolist() if info.filename.count("/") == 1 and info.filename.endswith("/data.pkl")]
+        if len(pickles) != 1 or pickles[0].file_size > 16 << 20:
+            return None
+        text = archive.read(pickles[0])
+    return "gvhmr" if b"smpl_params_incam" in text and b"K_fullimg" in text else None
+
+
+def _per_frame(value: object, name: str, source: Path, width: int) -> np.ndarray:
+    """A parameter as (L, width): GVHMR's (L, width), or with the batch axis (1, L, width) of ``net_outputs``."""
+    array = as_array(value, name, source)
+    if array.ndim == 3 and array.shape[0] == 1:
+        array = array[0]
+    if array.ndim != 2 or array.shape[1] < width:
+        raise fail(source, f"'smpl_params_incam.{name}' must be (L, {width}), got {list(array.shape)}")
+    return array
+
+
+def _intrinsics(K: np.ndarray, opts: ImportOptions, source: Path,
+                warnings: list[str]) -> tuple[tuple[int, int], np.ndarray, np.ndarray, str]:
+    """(image size, focal per frame (L,), principal point per frame (L, 2), where the size came from)."""
+    focal = (K[:, 0, 0] + K[:, 1, 1]) / 2.0
+    principal = K[:, :2, 2]
+    if not (np.all(np.isfinite(K)) and np.all(focal > 0) and np.all(principal > 0)):
+        raise fail(source, "'K_fullimg' must hold positive, finite focal lengths and principal points")
+    if np.any(np.abs(K[:, 0, 0] - K[:, 1, 1]) > 1e-6 * focal):
+        warnings.append(f"{source}: K_fullimg has fx != fy; using their mean")
+    stored = tuple(int(round(2 * float(c))) for c in np.median(principal, axis=0))
+    if opts.image_size is not None:
+        if stored != opts.image_size:
+            warnings.append(f"{source}: --image-size {opts.image_size[0]}x{opts.image_size[1]} differs from the "
+                            f"{stored[0]}x{stored[1]} of K_fullimg's principal point; using --image-size")
+        return opts.image_size, focal, principal, "--image-size"
+    return (stored[0], stored[1]), focal, principal, "K_fullimg principal point (estimate_K: the image centre)"
+
+
+def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
+    """GVHMR ``hmr4d_results.pt`` (or its output folder) -> contract frames, one person per frame."""
+    path = _results_file(src)
+    if path is None:
+        raise fail(src, f"no GVHMR results: expected a .pt file or a folder holding {_RESULTS}")
+    data = safe_pickle.load_torch(path)
+    incam = get(data, "smpl_params_incam", path)
+    if not isinstance(incam, Mapping):
+        raise fail(path, "'smpl_params_incam' is not a dict of parameters")
+    params = {name: _per_frame(get(incam, name, path), name, path, width)
+              for name, width in (("global_orient", 3), ("body_pose", 63), ("betas", 1), ("transl", 3))}
+    K = as_array(get(data, "K_fullimg", path), "K_fullimg", path, last=(3, 3))
+    n_frames = len(params["transl"])
+    K = np.broadcast_to(K.reshape(-1, 3, 3), (n_frames, 3, 3)) if K.size == 9 else K.reshape(-1, 3, 3)
+    for name, array in [*params.items(), ("K_fullimg", K)]:
+        if len(array) != n_frames:
+            raise fail(path, f"'{name}' has {len(array)} frames, 'transl' {n_frames}")
+    if n_frames == 0:
+        raise fail(path, "no frames in the results")
+
+    warnings: list[str] = []
+    image_size, focal, principal, size_from = _intrinsics(K, opts, path, warnings)
+    constant = bool(np.ptp(focal) <= 1e-6 * focal.max() and np.ptp(principal, axis=0).max() <= 1e-6)
+    rule_focal = focal_from_rule("cliff", image_size)
+    rule = "cliff" if constant and abs(float(focal[0]) - rule_focal) <= _RULE_RTOL * rule_focal else None
+    if rule is None:
+        warnings.append(f"{path}: K_fullimg is not GVHMR's estimate_K (f = sqrt(W^2 + H^2) = {rule_focal:.1f} px): "
+                        "its focal is kept as the method's own (focal_kind: assumed, no focal_rule)")
+
+    model = opts.body_model
+    if model is None:
+        raise fail(path, "GVHMR stores SMPL-X parameters only (no joints, no 2D keypoints): pass --smpl-model "
+                         "SMPLX_NEUTRAL.npz (the SMPL-X model file) to pose them")
+    if model.kind != "smplx":
+        raise fail(path, f"GVHMR's parameters are SMPL-X; --smpl-model {model.name} has {model.n_joints} joints (need 55)")
+    layout = joints_to_smpl24(np.zeros((0, model.n_joints, 3)))[1]
+    faces = model_faces(model, model.n_verts)
+    names = frame_names([f"{i:06d}" for i in range(n_frames)], warnings)
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        pose = np.zeros((1, model.n_joints, 3))
+        pose[0, 0] = params["global_orient"][index, :3]
+        pose[0, 1:22] = params["body_pose"][index, :63].reshape(21, 3)
+        vertices, joints55 = lbs(model, params["betas"][index][None], pose, params["transl"][index, :3][None])
+        extra = {} if constant else {"focal_length": np.float64(focal[index]),
+                                     "principal_point": principal[index].astype(np.float64)}
+        return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=vertices,
+                            joints=joints_to_smpl24(joints55)[0], person_ids=np.zeros(1, np.int64), faces=faces,
+                            extra=extra)
+
+    meta = base_meta("gvhmr", path, opts, image_size, float(focal[0]) if constant else None,
+                     (float(principal[0, 0]), float(principal[0, 1])) if constant else None,
+                     focal_kind=ASSUMED, focal_rule=rule)
+    meta["import"].update({
+        "source_frames": list(range(n_frames)),
+        "image_size_from": size_from,
+        "joints_layout": layout,
+        "root_joint": 0,
+        "keypoints_2d_layout": None,
+        "feet_heads_from": feet_heads_from(None, True),
+        "person_ids": "0: GVHMR reconstructs one tracked person per video",
+        "conventions": "camera frame = OpenCV, metres; vertices = SMPL-X(global_orient, body_pose, betas) + transl "
+                       "(smpl_params_incam); focal = K_fullimg (GVHMR's estimate_K: sqrt(W^2 + H^2)); jaw, eyes and "
+                       "hands at rest (flat hands)",
+    })
+    return ImportedSequence(tuple(names), build, meta, warnings)
+
+
+READERS = {"gvhmr": read_gvhmr}

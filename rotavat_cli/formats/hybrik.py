@@ -58,7 +58,8 @@ from .smpl import BodyModel, lbs, pose_to_matrices
 
 __all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px"]
 
-# SMPL_layer.JOINT_NAMES: SMPL's 24 (its 'left_thumb'/'right_thumb' are SMPL's hand joints) + 5 leaves.
+# SMPL_layer.JOINT_NAMES: SMPL's 24 in SMPL's order, named HybrIK's way (15 'jaw' is SMPL's 'head' joint,
+# 22/23 'left_thumb'/'right_thumb' SMPL's 'left_hand'/'right_hand'), then the 5 leaves (24 'head' = head top).
 HYBRIK29_JOINT_NAMES = (
     "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2", "left_ankle",
     "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar", "right_collar", "jaw",
@@ -181,7 +182,10 @@ def _rows(data: Mapping, src: Path) -> dict[str, np.ndarray]:
     paths = get(data, "img_path", src)
     if not isinstance(paths, (np.ndarray, list, tuple)) or np.ndim(paths) != 1 or not all(isinstance(p, str) for p in paths):
         raise fail(src, "'img_path' must be a list of image paths")
-    out["img_path"] = np.asarray([str(p) for p in paths])
+    try:  # corrupt unicode arrays hold code points no string may (SystemError once the text is read)
+        out["img_path"] = np.asarray([str(p).encode("utf-8").decode("utf-8") for p in paths])
+    except (UnicodeError, SystemError):
+        raise fail(src, "'img_path' holds invalid text") from None
     for key, value in out.items():
         if len(value) != n_rows:
             raise fail(src, f"'{key if key != 'xyz' else 'pred_xyz_29'}' has {len(value)} rows but 'pred_xyz_29' has {n_rows}")

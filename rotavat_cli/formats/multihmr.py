@@ -7,9 +7,11 @@ Source: naver/multi-hmr ``demo.py`` (``open_image``: ``ImageOps.contain`` + ``Im
 ``transl_pelvis``, ``rotvec`` (55, 3), ``shape``, ``expression``, ``verts_smplx`` (10475, 3),
 ``j3d_smplx`` (127, 3), ``j2d_smplx`` (127, 2)).
 
-- Files read: ``<image>.npy`` (P, V, 3) vertex arrays (the demo's ``--save_mesh``), or
-  ``<image>.npz`` / ``<image>.pkl`` holding those per-person keys (stacked arrays, or a list of
-  per-person dicts).
+- Files read: ``<image>_<model name>.png.npy`` (P, V, 3) vertex arrays (the demo's ``--save_mesh``:
+  ``save_fn = f"{Path(img_path).stem}_{model_name}.png"``, ``mesh_fn = save_fn + '.npy'``; the frame
+  name is the image stem: the ``.png`` and the ``_multiHMR...`` model suffix are dropped), older
+  demos' ``<image>.npy``, or ``<image>.npz`` / ``<image>.pkl`` holding those per-person keys
+  (stacked arrays, or a list of per-person dicts).
 - Frame: ``verts_smplx`` and ``j3d_smplx`` are in the camera frame: OpenCV axes
   (``perspective_projection`` divides by +z and applies K; rendering flips to OpenGL with
   ``OPENCV_TO_OPENGL_CAMERA_CONVENTION``), metres.
@@ -20,10 +22,13 @@ Source: naver/multi-hmr ``demo.py`` (``open_image``: ``ImageOps.contain`` + ``Im
 - 2D: ``j2d_smplx`` live in the *padded network input*, not the image: they are not used;
   ``keypoints_2d`` are ``j3d_smplx`` reprojected with the original-image intrinsics above.
 - Image size: never stored: ``--image-size`` is required. ``--fov`` if the demo ran with one.
+- Feet and heads: meshes give them (mesh landmarks); the reprojected ``j3d_smplx`` (SMPL-X 127) are
+  the ``keypoints_2d`` (layout ``smplx127``, formats/keypoints.py).
 """
 
 from __future__ import annotations
 
+import re
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -33,8 +38,10 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
-                      model_faces, natural_key, need_image_size, people_frame, project_px)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
+                      fail, feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame,
+                      project_px)
+from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
@@ -55,6 +62,16 @@ def sniff(path: Path) -> str | None:
         with zipfile.ZipFile(path) as archive:
             return "multihmr" if "verts_smplx.npy" in archive.namelist() else None
     return None
+
+
+_IMAGE_SUFFIX = re.compile(r"\.(png|jpe?g|webp)$", re.IGNORECASE)
+_MODEL_SUFFIX = re.compile(r"_multiHMR[A-Za-z0-9_.-]*$", re.IGNORECASE)  # demo.py: f"{stem}_{model_name}.png"
+
+
+def image_stem(path: Path) -> str:
+    """The image stem a result file belongs to: ``img_multiHMR_896_L.png.npy`` -> ``img``; ``img.npz`` -> ``img``."""
+    stem = _IMAGE_SUFFIX.sub("", path.stem)
+    return _MODEL_SUFFIX.sub("", stem) if stem != path.stem else stem
 
 
 def _files(src: Path) -> list[Path]:
@@ -111,7 +128,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
     model = opts.body_model
     warnings: list[str] = []
-    names = frame_names([p.stem for p in files], warnings)
+    names = frame_names([image_stem(p) for p in files], warnings)
 
     def build(index: int, notes: FrameNotes) -> Frame:
         path = files[index]
@@ -136,13 +153,14 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         return people_frame(names[index], path, notes.warnings, vertices=verts if verts.shape[1] else None,
                             joints=joints, keypoints_2d=kp,
                             faces=model_faces(model, verts.shape[1] if verts.shape[1] else None),
-                            n_verts=verts.shape[1] if verts.shape[1] else None)
+                            n_verts=verts.shape[1] if verts.shape[1] else None,
+                            keypoints_layout=None if kp is None else layout_by_count(kp.shape[1]), facts=notes.facts)
 
     def conclude(notes: list[FrameNotes]) -> Conclusion:
         layout = next((n.facts["joints_layout"] for n in notes if n.facts.get("joints_layout")), None)
         warned = [] if layout is not None else [f"{src}: no 'j3d_smplx' in the files (and no matching --smpl-model): "
                                                  "vertices only, no joints (MPJPE unavailable)"]
-        return Conclusion({"joints_layout": layout}, warned)
+        return Conclusion({"joints_layout": layout}, warned + conclude_placement(notes, src))
 
     meta = base_meta("multihmr", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED)
     meta["import"].update({
@@ -150,6 +168,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         "fov_deg": float(fov),
         "root_joint": 0,
         "keypoints_2d_layout": "smplx127 (j3d_smplx reprojected; the file's j2d_smplx are in the padded input)",
+        "feet_heads_from": feet_heads_from("smplx127", True),
         "conventions": f"camera frame = OpenCV, metres; focal = max(W, H) / (2 tan({fov:g} deg / 2)); "
                        "principal point = image centre",
     })

@@ -32,8 +32,8 @@ from ..focal import ASSUMED
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, frame_names,
-                      get, model_faces, natural_key, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
+                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
@@ -187,11 +187,11 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         notes.facts["ground_m"] = (-(feet_cam @ ups[index]))[np.isfinite(feet_cam).all(axis=1)].tolist()
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=people["joints"],
                             keypoints_2d=people.get("keypoints_2d"), faces=model_faces(model, n_verts),
-                            n_verts=n_verts, extra=extra)
+                            n_verts=n_verts, extra=extra, keypoints_layout="spin49", facts=notes.facts)
 
     def conclude(notes: list[FrameNotes]) -> Conclusion:
         ground = [h for n in notes for h in n.facts.get("ground_m", ())]
-        found: list[str] = []
+        found: list[str] = conclude_placement(notes, src)
         camera, fit = _camera(image_size, principal_point, focals, ups, ground, found, src)
         return Conclusion(warnings=found, camera=camera, camera_fit=fit)
 
@@ -202,6 +202,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         "joints_layout": "smpl24" if model is not None else "spin49 (OpenPose-25 + 24 SPIN joints)",
         "root_joint": 0 if model is not None else 8,
         "keypoints_2d_layout": "spin49",
+        "feet_heads_from": feet_heads_from("spin49", True),
         "conventions": "camera frame = OpenCV, metres: X_cam = Rx(pitch) Rz(roll) X + pred_cam_t; per-frame focal = "
                        "CamCalib f_pix; principal point = image centre",
     })

@@ -104,7 +104,7 @@ def _posed_joints(model: BodyModel, tracks: dict, picks: list[tuple[int, int]],
     betas = np.stack([tracks[t]["betas"][r] for t, r in picks])
     trans = np.stack([tracks[t]["trans"][r] for t, r in picks])
     posed_verts, joints = lbs(model, betas, pose, trans)
-    return joints, float(np.nanmax(np.abs(posed_verts - verts_cam), initial=0.0))
+    return joints, float(np.nanmax(np.linalg.norm(posed_verts - verts_cam, axis=-1), initial=0.0))
 
 
 def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:

@@ -25,13 +25,17 @@ def _row_block(n_points: int) -> int:
 def _shift_rows(points: np.ndarray, shift: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Add a per-person offset to every point: (P, N, 3) + (P, 3) -> (P, N, 3).
 
-    ``out`` (C-contiguous, may be ``points``) receives the result. Rows are viewed in blocks of
-    ``_row_block(N)`` against a tiled offset, so the inner loop spans 3 x block elements
-    instead of 3 (6,890 = 130 x 53 for SMPL vertices; 24 joints are one block).
+    ``out`` (any memory layout, may be ``points``) receives the result. C-contiguous arrays are
+    viewed in row blocks of ``_row_block(N)`` against a tiled offset, so the inner loop spans
+    3 x block elements instead of 3 (6,890 = 130 x 53 for SMPL vertices; 24 joints are one
+    block). Any other layout (Fortran order, a fancy-indexed joint subset, a strided view) takes
+    a plain broadcast add: reshaping such an array copies it, and a write into the copy is lost.
     """
     n_people, n_points, _ = points.shape
     if n_points == 0:
         return points.copy() if out is None else out
+    if not (points.flags.c_contiguous and (out is None or out.flags.c_contiguous)):
+        return np.add(points, shift[:, None, :], out=out)
     block = _row_block(n_points)
     shape = (n_people, n_points // block, 3 * block)
     tiled = np.tile(shift, (1, block))[:, None, :]

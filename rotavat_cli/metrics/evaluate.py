@@ -13,7 +13,14 @@ frame by frame. Metric names (all mm unless stated):
 - detection: matched, missed, false positives, precision, recall, f1, and AGORA's
   ``nmje = mpjpe / f1`` and ``nmve = pve / f1``;
 - camera errors (``cam_focal_pct``, ``cam_pitch_deg``, ``cam_roll_deg``, ``cam_height_pct``)
-  when both directories have a camera.yaml.
+  when both directories have a camera.yaml;
+- temporal metrics of tracks (a ground-truth person id's matched frames in order): ``accel_err``,
+  ``jitter``, ``foot_sliding`` (:mod:`.temporal`).
+
+Those are the ``paper`` protocol's. ``EvalOptions(protocol=...)`` picks another benchmark's
+definitions, root, joint set, matching and rounding (:mod:`.protocols`): ``spec``, ``agora``,
+``bedlam``, ``wham``; a result names its protocol, the units of each metric, and notes on what
+was skipped.
 """
 
 from __future__ import annotations
@@ -23,7 +30,7 @@ import math
 import re
 from collections.abc import Callable
 from collections.abc import Sequence as Seq
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +43,13 @@ from ..landmarks import SMPL_JOINT_NAMES, foot_head_points
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
 from .matching import match_agora, match_by_ids, match_hungarian
+from .protocols import (CONTACT_M, FOOT_JOINTS, GVHMR_FOOT_VERTICES, GVHMR_FPS, PROTOCOL_NAMES, SMPL_VERTICES, Protocol,
+                        aggregate, protocol, root_points)
+from .temporal import TrackSeries
 
-__all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PersonMetric", "EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
+__all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PROTOCOL_NAMES", "PersonMetric", "EvalOptions", "EvalResult",
+           "evaluate", "merge_results", "parse_joints"]
 
-PELVIS = 0  # root joint index (SMPL order); see landmarks.SMPL_JOINT_NAMES
 MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
 MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
 
@@ -53,12 +63,13 @@ class EvalOptions:
     iou_threshold: float = 0.1
     joints: tuple[int, ...] | None = None  # subset of joint indices (both sides)
     engine: str = "auto"  # vertex metrics: auto | numpy | numba (see metrics.ENGINES)
+    protocol: str = "paper"  # whose definitions: paper | spec | agora | bedlam | wham (metrics.protocols)
 
     @classmethod
     def from_config(cls, section: dict, joints: tuple[int, ...] | None = None) -> EvalOptions:
-        """Options from the ``eval`` config section (match, thresholds, engine)."""
+        """Options from the ``eval`` config section (match, thresholds, engine, protocol)."""
         return cls(section["match"], float(section["threshold_px"]), float(section["iou_threshold"]), joints,
-                   str(section["engine"]))
+                   str(section["engine"]), str(section["protocol"]))
 
 
 @dataclass
@@ -75,13 +86,20 @@ class EvalResult:
     matched: int = 0
     missed: int = 0
     false_positives: int = 0
+    track_pairs: int = 0  # matched pairs fed to tracks (temporal metrics)
+    track_pairs_without_feet: int = 0  # of those, pairs without foot points (left out of foot sliding)
+    protocol: str = "paper"
     metrics: dict[str, float] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)  # metric -> unit ('' for ratios)
+    notes: list[str] = field(default_factory=list)  # what was skipped or left out, and why
     camera: dict[str, float] = field(default_factory=dict)
     per_person: dict[str, list] = field(default_factory=dict)
+    tracks: TrackSeries | None = None  # the tracks' temporal state (merged by merge_results; not reported)
+    fps: float | None = None  # the ground truth's meta.yaml fps
 
     def as_dict(self, per_person: bool = False) -> dict:
         """Plain dict for JSON (per-person rows only when asked)."""
-        d = {k: v for k, v in vars(self).items() if k != "per_person"}
+        d = {k: v for k, v in vars(self).items() if k not in ("per_person", "tracks", "fps")}
         return {**d, "per_person": self.per_person} if per_person else d
 
 
@@ -124,7 +142,7 @@ def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | N
 
 
 def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions) -> tuple[np.ndarray, np.ndarray]:
-    """Per-frame one-to-one matching (pred_idx, gt_idx)."""
+    """Per-frame one-to-one matching (pred_idx, gt_idx); ``opts`` as :func:`_effective` makes them."""
     both_ids = pred.get("person_ids") is not None and gt.get("person_ids") is not None
     if opts.match == "ids" or (opts.match == "auto" and both_ids):
         if not both_ids:
@@ -141,12 +159,15 @@ def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, o
 
 @dataclass(frozen=True)
 class _Pairs:
-    """The matched people of one or more frames, gathered: joints (M, J, 3) and vertices (M, V, 3) or None."""
+    """The matched people of one or more frames, gathered: joints (M, J, 3) (the protocol's joint
+    set), their roots (M, 3) float64 (the protocol's rule, from all the joints), vertices (M, V, 3); or None."""
 
     pred_joints: np.ndarray | None
     gt_joints: np.ndarray | None
     pred_verts: np.ndarray | None
     gt_verts: np.ndarray | None
+    pred_root: np.ndarray | None = None
+    gt_root: np.ndarray | None = None
 
     def kind(self) -> tuple:
         """What must agree for two gatherings to be scored in one call: which arrays, their point counts, dtypes."""
@@ -154,16 +175,34 @@ class _Pairs:
                      for a in (self.pred_joints, self.gt_joints, self.pred_verts, self.gt_verts))
 
 
+def _check_joints(frame: Frame, opts: EvalOptions) -> None:
+    """InputError unless the frame's joints hold every joint the options ask for (``--joints``, or the
+    protocol's first N joints, or the hips its root needs)."""
+    joints = frame.get("joints")
+    if joints is None or frame.n_people == 0:
+        return
+    n_joints = joints.shape[1]
+    if opts.joints and (max(opts.joints) >= n_joints or min(opts.joints) < -n_joints):
+        bad = max(opts.joints) if max(opts.joints) >= n_joints else min(opts.joints)
+        raise InputError(f"{frame.source}: --joints asks for joint {bad} but the frame has {n_joints} joints "
+                         f"(0..{n_joints - 1})")
+    proto = protocol(opts.protocol)
+    needed = max(proto.first_joints or 1, 3 if proto.root == "hips" else 1)
+    if n_joints < needed:
+        raise InputError(f"{frame.source}: --protocol {proto.name} scores the first {needed} joints (SMPL order) "
+                         f"but the frame has {n_joints}")
+
+
 def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> _Pairs:
-    """The matched people's joints (``--joints`` subset) and vertices, checked for equal point counts."""
+    """The matched people's joints (the protocol's set or ``--joints``) with their roots (from all the
+    joints, so ``--joints`` never moves the root) and vertices, checked for equal point counts."""
     pj, gj = pred.get("joints"), gt.get("joints")
+    pr = gr = None
     if pj is not None and gj is not None:
         pj, gj = pj[pi], gj[gi]
+        rule = protocol(opts.protocol).root
+        pr, gr = root_points(pj, rule), root_points(gj, rule)
         if opts.joints:
-            for side, arr in ((pred, pj), (gt, gj)):
-                if max(opts.joints) >= arr.shape[1] or min(opts.joints) < -arr.shape[1]:
-                    raise InputError(f"{side.source}: --joints asks for joint {max(opts.joints)} but the frame "
-                                     f"has {arr.shape[1]} joints (0..{arr.shape[1] - 1})")
             pj, gj = pj[:, list(opts.joints)], gj[:, list(opts.joints)]
         if pj.shape[1] != gj.shape[1]:
             raise InputError(f"{pred.source}: prediction has {pj.shape[1]} joints, ground truth {gj.shape[1]}: "
@@ -177,7 +216,10 @@ def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: 
         pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
     else:
         pv = gv = None
-    return _Pairs(pj, gj, pv, gv)
+    return _Pairs(pj, gj, pv, gv, pr, gr)
+
+
+_PAIR_FIELDS = ("pred_joints", "gt_joints", "pred_verts", "gt_verts", "pred_root", "gt_root")
 
 
 def _concat_pairs(parts: Seq[_Pairs]) -> _Pairs:
@@ -185,7 +227,7 @@ def _concat_pairs(parts: Seq[_Pairs]) -> _Pairs:
     if len(parts) == 1:
         return parts[0]
     return _Pairs(*(None if getattr(parts[0], f) is None else np.concatenate([getattr(p, f) for p in parts])
-                    for f in ("pred_joints", "gt_joints", "pred_verts", "gt_verts")))
+                    for f in _PAIR_FIELDS))
 
 
 # ---- the per-person metrics: a registry (a new metric = one entry) -----------------------------------
@@ -204,15 +246,15 @@ class PersonMetric:
 def _errors(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
     """MPJPE, PA-MPJPE, W-MPJPE, PVE, PA-PVE, W-PVE and SPEC's pair, in one fused pass (:func:`metrics.person_errors_mm`)."""
     rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
-    return M.person_errors_mm(pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts, *rotations, PELVIS,
-                              engine=opts.engine)
+    return M.person_errors_mm(pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts, *rotations,
+                              engine=opts.engine, pred_root=pairs.pred_root, gt_root=pairs.gt_root)
 
 
 def _root_error(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
     """Pelvis position error, no alignment (scored where the ground truth has a camera, as the ground-aware ones)."""
-    if pairs.pred_joints is None or gt_cam is None:
+    if pairs.pred_root is None or gt_cam is None:
         return {}
-    return {"root_err": M.root_err_mm(pairs.pred_joints[:, PELVIS], pairs.gt_joints[:, PELVIS])}
+    return {"root_err": M.root_err_mm(pairs.pred_root, pairs.gt_root)}
 
 
 def _ground_aware(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
@@ -236,10 +278,16 @@ PERSON_METRICS = tuple(name for family in PERSON_METRIC_FAMILIES for name in fam
 
 def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
                   opts: EvalOptions) -> dict[str, np.ndarray]:
-    """Every per-person metric for ``n_pairs`` gathered pairs, (M,) each; NaN where not computable."""
-    out = {name: np.full(n_pairs, np.nan) for name in PERSON_METRICS}
+    """Every per-person metric of the protocol for ``n_pairs`` gathered pairs, (M,) each, under its report
+    names (e.g. SPEC's ``w_mpjpe`` is the gravity-frame error); NaN where not computable or not reported."""
+    proto = protocol(opts.protocol)
+    computed: dict[str, np.ndarray] = {}
     for family in PERSON_METRIC_FAMILIES:
-        out.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts).items() if k in family.names})
+        if any(source in family.names for source in proto.pair_metrics.values()):
+            computed.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts).items()
+                             if k in family.names})
+    out = {name: np.full(n_pairs, np.nan) for name in PERSON_METRICS}
+    out.update({name: computed[source] for name, source in proto.pair_metrics.items() if source in computed})
     return out
 
 
@@ -293,15 +341,10 @@ def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
-def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None,
-             progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
-    """Score one prediction sequence against the ground truth, frame by frame (both opened:
-    :func:`~rotavat_cli.sequence.open_sequence`).
-
-    ``frames=(start, stop)`` scores only that range of the sorted union of both sides' frame
-    names; :func:`merge_results` joins the results of consecutive ranges into the whole one.
-    """
-    opts = options or EvalOptions()
+def _effective(opts: EvalOptions) -> EvalOptions:
+    """The options with the protocol's own matching and joint set; InputError for a bad or clashing option."""
+    if opts.protocol not in PROTOCOL_NAMES:
+        raise InputError(f"--protocol must be one of {', '.join(PROTOCOL_NAMES)}, got {opts.protocol!r}")
     if opts.match not in MATCHES:
         raise InputError(f"--match must be one of {', '.join(MATCHES)}, got {opts.match!r}")
     if not (math.isfinite(opts.threshold_px) and opts.threshold_px > 0):
@@ -310,11 +353,51 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
         raise InputError(f"--iou-threshold must be within 0..1, got {opts.iou_threshold}")
     with input_errors("--engine"):
         M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
-    result = EvalResult(pred_seq.label, gt_seq.label)
+    proto = protocol(opts.protocol)
+    if proto.match and opts.match not in ("auto", proto.match):
+        raise InputError(f"--protocol {proto.name} matches people its own way ({proto.match}); drop --match {opts.match}")
+    if proto.first_joints is None:
+        return opts
+    if opts.joints:
+        raise InputError(f"--joints applies to --protocol paper; {proto.name} scores its own joint set "
+                         f"(the first {proto.first_joints}, SMPL order)")
+    return replace(opts, match=proto.match or opts.match, joints=tuple(range(proto.first_joints)))
+
+
+def _check_frame_names(pred_seq: Sequence, gt_seq: Sequence, pred_names: set, gt_names: set) -> None:
+    """InputError when the two sides share no frame name (frames are paired by name: nothing could be scored)."""
+    if pred_names and gt_names and not pred_names & gt_names:
+        raise InputError(f"{pred_seq.label}: none of its {len(pred_names)} frame names (e.g. '{min(pred_names)}') is "
+                         f"among the ground truth's {len(gt_names)} ({gt_seq.label}, e.g. '{min(gt_names)}'); "
+                         "frames are paired by name")
+
+
+def _track_series(proto: Protocol) -> TrackSeries | None:
+    """The temporal accumulator a protocol needs, or None."""
+    if not proto.track_metrics:
+        return None
+    keep_all = proto.name == "wham"  # W-MPJPE / WA-MPJPE / RTE need every frame's joints of a track
+    return TrackSeries(("accel", "jitter", "foot_sliding"), CONTACT_M, keep_all, accel_hips=proto.root == "hips")
+
+
+def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None,
+             progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
+    """Score one prediction sequence against the ground truth, frame by frame (both opened:
+    :func:`~rotavat_cli.sequence.open_sequence`), by the rules of ``options.protocol``.
+
+    ``frames=(start, stop)`` scores only that range of the sorted union of both sides' frame
+    names; :func:`merge_results` joins the results of consecutive ranges into the whole one.
+    """
+    opts = _effective(options or EvalOptions())
+    proto = protocol(opts.protocol)
+    pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
+    _check_frame_names(pred_seq, gt_seq, pred_names, gt_names)
+    fps = gt_seq.meta.get("fps")
+    result = EvalResult(pred_seq.label, gt_seq.label, protocol=proto.name, tracks=_track_series(proto),
+                        fps=float(fps) if fps else None)
     pred_cam, gt_cam = pred_seq.camera, gt_seq.camera
     if pred_cam is not None and gt_cam is not None:
         result.camera = _camera_errors(pred_cam, gt_cam)
-    pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
     columns: dict[str, list] = {k: [] for k in ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)}
     batch = _ScoreBatch(pred_cam, gt_cam, opts, columns)
     names = sorted(pred_names | gt_names)
@@ -323,28 +406,36 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
         if progress:
             progress()
     batch.flush()
+    if result.tracks is not None:
+        result.tracks.flush()
     result.per_person = columns
-    result.metrics = _aggregate(result, columns)
+    _aggregate(result, columns)
     return result
 
 
 _COUNTS = ("frames", "frames_pred_only", "frames_gt_only", "people_gt", "people_pred", "matched", "missed",
-           "false_positives")
+           "false_positives", "track_pairs", "track_pairs_without_feet")
 
 
 def merge_results(parts: Seq[EvalResult]) -> EvalResult:
     """One result from the results of consecutive frame ranges of the same two sequences, in order.
 
-    Counts are summed and per-person rows concatenated, so the metrics are the same floats that one
-    :func:`evaluate` call over the whole range gives.
+    Counts are summed, per-person rows concatenated and tracks continued across the ranges, so the
+    metrics are the same numbers one :func:`evaluate` call over the whole range gives (the track
+    metrics up to float rounding of their sums).
     """
     if not parts:
         raise ValueError("merge_results needs at least one part")
-    result = EvalResult(parts[0].pred, parts[0].gt, camera=dict(parts[0].camera))
+    first = parts[0]
+    result = EvalResult(first.pred, first.gt, protocol=first.protocol, camera=dict(first.camera), fps=first.fps)
     for name in _COUNTS:
         setattr(result, name, sum(getattr(part, name) for part in parts))
-    result.per_person = {key: [v for part in parts for v in part.per_person[key]] for key in parts[0].per_person}
-    result.metrics = _aggregate(result, result.per_person)
+    result.per_person = {key: [v for part in parts for v in part.per_person[key]] for key in first.per_person}
+    if first.tracks is not None:
+        result.tracks = first.tracks
+        for part in parts[1:]:
+            result.tracks = result.tracks.merge(part.tracks)
+    _aggregate(result, result.per_person)
     return result
 
 
@@ -356,12 +447,14 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
         n = (pred_seq if side == "pred" else gt_seq).read_frame(name).n_people
         setattr(result, f"frames_{side}_only", getattr(result, f"frames_{side}_only") + 1)
         setattr(result, f"people_{side}", getattr(result, f"people_{side}") + n)
-        if side == "pred":
+        if side == "pred" and protocol(opts.protocol).pred_only_frames_count:
             result.false_positives += n
-        else:
+        elif side == "gt":
             result.missed += n
         return
     pred, gt = pred_seq.read_frame(name), gt_seq.read_frame(name)
+    _check_joints(pred, opts)
+    _check_joints(gt, opts)
     result.frames += 1
     result.people_pred += pred.n_people
     result.people_gt += gt.n_people
@@ -374,34 +467,74 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
     result.false_positives += pred.n_people - len(pi)
     if len(pi) == 0:
         return
-    batch.add(name, pi, gi, gt.person_ids[gi], _gather_pairs(pred, gt, pi, gi, opts))
+    pairs = _gather_pairs(pred, gt, pi, gi, opts)
+    batch.add(name, pi, gi, gt.person_ids[gi], pairs)
+    if result.tracks is not None and gt.get("person_ids") is not None and pairs.pred_joints is not None:
+        _add_to_tracks(result, pred, gt, pi, gi, pairs, opts)
 
 
-def _aggregate(result: EvalResult, columns: dict[str, list]) -> dict[str, float]:
-    """Means over matched pairs, detection scores and AGORA's F1-normalised errors."""
-    out: dict[str, float] = {}
-    for key in PERSON_METRICS:
-        values = np.asarray(columns[key], dtype=np.float64)
-        finite = values[np.isfinite(values)]
-        out[key] = float(finite.mean()) if finite.size else float("nan")
-    scores = M.detection_scores(result.matched, result.missed, result.false_positives)
-    out.update(scores)
-    out["nmje"] = float(M.normalize_by_f1(out["mpjpe"], scores["f1"]))
-    out["nmve"] = float(M.normalize_by_f1(out["pve"], scores["f1"]))
-    return out
+def _foot_points(frame: Frame, idx: np.ndarray, proto: Protocol) -> np.ndarray | None:
+    """The matched people's foot points for foot sliding (M, 4, 3), or None when the frame lacks them:
+    SMPL ankle and foot joints (paper), GVHMR's four SMPL foot vertices (wham)."""
+    if proto.name == "wham":
+        verts = frame.get("vertices")
+        ok = verts is not None and verts.shape[1] == SMPL_VERTICES
+        return verts[idx][:, list(GVHMR_FOOT_VERTICES)] if ok else None
+    joints = frame.get("joints")
+    return joints[idx][:, list(FOOT_JOINTS)] if joints is not None and joints.shape[1] > max(FOOT_JOINTS) else None
 
 
-_PER_PERSON_COLUMNS = ("pred", "frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)
+def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pairs: _Pairs,
+                   opts: EvalOptions) -> None:
+    """Feed one frame's matched pairs to the tracks (keyed by the ground truth's person ids)."""
+    proto = protocol(opts.protocol)
+    feet_p, feet_g = _foot_points(pred, pi, proto), _foot_points(gt, gi, proto)
+    if feet_p is None or feet_g is None:  # NaN feet are never in contact: left out of foot sliding
+        feet_p = feet_g = np.full((len(pi), len(FOOT_JOINTS), 3), np.nan)
+        result.track_pairs_without_feet += len(pi)
+    result.track_pairs += len(pi)
+    result.tracks.add(gt.person_ids[gi], {"pred": pairs.pred_joints, "gt": pairs.gt_joints,
+                                          "pred_feet": feet_p, "gt_feet": feet_g})
+
+
+def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
+    """The protocol's reported metrics, units and notes into ``result``."""
+    proto = protocol(result.protocol)
+    counts = {"matched": result.matched, "missed": result.missed, "false_positives": result.false_positives}
+    fps = result.fps or GVHMR_FPS
+    result.metrics, notes = aggregate(proto, columns, counts, result.tracks, fps)
+    result.units = {name: proto.units.get(name, "") for name in result.metrics}
+    if proto.name == "spec" and not result.camera:
+        notes.append("w_mpjpe: needs a camera.yaml on both sides (each side's gravity frame)")
+    if proto.track_metrics and result.tracks is not None:
+        if result.track_pairs and result.track_pairs_without_feet == result.track_pairs:
+            why = ("GVHMR's foot vertices 3216, 3387, 6617, 6787 need 6,890-vertex SMPL meshes on both sides"
+                   if proto.name == "wham" else "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
+            notes.append(f"foot_sliding: skipped: {why}")
+        elif result.track_pairs_without_feet:
+            notes.append(f"foot_sliding: {result.track_pairs_without_feet} of {result.track_pairs} matched pairs "
+                         "lack the foot points and are left out")
+        if proto.name == "wham" and result.fps is None:
+            notes.append(f"fps: the ground truth's meta.yaml gives none; GVHMR's {GVHMR_FPS:g} is used for "
+                         "accel_err and jitter")
+    if proto.name == "agora" and result.frames_pred_only:
+        notes.append(f"{result.frames_pred_only} prediction frame(s) without ground truth ignored, as AGORA does")
+    result.notes = notes
+
+
+_PER_PERSON_COLUMNS = ("pred", "frame", "pred_index", "gt_index", "person_id", "protocol", *PERSON_METRICS)
 PER_PERSON_HEADER = ",".join(_PER_PERSON_COLUMNS)  # the first line of every per-person CSV rotavat writes
+# How every per-person CSV rotavat ever wrote starts (the overwrite check's signature: older files lack "protocol").
+PER_PERSON_SIGNATURE = ",".join(_PER_PERSON_COLUMNS[:5])
 
 
 def write_per_person_csv(path: str | Path, results: Seq[EvalResult]) -> None:
     """One row per matched pair of every prediction (atomic)."""
     with atomic_open(path, "w") as handle:
         writer = csv.writer(handle, lineterminator="\n")
-        keys = _PER_PERSON_COLUMNS[1:]
         writer.writerow(_PER_PERSON_COLUMNS)
         for res in results:
             cols = res.per_person
             for i in range(len(cols["frame"])):
-                writer.writerow([res.pred, *(csv_cell(cols[k][i]) for k in keys)])
+                writer.writerow([res.pred, *(csv_cell(cols[k][i]) for k in _PER_PERSON_COLUMNS[1:5]), res.protocol,
+                                 *(csv_cell(cols[k][i]) for k in PERSON_METRICS)])

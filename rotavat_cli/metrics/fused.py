@@ -29,7 +29,7 @@ import numpy as np
 
 from ._common import MM_PER_M, _check_root_index, _pair, _roots, _rotation
 from ._kernels import _centred_moments, _far_from_origin, _scale_rotation
-from .points import mpjpe, w_spec_mpjpe
+from .points import mpjpe, point_errors_mm, w_spec_errors_mm
 
 __all__ = ["ENGINES", "JOINT_ERROR_KEYS", "VERTEX_ERROR_KEYS", "compiled_kernels", "person_errors_mm", "resolve_engine"]
 
@@ -322,13 +322,17 @@ def person_errors_mm(
     pred_verts_root: np.ndarray | None = None,
     gt_verts_root: np.ndarray | None = None,
     engine: str = "auto",
+    pred_root: np.ndarray | None = None,
+    gt_root: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Every per-person error of matched pairs in one call, mm: a dict of (P,) float64.
 
     pred_joints, gt_joints: (P, J, 3); pred_verts, gt_verts: (P, V, 3), metres, camera frame,
     any float dtype (pass float32 as loaded: the vertex pass converts block by block).
-    R_world_from_cam_pred/_gt: (3, 3) or (P, 3, 3), both or neither. The vertex root is
-    *_verts_root (P, 3) if given, else joint ``root_index``, else the vertex centroid.
+    R_world_from_cam_pred/_gt: (3, 3) or (P, 3, 3), both or neither. The root (P, 3) is
+    ``pred_root``/``gt_root`` if given (e.g. the hips' midpoint, or the pelvis of a joint set the
+    subset passed as joints lacks), else joint ``root_index``; the vertex root is *_verts_root
+    (P, 3) if given, else that root, else the vertex centroid.
     ``engine`` (:data:`ENGINES`) picks who runs the vertex pass: "auto" takes the numba kernels
     when numba is installed (``pip install 'rotavat[fast]'``, ~4x faster), else numpy; both
     give the same numbers to ~1e-5 mm.
@@ -353,19 +357,23 @@ def person_errors_mm(
         raise ValueError("pass both pred and gt joints (or neither), and the same for vertices")
     if (R_world_from_cam_pred is None) != (R_world_from_cam_gt is None):
         raise ValueError("SPEC errors need both R_world_from_cam_pred and R_world_from_cam_gt")
+    if (pred_root is None) != (gt_root is None):
+        raise ValueError("pass both pred_root and gt_root (or neither)")
     spec = R_world_from_cam_pred is not None
     out: dict[str, np.ndarray] = {}
     pj = gj = None
     if pred_joints is not None:
         pj, gj = _pair(pred_joints, gt_joints, "joints")
-        _check_root_index(root_index, pj.shape[1])
+        if pred_root is None:
+            _check_root_index(root_index, pj.shape[1])
+            pred_root, gt_root = pj[:, root_index], gj[:, root_index]
         out["w_mpjpe"] = mpjpe(pj, gj, "none")
-        out["mpjpe"] = mpjpe(pj, gj, "root", root_index)
+        out["mpjpe"] = point_errors_mm(pj, gj, "root", pred_root, gt_root).mean(axis=1)
         out["pa_mpjpe"] = mpjpe(pj, gj, "procrustes")
         if spec:
-            out["w_mpjpe_spec"] = w_spec_mpjpe(
-                pj, gj, R_world_from_cam_pred, R_world_from_cam_gt, root_index
-            )
+            out["w_mpjpe_spec"] = w_spec_errors_mm(
+                pj, gj, R_world_from_cam_pred, R_world_from_cam_gt, pred_root, gt_root
+            ).mean(axis=1)
     if pred_verts is None:
         return out
     pv, gv = _vertex_points(pred_verts, "pred_verts"), _vertex_points(gt_verts, "gt_verts")
@@ -376,8 +384,8 @@ def person_errors_mm(
         raise ValueError(f"{pj.shape[0]} people have joints but {n_people} have vertices")
     roots = np.stack(
         [
-            _vertex_root(pred_verts_root, pj, pv, root_index, "pred_verts_root"),
-            _vertex_root(gt_verts_root, gj, gv, root_index, "gt_verts_root"),
+            _vertex_root(pred_verts_root, pred_root, pv, "pred_verts_root"),
+            _vertex_root(gt_verts_root, gt_root, gv, "gt_verts_root"),
         ],
         axis=1,
     )
@@ -392,16 +400,15 @@ def person_errors_mm(
 
 
 def _vertex_root(
-    root: np.ndarray | None,
-    joints: np.ndarray | None,
+    verts_root: np.ndarray | None,
+    joint_root: np.ndarray | None,
     verts: np.ndarray,
-    root_index: int,
     name: str,
 ) -> np.ndarray:
-    """The vertex root (P, 3) float64: ``root`` if given, else the root joint, else the centroid."""
-    if root is not None:
-        return _roots(root, name, verts.shape[0])
-    if joints is not None:
-        return joints[:, root_index]
+    """The vertex root (P, 3) float64: ``verts_root`` if given, else the joints' root, else the centroid."""
+    if verts_root is not None:
+        return _roots(verts_root, name, verts.shape[0])
+    if joint_root is not None:
+        return _roots(joint_root, "pred_root/gt_root", verts.shape[0])
     return np.add.reduce(verts, axis=1, dtype=np.float64) / verts.shape[1]
 

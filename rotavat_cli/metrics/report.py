@@ -15,14 +15,19 @@ from ..errors import InputError
 from ..plain import to_plain
 from .evaluate import PERSON_METRICS, EvalResult
 
-__all__ = ["REPORT_COLUMNS", "Gate", "parse_gate", "check_gates", "report_rows", "format_value", "metric_value",
-           "markdown_report", "write_reports"]
+__all__ = ["REPORT_COLUMNS", "GATE_METRICS", "Gate", "parse_gate", "check_gate_rows", "check_gate_metrics",
+           "check_gates", "report_rows", "format_value", "metric_label", "metric_value", "markdown_report",
+           "write_reports"]
 
-# Columns of the summary table, in order (camera columns appear when present).
-REPORT_COLUMNS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
-                  "root_err", "foot_height", "lean_deg", "stature_err", "precision", "recall", "f1", "nmje", "nmve")
+# Columns of the summary table, in order (camera columns appear when present; each protocol fills its own).
+REPORT_COLUMNS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
+                  "root_err", "foot_height", "lean_deg", "stature_err", "rte", "accel_err", "jitter", "foot_sliding",
+                  "precision", "recall", "f1", "nmje", "nmve")
+_COUNT_METRICS = ("matched", "missed", "false_positives")
+_CAMERA_METRICS = ("cam_focal_pct", "cam_pitch_deg", "cam_roll_deg", "cam_height_pct")
+GATE_METRICS = frozenset((*REPORT_COLUMNS, *_COUNT_METRICS, *_CAMERA_METRICS))  # what --fail-if may name
 _OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt, ">": operator.gt}
-_GATE = re.compile(r"^\s*(?:(?P<row>[^:]+):)?\s*(?P<metric>[a-z_0-9]+)\s*(?P<op><=|>=|==|!=|<|>)\s*(?P<value>[-+0-9.eE]+)\s*$")
+_GATE = re.compile(r"^\s*(?:(?P<row>[^:]+):)?\s*(?P<metric>[A-Za-z_0-9]+)\s*(?P<op><=|>=|==|!=|<|>)\s*(?P<value>[-+0-9.eE]+)\s*$")
 
 
 @dataclass(frozen=True)
@@ -42,16 +47,47 @@ def parse_gate(text: str) -> Gate:
     """Parse a ``--fail-if`` condition; InputError if malformed or the metric is unknown."""
     m = _GATE.match(text)
     if not m:
-        raise InputError(f"--fail-if '{text}': expected METRIC OP NUMBER, e.g. 'w_mpjpe>300'")
-    known = set(REPORT_COLUMNS) | {"matched", "missed", "false_positives", "cam_focal_pct", "cam_pitch_deg",
-                                   "cam_roll_deg", "cam_height_pct"}
-    if m["metric"] not in known:
-        raise InputError(f"--fail-if '{text}': unknown metric '{m['metric']}' (known: {', '.join(sorted(known))})")
+        raise InputError(f"--fail-if '{text}': expected [ROW:]METRIC OP NUMBER, e.g. 'w_mpjpe>300'")
+    if m["metric"] not in GATE_METRICS:
+        hint = f"; names are lower case: '{m['metric'].lower()}'" if m["metric"].lower() in GATE_METRICS else ""
+        raise InputError(f"--fail-if '{text}': unknown metric '{m['metric']}'{hint} "
+                         f"(known: {', '.join(sorted(GATE_METRICS))})")
     try:
         value = float(m["value"])
     except ValueError:
         raise InputError(f"--fail-if '{text}': '{m['value']}' is not a number") from None
     return Gate(m["metric"], m["op"], value, m["row"])
+
+
+def check_gate_rows(gates: Sequence[Gate], preds: Sequence[str | Path]) -> None:
+    """InputError for a gate whose ROW names none of the predictions (a usage error, checked before any work)."""
+    names = {str(p) for p in preds} | {Path(p).name for p in preds}
+    for gate in gates:
+        if gate.row is not None and gate.row not in names:
+            raise InputError(f"--fail-if '{gate}': no prediction named '{gate.row}' "
+                             f"(the predictions: {', '.join(str(p) for p in preds)})")
+
+
+def check_gate_metrics(gates: Sequence[Gate], protocol: str) -> None:
+    """InputError for a gate on a metric the protocol never reports (it would always trip on NaN)."""
+    from .protocols import PROTOCOLS
+
+    proto = PROTOCOLS[protocol]
+    reported = set(proto.pair_metrics) | set(proto.track_metrics) | set(_COUNT_METRICS) | set(_CAMERA_METRICS)
+    reported |= {"precision", "recall", "f1", "nmje", "nmve"} if proto.detection else set()
+    reported -= set(proto.skipped)
+    for gate in gates:
+        if gate.metric not in reported:
+            why = f" ({proto.skipped[gate.metric]})" if gate.metric in proto.skipped else ""
+            raise InputError(f"--fail-if '{gate}': --protocol {protocol} does not report {gate.metric}{why}")
+
+
+def metric_label(result: EvalResult, metric: str) -> str:
+    """How a table names a metric: ``name (protocol, unit)``; camera errors keep their own names."""
+    if metric not in result.metrics:
+        return metric
+    unit = result.units.get(metric, "")
+    return f"{metric} ({result.protocol}{', ' + unit if unit else ''})"
 
 
 def metric_value(result: EvalResult, metric: str) -> float:
@@ -78,7 +114,8 @@ def check_gates(results: Sequence[EvalResult], gates: Sequence[Gate]) -> list[st
 
 
 def report_rows(results: Sequence[EvalResult]) -> list[str]:
-    """Metric columns that have a value in at least one row."""
+    """Metric columns that have a value in at least one row (the protocol's; a metric NaN everywhere is
+    left out: the notes say why)."""
     cols = [c for c in REPORT_COLUMNS if any(math.isfinite(r.metrics.get(c, math.nan)) for r in results)]
     cams = sorted({k for r in results for k in r.camera if not k.endswith("_signed")})
     return cols + cams
@@ -88,18 +125,27 @@ _RATIOS = ("precision", "recall", "f1")
 
 
 def format_value(metric: str, value: float) -> str:
-    """Table cell: 3 decimals for ratios, 1 for mm, degrees and percentages."""
+    """Table cell: 3 decimals for ratios, 2 for the temporal rates, 1 for mm, degrees and percentages."""
     if value is None or not math.isfinite(value):
         return "–"
-    return f"{value:.3f}" if metric in _RATIOS else f"{value:.1f}"
+    if metric in _RATIOS:
+        return f"{value:.3f}"
+    return f"{value:.2f}" if metric in ("accel_err", "jitter", "foot_sliding", "rte") else f"{value:.1f}"
 
 
 def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
     """metrics.md: one row per prediction, then the change of each row against the first."""
+    from .protocols import PROTOCOLS
+
     cols = report_rows(results)
-    lines = [f"# rotavat eval against `{gt}`", "", "Errors in mm (lean in degrees); lower is better. "
-             "`w_*` = no alignment at all; `pa_*` = Procrustes-aligned; `*_spec` = SPEC's gravity-frame variant.", ""]
-    lines.append("| prediction | frames | matched | missed | FP | " + " | ".join(cols) + " |")
+    protocols = sorted({r.protocol for r in results})
+    lines = [f"# rotavat eval against `{gt}`", ""]
+    for name in protocols:
+        lines.append(f"Protocol `{name}`: {PROTOCOLS[name].source}.")
+    lines += ["", "Lower is better; each column names its protocol and unit (docs/metrics.md defines them: "
+              "`w_mpjpe` is a different quantity under each protocol).", ""]
+    labels = [metric_label(next((r for r in results if c in r.metrics), results[0]), c) for c in cols]
+    lines.append("| prediction | frames | matched | missed | FP | " + " | ".join(labels) + " |")
     lines.append("|---" * (5 + len(cols)) + "|")
     for r in results:
         vals = [metric_value(r, c) for c in cols]
@@ -107,7 +153,7 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
                      + " | ".join(format_value(c, v) for c, v in zip(cols, vals)) + " |")
     if len(results) > 1:
         lines += ["", f"Relative change against `{results[0].pred}`:", ""]
-        lines.append("| prediction | " + " | ".join(cols) + " |")
+        lines.append("| prediction | " + " | ".join(labels) + " |")
         lines.append("|---" * (1 + len(cols)) + "|")
         base = results[0]
         for r in results[1:]:
@@ -119,7 +165,10 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
     frames_note = [f"- `{r.pred}`: {r.frames_pred_only} frames only in the prediction, {r.frames_gt_only} only in the ground truth"
                    for r in results if r.frames_pred_only or r.frames_gt_only]
     if frames_note:
-        lines += ["", "Unpaired frames (counted as false positives / misses):", *frames_note]
+        lines += ["", "Unpaired frames (counted as false positives / misses unless a note says otherwise):", *frames_note]
+    notes = [f"- `{r.pred}` ({r.protocol}): {note}" for r in results for note in r.notes]
+    if notes:
+        lines += ["", "Notes:", *notes]
     return "\n".join(lines) + "\n"
 
 
@@ -129,10 +178,17 @@ def write_reports(out_dir: str | Path, results: Sequence[EvalResult], gt: str, o
 
     json_path, md_path = report_paths(out_dir)
     payload = {"written_by": f"rotavat {__version__}", "gt": gt, "options": options,
-               "metric_names": list(PERSON_METRICS), "predictions": [r.as_dict() for r in results]}
+               "protocol": _protocol_field(results), "metric_names": list(PERSON_METRICS),
+               "predictions": [r.as_dict() for r in results]}
     atomic_write_text(json_path, json.dumps(to_plain(payload), indent=2) + "\n")
     atomic_write_text(md_path, f"<!-- written by rotavat {__version__} -->\n" + markdown_report(results, gt))
     return json_path, md_path
+
+
+def _protocol_field(results: Sequence[EvalResult]) -> str | list[str]:
+    """metrics.json's top-level protocol: its name, or the sorted names when results mix protocols."""
+    names = sorted({r.protocol for r in results})
+    return names[0] if len(names) == 1 else names
 
 
 def report_paths(out_dir: str | Path) -> tuple[Path, Path]:

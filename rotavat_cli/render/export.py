@@ -32,6 +32,7 @@ from ..atomic import atomic_open
 from ..camera import Camera
 from ..sequence import Sequence
 from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
+from .grid import row_shapes
 from .style import RGB, RenderStyle, person_colors
 from .views import RowFrame
 
@@ -98,11 +99,34 @@ def _material(rgba: tuple[int, int, int, int]) -> Any:
     return PBRMaterial(baseColorFactor=list(rgba), metallicFactor=0.0, roughnessFactor=0.8, doubleSided=True)
 
 
+def _people_world(row: RowFrame, cam: Camera, colors: np.ndarray) -> Any:
+    """Per finite person of a row: (node name, world points (N, 3), faces (F, 3) or None for a point
+    cloud, colour (3,) uint8). Meshes as they are; skeletons as tubes and balls (:mod:`.skeleton`)."""
+    shapes = row_shapes(row) if row.kind == "skeleton" else None
+    for p, (pid, rgb) in enumerate(zip(row.person_ids, colors)):
+        node = f"{row.label}/person_{int(pid)}"
+        if row.kind in ("mesh", "points"):
+            verts_cam = np.asarray(row.verts_cam[p], dtype=np.float64)
+            if not np.isfinite(verts_cam).all():
+                continue
+            faces = np.asarray(row.faces, dtype=np.int64) if row.kind == "mesh" else None
+            yield node, cam.world_from_cam(verts_cam), faces, rgb
+        elif shapes is not None:
+            mine = np.flatnonzero(shapes.person == p)
+            if not len(mine):
+                continue
+            remap = np.full(len(shapes.points), -1, np.int64)
+            remap[mine] = np.arange(len(mine))
+            faces = remap[shapes.faces[np.isin(shapes.faces[:, 0], mine)]]
+            yield node, cam.world_from_cam(shapes.points[mine]), faces, rgb
+
+
 def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[RGB, ...],
                 frustum_depth_m: float | None = None) -> Any:
     """trimesh.Scene of rows' people (world frame, coloured by id), ground quad, frustum and camera node.
 
-    Each row's people go to the world through the row's own camera (``camera`` if it has none);
+    Each row's people go to the world through the row's own camera (``camera`` if it has none):
+    meshes, point clouds (glTF points) or skeletons (tubes along the bones, balls at the joints);
     node names are ``<row label>/person_<id>``. ``camera`` gives the frustum and the glTF camera.
     """
     import trimesh
@@ -111,18 +135,15 @@ def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[RGB,
     everything = [camera.center_world[None] * [1.0, 0.0, 1.0]]
     for row in rows:
         cam = row.camera or camera
-        verts = np.asarray(row.verts_cam, dtype=np.float64)
-        if verts.ndim != 3 or verts.shape[0] == 0:
-            continue
         colors = np.round(255 * person_colors(row.person_ids, palette)).astype(np.uint8)
-        for verts_cam, pid, rgb in zip(verts, row.person_ids, colors):
-            if not np.isfinite(verts_cam).all():
-                continue
-            verts_world = cam.world_from_cam(verts_cam)
+        for node, verts_world, faces, rgb in _people_world(row, cam, colors):
             everything.append(verts_world)
-            mesh = trimesh.Trimesh(verts_world, np.asarray(row.faces, dtype=np.int64), process=False)
-            mesh.visual = trimesh.visual.TextureVisuals(material=_material((*map(int, rgb), 255)))
-            scene.add_geometry(mesh, geom_name=f"{row.label}/person_{int(pid)}", node_name=f"{row.label}/person_{int(pid)}")
+            if faces is None:  # a point cloud: glTF POINTS
+                geometry = trimesh.PointCloud(verts_world, colors=np.tile(np.append(rgb, 255), (len(verts_world), 1)))
+            else:
+                geometry = trimesh.Trimesh(verts_world, faces, process=False)
+                geometry.visual = trimesh.visual.TextureVisuals(material=_material((*map(int, rgb), 255)))
+            scene.add_geometry(geometry, geom_name=node, node_name=node)
     pts = np.concatenate(everything)
     quad_v, quad_f = ground_quad_world(pts)
     ground = trimesh.Trimesh(quad_v, quad_f, process=False)
@@ -187,6 +208,6 @@ def export_frame(seq: Sequence, out: Path, frame: int = 0, camera_path: Path | N
     name = frame_names(seq, str(frame), None)[0]
     row = read_row(seq, name, row_labels([Path(seq.label)])[0], camera)
     write_glb(out, build_scene([row], camera, RenderStyle().palette if palette is None else palette), camera)
-    return {"out": str(out), "sequence": seq.label, "frame": name, "people": int(np.asarray(row.verts_cam).shape[0]),
+    return {"out": str(out), "sequence": seq.label, "frame": name, "people": int(len(row.person_ids)), "drawn_as": row.kind,
             "image_size": list(camera.image_size), "aspect_ratio": camera.image_size[0] / camera.image_size[1],
             "yfov_deg": float(np.rad2deg(camera.vertical_fov_rad))}

@@ -18,12 +18,15 @@ from ..camera import Camera
 __all__ = [
     "UP_WORLD",
     "OrthoExtent",
+    "FrontCrop",
     "PanelView",
     "world_from_cam_h",
     "horizontal_forward_world",
     "clip_from_cam_perspective",
     "clip_from_world_ortho",
     "fit_ortho_extent",
+    "fit_front_crop",
+    "panel_px_per_m",
     "ndc_to_px",
     "project_view_px",
     "nice_length_m",
@@ -43,6 +46,13 @@ class OrthoExtent:
 
 
 @dataclass(frozen=True)
+class FrontCrop:
+    """The part of the image a front panel shows: ``x0, y0, x1, y1`` image pixels, at the panel's aspect."""
+
+    box_px: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
 class PanelView:
     """One panel's projection: ``clip_from_cam`` for meshes, plus what the overlays need."""
 
@@ -51,8 +61,21 @@ class PanelView:
     clip_from_cam: np.ndarray  # (4, 4)
     light_cam: np.ndarray  # (3,) unit, toward the light, camera frame
     clip_from_world: np.ndarray | None = None  # (4, 4), orthographic views
-    px_per_m: float | None = None
-    image_rect: tuple[float, float, float, float] | None = None  # front: x0, y0, x1, y1 of the image
+    px_per_m: float | None = None  # orthographic views: panel px per metre
+    image_rect: tuple[float, float, float, float] | None = None  # front: x0, y0, x1, y1 of the whole image in the panel
+    focal_px: float | None = None  # front: the panel's focal (px per metre at 1 m depth)
+    extent: OrthoExtent | None = None  # orthographic views: the window
+    basis_world: np.ndarray | None = None  # orthographic views: (3, 3) rows panel right, up, depth (world)
+
+
+def panel_px_per_m(view: PanelView, depth_m: np.ndarray) -> np.ndarray:
+    """Panel pixels per metre of objects at camera depths ``depth_m`` (...,): constant in orthographic
+    views, ``focal / depth`` in the camera's view."""
+    depth = np.asarray(depth_m, dtype=np.float64)
+    if view.px_per_m is not None:
+        return np.full(depth.shape, float(view.px_per_m))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(depth > 0, float(view.focal_px or 1.0) / depth, np.nan)
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -126,6 +149,34 @@ def fit_ortho_extent(bounds: np.ndarray, size: tuple[int, int], margin: float, f
         center[1] = edge + 0.5 * panel_h_m
     depth_pad = 0.1 * span[2] + 1.0
     return OrthoExtent((float(center[0]), float(center[1])), float(px_per_m), (float(lo[2] - depth_pad), float(hi[2] + depth_pad)))
+
+
+def fit_front_crop(box_px: np.ndarray, image_size: tuple[int, int], size: tuple[int, int], margin: float,
+                   min_fraction: float = 0.1) -> FrontCrop | None:
+    """The image part to show around ``box_px`` (x0, y0, x1, y1; the people's pixels) in a W x H panel:
+    the box plus ``margin`` of its size (and 2 % of the image) each way, grown to the panel's aspect and
+    to at least ``min_fraction`` of the image width, slid inside the image. None when that is the whole
+    image anyway (then the panel shows all of it, letterboxed).
+
+    >>> [round(v) for v in fit_front_crop(np.array([1000.0, 500.0, 1100.0, 700.0]), (3840, 2160), (640, 360), 0.1).box_px]
+    [680, 392, 1420, 808]
+    """
+    Wi, Hi = image_size
+    W, H = size
+    x0, y0, x1, y1 = (float(v) for v in box_px)
+    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
+        return None
+    pad = 0.02 * math.hypot(Wi, Hi)
+    x0, x1 = x0 - margin * (x1 - x0) - pad, x1 + margin * (x1 - x0) + pad
+    y0, y1 = y0 - margin * (y1 - y0) - pad, y1 + margin * (y1 - y0) + pad
+    w = max(x1 - x0, (y1 - y0) * W / H, min_fraction * Wi)
+    h = w * H / W
+    if w >= 0.95 * Wi and h >= 0.95 * Hi:
+        return None
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    cx = min(max(cx, w / 2), Wi - w / 2) if w <= Wi else Wi / 2  # slide inside the image where it fits
+    cy = min(max(cy, h / 2), Hi - h / 2) if h <= Hi else Hi / 2
+    return FrontCrop((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2))
 
 
 def ndc_to_px(ndc_xy: np.ndarray, size: tuple[int, int]) -> np.ndarray:

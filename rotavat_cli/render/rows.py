@@ -1,10 +1,13 @@
 """Rows of a figure read from sequences on disk: which frames, which camera, which intrinsics.
 
-Which camera places a row in the world (orthographic views, GLB): ``camera_path`` if given
-(shared by every row), else the sequence's own ``camera.yaml``, else an :class:`InputError` saying
-to run ``rotavat calibrate`` or pass ``--camera``. The front view uses the intrinsics the meshes
-were made with (the frame's ``focal_length``/``K``, else ``meta.yaml``), falling back to the camera's.
-Frames are chosen by index in the first sequence and matched by name in the others.
+Which camera places a row in the world (orthographic views, GLB): the sequence's own
+``camera.yaml`` (the ground truth's is the true camera, an aligned output's the camera it was
+aligned with), else ``camera_path`` (``--camera``, for rows without one, e.g. a raw prediction),
+else an :class:`InputError` saying to run ``rotavat calibrate`` or pass ``--camera``. The front view
+uses the intrinsics the people were made with (the frame's ``focal_length``/``K``, else
+``meta.yaml``), falling back to the camera's. Frames are chosen by index in the first sequence and
+matched by name in the others. People are meshes, point clouds (vertices without faces) or joints
+(``joints_layout`` from meta.yaml's ``import.joints_layout``, else SMPL's by count).
 """
 
 from __future__ import annotations
@@ -16,9 +19,11 @@ import numpy as np
 from ..camera import Camera, reexpress_cam
 from ..errors import InputError, input_errors
 from ..sequence import Sequence, read_camera_yaml
+from .skeleton import layout_name
 from .views import RowFrame
 
-__all__ = ["IMAGE_SUFFIXES", "select_frames", "frame_names", "row_labels", "sequence_camera", "no_camera", "read_row"]
+__all__ = ["IMAGE_SUFFIXES", "select_frames", "frame_names", "row_labels", "sequence_camera", "sequence_layout", "no_camera",
+           "read_row"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 
@@ -52,20 +57,29 @@ def frame_names(seq: Sequence, frames: str | None, every: int | None) -> list[st
 
 
 def row_labels(paths: list[Path]) -> list[str]:
-    """Directory names, made unique by their parents when two sequences share a name."""
-    labels = [p.resolve().name or str(p) for p in paths]
+    """Short row labels: directory (or file) names, with their parent's name when two share a name,
+    then numbered (``pred #2``) if still the same; never a whole path.
+
+    >>> row_labels([Path("/data/a/pred"), Path("/data/b/pred"), Path("/x/gt")])
+    ['a/pred', 'b/pred', 'gt']
+    >>> row_labels([Path("/data/a/pred"), Path("/data/a/pred")])
+    ['pred #1', 'pred #2']
+    """
+    names = [p.resolve().name or str(p) for p in paths]
+    dup = {n for n in names if names.count(n) > 1}
+    labels = [f"{p.resolve().parent.name}/{n}" if n in dup and p.resolve().parent.name else n for p, n in zip(paths, names)]
     if len(set(labels)) < len(labels):
-        labels = [f"{p.resolve().parent.name}/{p.resolve().name}" for p in paths]
-    if len(set(labels)) < len(labels):
-        labels = [str(p) for p in paths]
+        labels = [f"{n} #{names[:i + 1].count(n)}" if n in dup else n for i, n in enumerate(names)]
     return labels
 
 
 def sequence_camera(seq: Sequence, camera_path: Path | None) -> Camera | None:
-    """``camera_path`` if given, else the sequence's camera.yaml, else None."""
+    """The sequence's own camera.yaml, else ``camera_path`` (if given), else None."""
+    if seq.camera is not None:
+        return seq.camera
     if camera_path is not None:
         return read_camera_yaml(camera_path, seq.image_size)[0]
-    return seq.camera
+    return None
 
 
 def no_camera(seq: Sequence, what: str) -> InputError:
@@ -88,17 +102,24 @@ def _frame_image(image_dir: Path, name: str) -> np.ndarray:
     raise InputError(f"{image_dir}: no image named {name}.png/.jpg (images are matched to frames by name)")
 
 
+def sequence_layout(seq: Sequence, n_joints: int) -> str | None:
+    """The layout of a sequence's ``n_joints`` joints: meta.yaml's ``import.joints_layout``, else SMPL's by count."""
+    block = (seq.meta or {}).get("import")
+    return layout_name(block.get("joints_layout") if isinstance(block, dict) else None, n_joints)
+
+
 def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_dir: Path | None = None) -> RowFrame:
-    """One row of a figure: frame ``name`` of ``seq`` with its intrinsics, camera and video frame."""
+    """One row of a figure: frame ``name`` of ``seq`` with its intrinsics, camera and video frame.
+
+    People are drawn from their meshes (``vertices`` + ``faces``), their vertices alone (a point
+    cloud) or their ``joints`` (a skeleton); a frame with people but neither is refused.
+    """
     if name not in seq.frame_names:
         raise InputError(f"{seq.path}: has no frame named {name} (frames are matched by name across sequences)")
     frame = seq.read_frame(name)
-    verts = frame.get("vertices")
-    faces = frame.get("faces")
-    if frame.n_people and verts is None:
-        raise InputError(f"{frame.source}: no 'vertices': rendering needs meshes")
-    if frame.n_people and faces is None:
-        raise InputError(f"{frame.source}: no 'faces': rendering needs the triangle list")
+    verts, faces, joints = frame.get("vertices"), frame.get("faces"), frame.get("joints")
+    if frame.n_people and verts is None and joints is None:
+        raise InputError(f"{frame.source}: neither 'vertices' nor 'joints': nothing to draw")
     intr = seq.frame_intrinsics(frame)
     size = intr.image_size or (camera.image_size if camera else None)
     focals = intr.focals_px(frame.n_people)
@@ -107,10 +128,14 @@ def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_
         raise InputError(f"{frame.source}: unknown {'image size' if size is None else 'focal length'} for the front view: "
                          "add image_size and focal_length to meta.yaml or pass --camera")
     pp = intr.principal_point or (camera.principal_point if camera and camera.image_size == size else (size[0] / 2, size[1] / 2))
-    if verts is not None and focals is not None and frame.n_people and np.any(focals != focal):
+    if focals is not None and frame.n_people and np.any(focals != focal):
         # one focal per person (HybrIK): the front view shows each body re-expressed in one camera
-        verts = reexpress_cam(verts, verts.mean(axis=1), focals, pp, focal, pp).astype(verts.dtype)
+        roots = (verts if verts is not None else joints).mean(axis=1)
+        verts = None if verts is None else reexpress_cam(verts, roots, focals, pp, focal, pp).astype(verts.dtype)
+        joints = None if joints is None else reexpress_cam(joints, roots, focals, pp, focal, pp).astype(joints.dtype)
     image = _frame_image(image_dir, name) if image_dir is not None else None
-    return RowFrame(label, np.zeros((0, 0, 3)) if verts is None else verts,
+    P = frame.n_people
+    layout = sequence_layout(seq, joints.shape[1]) if joints is not None else None
+    return RowFrame(label, np.zeros((P, 0, 3)) if verts is None else verts,
                     np.zeros((0, 3), np.int64) if faces is None else faces, frame.person_ids,
-                    size, float(focal), pp, camera, image)
+                    size, float(focal), pp, camera, image, joints, layout)

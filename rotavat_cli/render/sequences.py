@@ -1,15 +1,22 @@
-"""Figures of sequences on disk: what ``rotavat render`` runs (PNG per frame, optional GIF and GLB).
+"""Figures of sequences on disk: what ``rotavat render`` runs (PNG per frame; optional GIF, MP4, GLB, track plots).
 
 One grid row per sequence (:mod:`.rows` reads them), one column per view (:mod:`.views`), drawn
-by :func:`.grid.render_grid` with the rasteriser :func:`.raster.open_rasterizer` picks. Defaults:
-the packaged configs/default.yaml, section ``render``, is their one source (``FigureOptions()`` is
-``FigureOptions.from_config(default_config()["render"])``).
+by :func:`.grid.render_grid` with the rasteriser :func:`.raster.open_rasterizer` picks. Each row
+is placed in the world by its own camera (:func:`.rows.sequence_camera`). One row may be the
+ground truth (``gt``): the other rows' captions then give their errors against it on the frame
+shown (W-MPJPE, lean, foot height: :func:`rotavat_cli.metrics.evaluate.evaluate` on that frame),
+and with ``ghost="gt"`` it is drawn faintly over them (docs/render.md, "Ground truth").
+
+Defaults: the packaged configs/default.yaml, section ``render``, is their one source
+(``FigureOptions()`` is ``FigureOptions.from_config(default_config()["render"])``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import math
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,16 +27,22 @@ import numpy as np
 from ..atomic import atomic_open
 from ..camera import Camera
 from ..config import packaged_default
-from ..errors import InputError
+from ..errors import InputError, RotavatError
 from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
 from .raster import RENDERERS, open_rasterizer
 from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
 from .style import RenderStyle
-from .views import RowFrame, parse_views, scene_extents, view_specs
+from .tracks import plot_tracks, sequence_tracks
+from .video import require_mp4, write_gif, write_mp4
+from .views import FITS, RowFrame, camera_numbers, parse_views, scene_extents, view_specs
 
-__all__ = ["FigureOptions", "FigureSummary", "render_sequences"]
+__all__ = ["FigureOptions", "FigureSummary", "SCALES", "GHOSTS", "render_sequences", "figure_steps", "ground_truth_row",
+           "metrics_caption"]
+
+SCALES = ("row", "shared")  # side/top windows: each row its own, or one for every row
+GHOSTS = ("none", "gt")  # what is drawn faintly over the rows
 
 
 @functools.lru_cache(maxsize=1)
@@ -38,6 +51,14 @@ def _packaged_options() -> "FigureOptions":
     from ..config import default_config
 
     return FigureOptions.from_config(default_config()["render"])
+
+
+def _choice(render: dict, key: str, choices: tuple[str, ...], flag: str) -> str:
+    """``render[key]`` if it is one of ``choices``; ValueError naming the flag and the choices."""
+    value = render[key]
+    if value not in choices:
+        raise ValueError(f"{flag} (render.{key}) must be one of {', '.join(choices)}, got {value!r}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -49,25 +70,34 @@ class FigureOptions:
     frames: str | None = packaged_default(_packaged_options, "frames")  # "0,10,-1"; None = the first (or every)
     every: int | None = packaged_default(_packaged_options, "every")
     renderer: str = packaged_default(_packaged_options, "renderer")
-    camera_path: Path | None = None  # not a config key: --camera
+    camera_path: Path | None = None  # not a config key: --camera (rows without a camera.yaml of their own)
     image_dir: Path | None = None  # not a config key: --image
+    fit: str = packaged_default(_packaged_options, "fit")  # people | camera
+    scale: str = packaged_default(_packaged_options, "scale")  # row | shared
+    gt: str = packaged_default(_packaged_options, "gt")  # auto | none | a row's label or 1-based number
+    ghost: str = packaged_default(_packaged_options, "ghost")  # none | gt
+    labels: bool = packaged_default(_packaged_options, "labels")
     gif: bool = packaged_default(_packaged_options, "gif")
+    mp4: bool = packaged_default(_packaged_options, "mp4")
     fps: float = packaged_default(_packaged_options, "fps")
     glb: bool = packaged_default(_packaged_options, "glb")
+    plots: bool = packaged_default(_packaged_options, "plots")
     style: RenderStyle = packaged_default(_packaged_options, "style")
 
     @classmethod
     def from_config(cls, render: dict, camera_path: Path | None = None, image_dir: Path | None = None) -> "FigureOptions":
         """Options from a merged ``render`` config section; ValueError naming a bad option."""
-        if render["renderer"] not in RENDERERS:
-            raise ValueError(f"--renderer (render.renderer) must be one of {', '.join(RENDERERS)}, got {render['renderer']!r}")
+        _choice(render, "renderer", RENDERERS, "--renderer")
         if min(render["size"]) < 16 or max(render["size"]) > 8192:
             raise ValueError(f"--size (render.size) must be between 16 and 8192 px, got {render['size']}")
         if render["fps"] <= 0:
             raise ValueError(f"render.fps must be > 0, got {render['fps']}")
         return cls(parse_views(render["views"]), tuple(render["size"]),
                    None if render["frames"] is None else str(render["frames"]), render["every"], render["renderer"],
-                   camera_path, image_dir, render["gif"], float(render["fps"]), render["glb"], RenderStyle.from_config(render))
+                   camera_path, image_dir, _choice(render, "fit", FITS, "--fit"), _choice(render, "scale", SCALES, "--scale"),
+                   str(render["gt"]), _choice(render, "ghost", GHOSTS, "--ghost"), bool(render["labels"]), render["gif"],
+                   bool(render["mp4"]), float(render["fps"]), render["glb"], bool(render["plots"]),
+                   RenderStyle.from_config(render))
 
 
 @dataclass
@@ -84,6 +114,8 @@ class FigureSummary:
     files: list[str]
     seconds: float
     seconds_per_frame: float
+    gt: str | None = None  # the ground-truth row's label
+    captions: dict[str, str] = dataclasses.field(default_factory=dict)  # row label -> its numbers (last frame)
 
     def moved_to(self, out: str | Path) -> "FigureSummary":
         """The same summary once its folder was moved to ``out`` (a staging folder swapped in)."""
@@ -91,8 +123,55 @@ class FigureSummary:
         return dataclasses.replace(self, out=str(out), files=files)
 
 
+def ground_truth_row(spec: str, labels: list[str], seqs: list[Sequence]) -> int | None:
+    """Index of the ground-truth row: ``none``; ``auto`` = the one row whose folder is named ``gt``
+    (else none); a row's label; or its 1-based number. InputError for a name that is no row.
+
+    >>> ground_truth_row("auto", ["pred", "pred_aligned", "gt"], [])
+    2
+    >>> ground_truth_row("1", ["a", "b"], []), ground_truth_row("none", ["gt"], [])
+    (0, None)
+    """
+    if spec == "none":
+        return None
+    if spec == "auto":
+        named = [i for i, label in enumerate(labels) if label == "gt" or label.endswith("/gt")]
+        return named[0] if len(named) == 1 else None
+    if spec in labels:
+        return labels.index(spec)
+    if spec.isdigit() and 1 <= int(spec) <= len(labels):
+        return int(spec) - 1
+    raise InputError(f"--gt {spec!r} names no row: give one of {', '.join(labels)}, a number 1..{len(labels)}, "
+                     "auto or none")
+
+
+def _fmt(value: float, text: str) -> str | None:
+    """``text`` formatted with ``value``, or None when the value is not finite."""
+    return text.format(value) if value is not None and math.isfinite(value) else None
+
+
+def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
+    """Errors of ``pred`` against the ground truth on frame ``name``: W-MPJPE (else W-PVE), lean, foot
+    height (means over the matched people, as ``rotavat eval`` computes them on that frame alone)."""
+    from ..metrics.evaluate import EvalOptions, evaluate
+
+    names = sorted(set(pred.frame_names) | set(gt.frame_names))
+    if name not in names:
+        return ""
+    k = names.index(name)
+    try:
+        result = evaluate(pred, gt, EvalOptions(), frames=(k, k + 1))
+    except RotavatError as exc:
+        return f"vs gt: not comparable ({exc})"
+    m = result.metrics
+    parts = [_fmt(m.get("w_mpjpe"), "W-MPJPE {:.0f} mm") or _fmt(m.get("w_pve"), "W-PVE {:.0f} mm"),
+             _fmt(m.get("lean_deg"), "lean {:.1f}°"), _fmt(m.get("foot_height"), "foot height {:.0f} mm")]
+    shown = [p for p in parts if p]
+    return f"vs gt: {' · '.join(shown) or 'no metric'} ({result.matched}/{result.people_gt} matched)"
+
+
 def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> list[Camera | None]:
-    """Each sequence's camera (``opts.camera_path``, else its own); an error naming what ``needs`` one if it is missing."""
+    """Each sequence's camera (its own, else ``opts.camera_path``); an error naming what ``needs`` one if it is missing."""
     cameras = [sequence_camera(s, opts.camera_path) for s in seqs]
     if needs:
         for seq, cam in zip(seqs, cameras):
@@ -109,55 +188,106 @@ def _save_png(path: Path, image: np.ndarray) -> None:
         Image.fromarray(image).save(handle, format="PNG", optimize=False)
 
 
-def _save_gif(path: Path, images: list[np.ndarray], fps: float) -> None:
-    """Write frames as a looping GIF atomically."""
-    from PIL import Image
+def _file_stem(label: str) -> str:
+    """A row label as a file name part ('a/pred #2' -> 'a_pred_2')."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("_") or "row"
 
-    frames = [Image.fromarray(im).convert("P", palette=Image.ADAPTIVE, colors=255) for im in images]
-    with atomic_open(path, "wb") as handle:
-        frames[0].save(handle, format="GIF", save_all=True, append_images=frames[1:], duration=int(round(1000 / fps)), loop=0)
+
+_WINDOW_POINTS = 512  # pass 1 keeps at most about this many points per person (windows need extents, not meshes)
+
+
+def _window_row(row: RowFrame) -> RowFrame:
+    """A light copy of a row for fitting windows: every k-th point of each person (and of its ghost)."""
+    points = row.points_cam
+    k = max(1, points.shape[1] // _WINDOW_POINTS)
+    ghost = None if row.ghost is None else _window_row(row.ghost)
+    if row.kind in ("mesh", "points"):
+        return dataclasses.replace(row, verts_cam=points[:, ::k], faces=np.zeros((0, 3), np.int64), joints_cam=None,
+                                   image=None, ghost=ghost)
+    return dataclasses.replace(row, image=None, ghost=ghost)
+
+
+def figure_steps(seqs: list[Sequence], opts: FigureOptions) -> int:
+    """How many ``progress()`` calls :func:`render_sequences` makes: one per rendered frame, plus one
+    per frame of every row with ``plots``."""
+    n = len(frame_names(seqs[0], opts.frames, opts.every)) if seqs else 0
+    return n + (sum(len(s) for s in seqs) if opts.plots else 0)
+
+
+def _captions(rows: list[RowFrame], seqs: list[Sequence], gt: int | None, name: str) -> list[str]:
+    """Per row: its camera's numbers and, against the ground-truth row, its errors on frame ``name``."""
+    out = []
+    for i, (row, seq) in enumerate(zip(rows, seqs)):
+        parts = ["ground truth"] if i == gt else []
+        if row.camera is not None:
+            parts.append("camera " + camera_numbers(row.camera))
+        if gt is not None and i != gt:
+            parts.append(metrics_caption(seq, seqs[gt], name))
+        out.append("   ".join(p for p in parts if p))
+    return out
 
 
 def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None = None,
                      progress: Callable[[], None] | None = None) -> FigureSummary:
     """Render the chosen frames of one or more sequences as labelled grids in ``out`` (PNG per frame,
-    optional GIF/GLB): one grid row per sequence, frames named by the first sequence."""
+    optional GIF/MP4/GLB/track plots): one grid row per sequence, frames named by the first sequence.
+    ``progress()`` is called :func:`figure_steps` times."""
     opts = FigureOptions() if opts is None else opts
     if not seqs:
         raise InputError("give at least one sequence directory")
+    if opts.mp4:
+        require_mp4()  # before any work: say how to install it
     placed = [view.name for view in view_specs(opts.views) if view.needs_camera]  # views placing rows in the world
     needs = [f"{'/'.join(placed)} views"] if placed else []
-    if opts.glb:
-        needs.append("the GLB")
+    needs += (["the GLB"] if opts.glb else []) + (["the track plots"] if opts.plots else [])
     cameras = _cameras(seqs, opts, " and ".join(needs))
     labels = row_labels([Path(s.label) for s in seqs])
     names = frame_names(seqs[0], opts.frames, opts.every)
+    gt = ground_truth_row(opts.gt, labels, seqs)
+    if opts.ghost == "gt" and gt is None:
+        raise InputError("--ghost gt needs a ground-truth row: name it with --gt ROW (its label or number), "
+                         "or give a sequence folder named gt")
 
     def rows_of(name: str, image_dir: Path | None = None) -> list[RowFrame]:
-        return [read_row(s, name, lab, cam, image_dir) for s, lab, cam in zip(seqs, labels, cameras)]
+        rows = [read_row(s, name, lab, cam, image_dir) for s, lab, cam in zip(seqs, labels, cameras)]
+        if opts.ghost == "gt":
+            rows = [r if i == gt else dataclasses.replace(r, ghost=rows[gt]) for i, r in enumerate(rows)]
+        return rows
 
     start = time.perf_counter()
-    # pass 1: one shared metric extent for every row and frame, so all pictures compare at one scale
-    extents = {}
-    if placed:
-        extents = scene_extents([r for n in names for r in rows_of(n)], tuple(placed), opts.size, opts.style.margin)
-    files, images = [], []
+    # pass 1: windows shared by every frame (per row, or by every row), so pictures compare at one scale
+    every_frame = [[_window_row(r) for r in rows_of(n)] for n in names]
+    if opts.scale == "shared":
+        extents = scene_extents([r for rows in every_frame for r in rows], opts.views, opts.size, opts.style.margin, opts.fit)
+    else:
+        extents = [scene_extents([rows[i] for rows in every_frame], opts.views, opts.size, opts.style.margin, opts.fit)
+                   for i in range(len(seqs))]
+    del every_frame
+    files, images, captions = [], [], {}
     with open_rasterizer(opts.renderer) as rasterizer:
         for name in names:
             rows = rows_of(name, opts.image_dir)
-            image = render_grid(rows, opts.views, opts.size, rasterizer.rasterize, opts.style, extents, title=f"frame {name}")
+            rows = [dataclasses.replace(r, caption=c) for r, c in zip(rows, _captions(rows, seqs, gt, name))]
+            captions = {r.label: r.caption for r in rows}
+            image = render_grid(rows, opts.views, opts.size, rasterizer.rasterize, opts.style, extents,
+                                title=f"frame {name}", labels=opts.labels)
             _save_png(out / f"{name}.png", image)
             files.append(str(out / f"{name}.png"))
-            if opts.gif:
+            if opts.gif or opts.mp4:
                 images.append(image)
             if opts.glb:
                 scene = build_scene(rows, rows[0].camera, opts.style.palette)
                 files.append(str(write_glb(out / f"{name}.glb", scene, rows[0].camera)))
             if progress:
                 progress()
-        if opts.gif:
-            _save_gif(out / "render.gif", images, opts.fps)
-            files.append(str(out / "render.gif"))
+    if opts.gif:
+        files.append(str(write_gif(out / "render.gif", images, opts.fps)))
+    if opts.mp4:
+        files.append(str(write_mp4(out / "render.mp4", images, opts.fps)))
+    if opts.plots:
+        for seq, label, cam in zip(seqs, labels, cameras):
+            tracks = sequence_tracks(seq, cam, label, progress)
+            files.append(str(plot_tracks(out / f"tracks_{_file_stem(label)}.png", tracks, opts.style.palette)))
     seconds = time.perf_counter() - start
     return FigureSummary(str(out), rasterizer.name, rasterizer.detail, rasterizer.note, labels, list(opts.views), names,
-                         files, seconds, seconds / max(len(names), 1))
+                         files, seconds, seconds / max(len(names), 1), None if gt is None else labels[gt], captions)

@@ -2,19 +2,22 @@
 
 An entry says everything about its view: its name (a ``render.views`` / ``--views`` value), its
 column title, how it projects a row (the camera's own perspective, or an orthographic
-:class:`Ortho` basis with what its shared window must hold), and what it draws under and over the
+:class:`Ortho` basis with what its window must hold), and what it draws under and over the
 people. Adding a view = one entry here, its test and its row in docs/render.md's table.
 
-- ``front``: the meshes through the intrinsics they were made with (the sequence's focal), fitted
-  into the panel, optionally over the video frame. Everything looks right here by construction.
+- ``front``: the people through the intrinsics they were made with (the sequence's focal),
+  optionally over the video frame, cropped to the people (``fit="people"``) or the whole image
+  (``fit="camera"``). Everything looks right here by construction.
 - ``side``: orthographic, looking along the ground and perpendicular to the camera's horizontal
-  viewing direction; panel ``x`` = distance along that direction (camera to the left), ``y`` =
-  height. The ground is edge-on, so it is drawn as a line; a metric scale bar reads heights and lean.
+  viewing direction; panel ``x`` = distance ahead of the camera, ``y`` = height, both ticked in
+  metres. The ground is edge-on, so it is drawn as a line; the camera is drawn at its height with
+  its viewing direction and the edges of its field of view (or, off the panel, a marker on the edge
+  pointing to it), and its numbers.
 - ``top``: orthographic bird's-eye view, panel up = the camera's horizontal viewing direction,
-  with the camera, its ground field of view and a metric grid.
+  with the camera, its ground field of view and a metric grid ticked in metres.
 
-Orthographic windows are shared by all rows (and frames) of a figure (:func:`scene_extents`), so
-"before" and "after" compare at one scale.
+Windows (:meth:`View.window`) are fitted on the people of the rows given (every frame of a
+figure, so a GIF does not jump), or also on the camera with ``fit="camera"``.
 """
 
 from __future__ import annotations
@@ -26,33 +29,63 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Camera
-from .geometry import (UP_WORLD, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
-                       fit_ortho_extent, horizontal_forward_world, nice_length_m, project_view_px, unit,
+from ..camera import Camera, camera_parameters
+from .geometry import (UP_WORLD, FrontCrop, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
+                       fit_front_crop, fit_ortho_extent, horizontal_forward_world, nice_length_m, project_view_px, unit,
                        world_from_cam_h)
 from .style import RenderStyle, font, mix, rgb8
 
-__all__ = ["RowFrame", "Ortho", "View", "REGISTRY", "VIEWS", "view_specs", "parse_views", "ortho_basis_world",
-           "ortho_bounds", "scene_extents", "front_view", "ortho_view"]
+__all__ = ["RowFrame", "Ortho", "View", "REGISTRY", "VIEWS", "FITS", "view_specs", "parse_views", "ortho_basis_world",
+           "ortho_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers"]
 
+FITS = ("people", "camera")  # what windows are fitted on: the people, or also the camera (whole image, camera in view)
 _LIGHT_RAISE = 0.4  # the light sits this much above the eye (fraction of the viewing direction)
 _NEAR_M, _MIN_FAR_M = 0.05, 10.0  # front view clip planes (far grows with the scene)
-_SIDE_FLOOR_ROOM = 0.18  # side view: room under the lowest point (fraction of the panel), for the scale bar
+_SIDE_FLOOR_ROOM = 0.18  # side view: room under the lowest point (fraction of the panel), for the tick labels
+_TICKS_PER_PANEL = 5  # about this many metric ticks across a panel's width
 
 
 @dataclass(frozen=True)
 class RowFrame:
-    """What one grid row shows for one frame: meshes in the camera frame and how to view them."""
+    """What one grid row shows for one frame: people in the camera frame and how to view them.
+
+    People are meshes (``verts_cam`` with ``faces``), point clouds (``verts_cam`` without faces) or
+    skeletons (``joints_cam`` only, bones from ``joints_layout``): :attr:`kind`. ``ghost``: another
+    row's people (the ground truth) drawn faintly over these, placed by *this* row's camera.
+    """
 
     label: str
-    verts_cam: np.ndarray  # (P, V, 3) float, camera frame, metres
-    faces: np.ndarray  # (F, 3) int
+    verts_cam: np.ndarray  # (P, V, 3) float, camera frame, metres; V = 0 without vertices
+    faces: np.ndarray  # (F, 3) int; F = 0: no triangles
     person_ids: np.ndarray  # (P,) int
     image_size: tuple[int, int]  # (W, H) px of the front view's image
-    focal_px: float  # the focal the meshes were made with
+    focal_px: float  # the focal the people were made with
     principal_point: tuple[float, float]
     camera: Camera | None = None  # needed by orthographic views
     image: np.ndarray | None = None  # (H, W, 3) uint8 video frame under the front view
+    joints_cam: np.ndarray | None = None  # (P, J, 3) float, camera frame, metres
+    joints_layout: str | None = None  # a formats.keypoints layout name (bones), None: joints drawn as points
+    ghost: "RowFrame | None" = None
+    caption: str = ""  # numbers shown after the label (camera, metrics)
+
+    @property
+    def kind(self) -> str:
+        """``mesh``, ``points`` (vertices without faces), ``skeleton`` (joints only) or ``none``."""
+        verts = np.asarray(self.verts_cam)
+        if verts.ndim == 3 and verts.shape[1] > 0:
+            return "mesh" if np.asarray(self.faces).reshape(-1, 3).shape[0] else "points"
+        if self.joints_cam is not None and np.asarray(self.joints_cam).ndim == 3 and np.asarray(self.joints_cam).shape[1]:
+            return "skeleton"
+        return "none"
+
+    @property
+    def points_cam(self) -> np.ndarray:
+        """(P, N, 3) what each person is drawn from: vertices, else joints (camera frame)."""
+        if self.kind in ("mesh", "points"):
+            return np.asarray(self.verts_cam, dtype=np.float64)
+        if self.kind == "skeleton":
+            return np.asarray(self.joints_cam, dtype=np.float64)
+        return np.zeros((len(self.person_ids), 0, 3))
 
 
 Draw = Callable[[Any, PanelView, RowFrame, RenderStyle], None]  # (PIL image, panel, row, style): draws in place
@@ -60,11 +93,11 @@ Draw = Callable[[Any, PanelView, RowFrame, RenderStyle], None]  # (PIL image, pa
 
 @dataclass(frozen=True)
 class Ortho:
-    """What makes a view orthographic: its axes in the world and what its shared window must hold."""
+    """What makes a view orthographic: its axes in the world and what its window must hold."""
 
     basis: Callable[[Camera], np.ndarray]  # camera -> (3, 3) rows: panel right, panel up, into the panel (world)
-    # (people (N, 3) in the view's axes, basis, camera) -> (2, 3) min/max the shared window must hold
-    bounds: Callable[[np.ndarray, np.ndarray, Camera], np.ndarray]
+    # (people (N, 3) in the view's axes, basis, camera, fit) -> (2, 3) min/max the window must hold
+    bounds: Callable[[np.ndarray, np.ndarray, Camera, str], np.ndarray]
     floor_room: float | None = None  # fit_ortho_extent: keep the content this low in the panel, else centre it
 
 
@@ -83,38 +116,85 @@ class View:
         """Whether a row needs a camera placing it in the world (orthographic views)."""
         return self.ortho is not None
 
-    def panel(self, row: RowFrame, size: tuple[int, int], extents: Mapping[str, OrthoExtent]) -> PanelView:
-        """This view's panel for a row: the camera's view, or orthographic in the shared window ``extents[name]``."""
+    def window(self, rows: list[RowFrame], size: tuple[int, int], margin: float, fit: str = "people") -> Any:
+        """This view's window holding every row given (and its ghost): an :class:`OrthoExtent`, or for
+        the camera's view a :class:`FrontCrop` (None: the whole image)."""
         if self.ortho is None:
-            return front_view(row, size)
+            return _front_window(rows, size, margin, fit)
+        bounds = [ortho_bounds(self.name, r.camera, _with_ghost(r), fit) for r in rows if r.camera is not None]
+        if not bounds:
+            raise ValueError(f"the {self.name} view needs a camera")
+        stacked = np.stack(bounds)
+        union = np.stack([stacked[:, 0].min(axis=0), stacked[:, 1].max(axis=0)])
+        return fit_ortho_extent(union, size, margin, self.ortho.floor_room)
+
+    def panel(self, row: RowFrame, size: tuple[int, int], extents: Mapping[str, Any]) -> PanelView:
+        """This view's panel for a row, in the window ``extents[name]``."""
+        if self.ortho is None:
+            return front_view(row, size, extents.get(self.name))
         if row.camera is None:
             raise ValueError(f"row {row.label!r}: the {self.name} view needs a camera")
         return ortho_view(self.name, row.camera, extents[self.name], size)
 
 
+def _with_ghost(row: RowFrame) -> np.ndarray:
+    """(N, 3) finite camera-frame points of a row's people and its ghost's."""
+    parts = [row.points_cam.reshape(-1, 3)] + ([row.ghost.points_cam.reshape(-1, 3)] if row.ghost is not None else [])
+    pts = np.concatenate(parts)
+    return pts[np.isfinite(pts).all(axis=1)]
+
+
+def camera_numbers(camera: Camera) -> str:
+    """'f 593 px · pitch 48.8° · roll 0.8° · height 5.32 m'."""
+    p = camera_parameters(camera)
+    return f"f {p['focal_px']:.0f} px · pitch {p['pitch_deg']:.1f}° · roll {p['roll_deg']:.1f}° · height {p['height_m']:.2f} m"
+
+
 # ---- projections -----------------------------------------------------------------------------------
-def front_view(row: RowFrame, size: tuple[int, int]) -> PanelView:
-    """The camera view: the row's image (W_i x H_i) letterboxed into the panel, its intrinsics scaled."""
+def _front_window(rows: list[RowFrame], size: tuple[int, int], margin: float, fit: str) -> FrontCrop | None:
+    """The image part around every row's people (their pixels through each row's intrinsics); None =
+    the whole image (``fit="camera"``, no people, or people all over it)."""
+    if fit == "camera" or not rows:
+        return None
+    boxes = []
+    for row in rows:
+        pts = _with_ghost(row)
+        pts = pts[pts[:, 2] > _NEAR_M]
+        if len(pts):
+            uv = pts[:, :2] / pts[:, 2:] * row.focal_px + np.asarray(row.principal_point)
+            boxes.append(np.concatenate([uv.min(axis=0), uv.max(axis=0)]))
+    if not boxes:
+        return None
+    b = np.stack(boxes)
+    return fit_front_crop(np.concatenate([b[:, :2].min(axis=0), b[:, 2:].max(axis=0)]), rows[0].image_size, size, margin)
+
+
+def front_view(row: RowFrame, size: tuple[int, int], crop: FrontCrop | None = None) -> PanelView:
+    """The camera view: the row's image (W_i x H_i), or the ``crop`` of it, fitted into the panel, its intrinsics scaled."""
     W, H = size
     Wi, Hi = row.image_size
-    s = min(W / Wi, H / Hi)
-    ox, oy = 0.5 * (W - s * Wi), 0.5 * (H - s * Hi)
+    if crop is None:
+        s = min(W / Wi, H / Hi)
+        ox, oy = 0.5 * (W - s * Wi), 0.5 * (H - s * Hi)
+    else:
+        x0, y0, x1, y1 = crop.box_px
+        s = min(W / (x1 - x0), H / (y1 - y0))
+        ox, oy = 0.5 * (W - s * (x1 - x0)) - s * x0, 0.5 * (H - s * (y1 - y0)) - s * y0
     pp = (s * row.principal_point[0] + ox, s * row.principal_point[1] + oy)
-    z = np.asarray(row.verts_cam, dtype=np.float64)[..., 2]
-    z = z[np.isfinite(z)]
+    z = _with_ghost(row)[:, 2]
     far = max(_MIN_FAR_M, 1.5 * float(z.max()) + 1.0) if z.size else _MIN_FAR_M
     clip = clip_from_cam_perspective(s * row.focal_px, pp, size, _NEAR_M, far)
     light = unit(np.array([0.0, -_LIGHT_RAISE, -1.0]))  # from the eye, a little above (image up = -y)
-    return PanelView("front", size, clip, light, image_rect=(ox, oy, ox + s * Wi, oy + s * Hi))
+    return PanelView("front", size, clip, light, image_rect=(ox, oy, ox + s * Wi, oy + s * Hi), focal_px=s * row.focal_px)
 
 
 def ortho_view(kind: str, camera: Camera, extent: OrthoExtent, size: tuple[int, int]) -> PanelView:
-    """An orthographic view (side, top) of a camera's world at a shared extent."""
+    """An orthographic view (side, top) of a camera's world in a window."""
     basis = ortho_basis_world(kind, camera)
     clip_from_world = clip_from_world_ortho(basis, extent, size)
     light_world = unit(-basis[2] + _LIGHT_RAISE * basis[1])
     return PanelView(kind, size, clip_from_world @ world_from_cam_h(camera), camera.R_cam_from_world @ light_world,
-                     clip_from_world, extent.px_per_m)
+                     clip_from_world, extent.px_per_m, extent=extent, basis_world=basis)
 
 
 def _side_basis(camera: Camera) -> np.ndarray:
@@ -136,16 +216,23 @@ def _min_max(pts_view: np.ndarray) -> np.ndarray:
     return np.stack([pts_view.min(axis=0), pts_view.max(axis=0)])
 
 
-def _side_bounds(pts_view: np.ndarray, basis: np.ndarray, camera: Camera) -> np.ndarray:
-    """The people, with the ground line (height 0) always in view."""
-    bounds = _min_max(pts_view)
+def _camera_view(basis: np.ndarray, camera: Camera) -> np.ndarray:
+    """(1, 3) the camera centre in a view's axes."""
+    return (basis @ camera.center_world)[None]
+
+
+def _side_bounds(pts_view: np.ndarray, basis: np.ndarray, camera: Camera, fit: str) -> np.ndarray:
+    """The people (and with ``fit="camera"`` the camera), with the ground line (height 0) always in view."""
+    bounds = _min_max(np.concatenate([pts_view, _camera_view(basis, camera)]) if fit == "camera" or not len(pts_view)
+                      else pts_view)
     bounds[0, 1], bounds[1, 1] = min(bounds[0, 1], 0.0), max(bounds[1, 1], 0.0)
     return bounds
 
 
-def _top_bounds(pts_view: np.ndarray, basis: np.ndarray, camera: Camera) -> np.ndarray:
-    """The people and the camera (the map always shows it)."""
-    return _min_max(np.concatenate([pts_view, (basis @ camera.center_world)[None]]))
+def _top_bounds(pts_view: np.ndarray, basis: np.ndarray, camera: Camera, fit: str) -> np.ndarray:
+    """The people (and with ``fit="camera"`` the camera)."""
+    return _min_max(np.concatenate([pts_view, _camera_view(basis, camera)]) if fit == "camera" or not len(pts_view)
+                    else pts_view)
 
 
 # ---- drawings (Pillow) -----------------------------------------------------------------------------
@@ -156,59 +243,176 @@ def _draw(img: Any) -> Any:
     return ImageDraw.Draw(img, "RGBA")
 
 
-def _scale_bar(draw: Any, view: PanelView, style: RenderStyle) -> None:
-    """Metric scale bar, one line ("|----| 5 m"), at the panel's bottom-left corner (below the side view's ground)."""
-    W, H = view.size
-    length_m = nice_length_m(0.2 * W / view.px_per_m)
-    L = length_m * view.px_per_m
-    label = f"{length_m:g} m" if length_m >= 1 else f"{length_m * 100:g} cm"
-    font_px = max(10, H // 30)
+def _font_px(view: PanelView) -> int:
+    """Annotation font size of a panel."""
+    return max(10, min(view.size) // 28)
+
+
+def _label(draw: Any, xy: tuple[float, float], text: str, ink: tuple, font_px: int, anchor: str = "la") -> None:
+    """Text on a translucent white box (readable over people, grid and ground)."""
     face = font(font_px)
-    x0, y0 = 10, H - 6 - font_px // 2
-    text_w = draw.textlength(label, font=face)
-    draw.rectangle([x0 - 5, y0 - font_px // 2 - 3, x0 + L + 10 + text_w, y0 + font_px // 2 + 3], fill=(255, 255, 255, 170))
+    box = draw.textbbox(xy, text, font=face, anchor=anchor)
+    draw.rectangle([box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1], fill=(255, 255, 255, 190))
+    draw.text(xy, text, fill=ink, font=face, anchor=anchor)
+
+
+def _tick_step_m(view: PanelView) -> float:
+    """Metric tick spacing of an orthographic panel (also the top view's grid step)."""
+    return nice_length_m(view.size[0] / view.px_per_m / _TICKS_PER_PANEL)
+
+
+def _ticks(draw: Any, view: PanelView, style: RenderStyle, x_name: str, y_name: str) -> None:
+    """Metre tick labels along the bottom (panel right axis) and left (panel up axis) edges. Both views
+    measure from the camera: its centre is at 0 on their right axis and on the top view's up axis;
+    the side view's up axis is the height above the ground."""
+    W, H = view.size
+    (uc, vc), s = view.extent.center_m, view.px_per_m
+    step = _tick_step_m(view)
+    f_px = _font_px(view)
     ink = rgb8(style.text)
-    draw.line([(x0, y0), (x0 + L, y0)], fill=ink, width=2)
-    for x in (x0, x0 + L):
-        draw.line([(x, y0 - font_px // 3), (x, y0 + font_px // 3)], fill=ink, width=2)
-    draw.text((x0 + L + 6, y0), label, fill=ink, font=face, anchor="lm")
+    xs = [k * step for k in range(math.ceil((uc - W / 2 / s) / step), math.floor((uc + W / 2 / s) / step) + 1)]
+    ys = [k * step for k in range(math.ceil((vc - H / 2 / s) / step), math.floor((vc + H / 2 / s) / step) + 1)]
+    to_x = lambda u: W / 2 + (u - uc) * s  # noqa: E731
+    to_y = lambda v: H / 2 - (v - vc) * s  # noqa: E731
+    for u in xs:
+        x = to_x(u)
+        if f_px < x < W - 3 * f_px:
+            draw.line([(x, H - 4), (x, H)], fill=ink, width=1)
+            _label(draw, (x, H - 5), f"{u:g}", ink, f_px - 2, "md")
+    for v in ys:
+        y = to_y(v)
+        if 2 * f_px < y < H - 2 * f_px:
+            draw.line([(0, y), (4, y)], fill=ink, width=1)
+            _label(draw, (6, y), f"{v:g}", ink, f_px - 2, "lm")
+    _label(draw, (W - 4, H - 5), f"{x_name} (m)", ink, f_px - 2, "rd")
+    _label(draw, (6, 4), f"{y_name} (m)", ink, f_px - 2, "la")
+
+
+def _camera_glyph(draw: Any, view: PanelView, camera: Camera, style: RenderStyle, at_world: np.ndarray) -> None:
+    """The camera as a dot with its viewing direction at ``at_world`` (3,), or when that is off the
+    panel a triangle on the nearest edge pointing to it, labelled with its distance."""
+    W, H = view.size
+    c = project_view_px(view.clip_from_world, at_world, view.size)
+    axis_world = camera.R_cam_from_world.T @ np.array([0.0, 0.0, 1.0])
+    tip = project_view_px(view.clip_from_world, at_world + axis_world * (28.0 / view.px_per_m), view.size)
+    ink = rgb8(style.camera)
+    r = max(4, min(view.size) // 60)
+    f_px = _font_px(view)
+    if 0 <= c[0] < W and 0 <= c[1] < H:
+        draw.line([tuple(c), tuple(tip)], fill=ink, width=3)
+        draw.ellipse([c[0] - r, c[1] - r, c[0] + r, c[1] + r], fill=ink, outline=(255, 255, 255))
+        _label(draw, (c[0] + r + 3, c[1] + r + 1), "camera", ink, f_px, "la")
+        return
+    m = 2 * r + 2
+    edge = np.array([min(max(c[0], m), W - m), min(max(c[1], m), H - m)])
+    d = c - edge
+    d = d / max(np.linalg.norm(d), 1e-9)
+    n = np.array([-d[1], d[0]])
+    tri = [tuple(edge + 2 * r * d), tuple(edge - r * d + 1.4 * r * n), tuple(edge - r * d - 1.4 * r * n)]
+    draw.polygon(tri, fill=ink, outline=(255, 255, 255))
+    dist_m = float(np.linalg.norm((c - edge)) / view.px_per_m)
+    anchor = ("l" if d[0] <= 0 else "r") + ("t" if d[1] <= 0 else "b")
+    text_xy = (edge[0] - (r + 3) * np.sign(d[0] or -1), edge[1] - (r + 3) * np.sign(d[1] or -1))
+    _label(draw, text_xy, f"camera {dist_m:.1f} m", ink, f_px, {"lt": "la", "rt": "ra", "lb": "ld", "rb": "rd"}[anchor])
 
 
 def _front_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
-    """Letterbox, then the video frame (or the background colour) in the image area."""
+    """Letterbox, then the video frame (or the background colour) in the image area (cropped to the panel)."""
     from PIL import Image
 
+    W, H = view.size
     x0, y0, x1, y1 = view.image_rect
     draw = _draw(img)
-    draw.rectangle([0, 0, *view.size], fill=rgb8(mix(style.background, (0.0, 0.0, 0.0), 0.15)))
-    box = (int(round(x0)), int(round(y0)), int(round(x1)), int(round(y1)))
-    if row.image is not None:
-        frame = Image.fromarray(np.asarray(row.image, dtype=np.uint8)).convert("RGB").resize((box[2] - box[0], box[3] - box[1]), Image.BILINEAR)
-        img.paste(frame, box[:2])
-    else:
+    draw.rectangle([0, 0, W, H], fill=rgb8(mix(style.background, (0.0, 0.0, 0.0), 0.15)))
+    vis = (max(x0, 0.0), max(y0, 0.0), min(x1, float(W)), min(y1, float(H)))  # image area inside the panel
+    box = tuple(int(round(v)) for v in vis)
+    if box[2] <= box[0] or box[3] <= box[1]:
+        return
+    if row.image is None:
         draw.rectangle([box[0], box[1], box[2] - 1, box[3] - 1], fill=rgb8(style.background))
+        return
+    frame = Image.fromarray(np.asarray(row.image, dtype=np.uint8)).convert("RGB")
+    s = (x1 - x0) / frame.width  # panel px per image px
+    source = ((box[0] - x0) / s, (box[1] - y0) / s, (box[2] - x0) / s, (box[3] - y0) / s)
+    img.paste(frame.resize((box[2] - box[0], box[3] - box[1]), Image.BILINEAR, box=source), box[:2])
 
 
 def _front_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
-    """The image's border."""
+    """The image's border, and "crop" when the panel shows part of the image."""
     x0, y0, x1, y1 = view.image_rect
-    _draw(img).rectangle([x0, y0, x1 - 1, y1 - 1], outline=rgb8(mix(style.background, style.text, 0.4)), width=1)
+    W, H = view.size
+    draw = _draw(img)
+    draw.rectangle([x0, y0, x1 - 1, y1 - 1], outline=rgb8(mix(style.background, style.text, 0.4)), width=1)
+    if x0 < -0.5 or y0 < -0.5 or x1 > W + 0.5 or y1 > H + 0.5:  # a crop: say which part of the image
+        s = (x1 - x0) / row.image_size[0]  # panel px per image px
+        u0, u1 = (max(x0, 0.0) - x0) / s, (min(x1, W) - x0) / s
+        v0, v1 = (max(y0, 0.0) - y0) / s, (min(y1, H) - y0) / s
+        _label(draw, (W - 4, 4), f"image x {u0:.0f}-{u1:.0f}, y {v0:.0f}-{v1:.0f} px", rgb8(style.text),
+               _font_px(view) - 2, "ra")
 
 
 def _side_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
-    """The ground edge-on as a line, tinted below (sunk body parts show over it)."""
+    """Metric grid, the camera's field of view (between its edges, down to the ground), the ground
+    edge-on as a line, tinted below (sunk body parts show over it)."""
     W, H = view.size
     draw = _draw(img)
+    _ticks_grid_only(draw, view, style)
+    draw.polygon([tuple(p) for p in _side_fov_px(view, row.camera)], fill=(*rgb8(style.camera), 22))
     v_ground = float(project_view_px(view.clip_from_world, np.zeros(3), view.size)[1])
     draw.rectangle([0, v_ground, W, H], fill=rgb8(mix(style.background, style.ground, 0.25)))
     draw.line([(0, v_ground), (W, v_ground)], fill=rgb8(style.ground), width=2)
 
 
+def _ticks_grid_only(draw: Any, view: PanelView, style: RenderStyle) -> None:
+    """Faint grid lines at the tick positions (labels come after the people)."""
+    W, H = view.size
+    (uc, vc), s = view.extent.center_m, view.px_per_m
+    step = _tick_step_m(view)
+    ink = (*rgb8(mix(style.background, style.grid, 0.6)), 255)
+    for k in range(math.ceil((uc - W / 2 / s) / step), math.floor((uc + W / 2 / s) / step) + 1):
+        x = W / 2 + (k * step - uc) * s
+        draw.line([(x, 0), (x, H)], fill=ink, width=1)
+    for k in range(math.ceil((vc - H / 2 / s) / step), math.floor((vc + H / 2 / s) / step) + 1):
+        y = H / 2 - (k * step - vc) * s
+        draw.line([(0, y), (W, y)], fill=ink, width=1)
+
+
+def _side_fov_edges_world(camera: Camera) -> np.ndarray:
+    """(2, 3) world directions of the field of view's lowest and highest edges seen from the side:
+    of the image corners' rays, the two at the extreme elevation angles."""
+    W, H = camera.image_size
+    corners = np.array([[0.0, 0.0], [W, 0.0], [W, H], [0.0, H], [W / 2, 0.0], [W / 2, H]])
+    rays_cam = np.concatenate([(corners - camera.principal_point) / camera.focal_px, np.ones((len(corners), 1))], axis=1)
+    rays_world = rays_cam @ camera.R_cam_from_world  # row-wise R_world_from_cam @ ray
+    basis = _side_basis(camera)
+    elevation = np.arctan2(rays_world @ basis[1], rays_world @ basis[0])
+    return rays_world[[int(np.argmin(elevation)), int(np.argmax(elevation))]]
+
+
+def _side_fov_px(view: PanelView, camera: Camera) -> np.ndarray:
+    """(K, 2) panel polygon of the camera's field of view from the side, cut at the ground and far off."""
+    far_m = 4.0 * math.hypot(*view.size) / view.px_per_m + np.linalg.norm(
+        np.asarray(view.extent.center_m) - [0.0, camera.height_m])
+    ends = []
+    for d in _side_fov_edges_world(camera):
+        t = far_m / max(np.linalg.norm(d), 1e-9)
+        if d[1] < 0:
+            t = min(t, camera.height_m / -d[1])  # where the edge meets the ground
+        ends.append(camera.center_world + t * d)
+    return project_view_px(view.clip_from_world, np.stack([camera.center_world, *ends]), view.size)
+
+
 def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
-    """Scale bar and where the camera is."""
+    """Ticks, the camera (edges of its field of view, viewing direction, position) and its numbers."""
+    camera = row.camera
     draw = _draw(img)
-    _scale_bar(draw, view, style)
-    draw.text((8, 6), "<- camera", fill=rgb8(style.text), font=font(max(10, view.size[1] // 30)))
+    wedge = _side_fov_px(view, camera)
+    ink = rgb8(style.camera)
+    for end in wedge[1:]:
+        draw.line([tuple(wedge[0]), tuple(end)], fill=(*ink, 150), width=1)
+    _camera_glyph(draw, view, camera, style, camera.center_world)
+    _ticks(draw, view, style, "ahead of the camera", "height")
+    _label(draw, (view.size[0] - 4, 4), "camera: " + camera_numbers(camera), ink, _font_px(view) - 2, "ra")
 
 
 def _ground_fov_world(camera: Camera, far_m: float, n_per_edge: int = 24) -> np.ndarray:
@@ -235,29 +439,16 @@ def _top_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     far_m = (np.hypot(*(origin - [W / 2, H / 2])) + np.hypot(W, H)) / view.px_per_m  # well past the panel
     fov_px = project_view_px(view.clip_from_world, _ground_fov_world(camera, far_m), view.size)
     draw.polygon([tuple(p) for p in fov_px], fill=rgb8(mix(style.background, style.camera, 0.08)))
-    step_px = view.px_per_m * nice_length_m(0.2 * W / view.px_per_m)  # grid step = the scale bar's length
-    ink = rgb8(style.grid)
-    for k in range(math.ceil(-origin[0] / step_px), math.floor((W - origin[0]) / step_px) + 1):
-        draw.line([(origin[0] + k * step_px, 0), (origin[0] + k * step_px, H)], fill=ink, width=1)
-    for k in range(math.ceil(-origin[1] / step_px), math.floor((H - origin[1]) / step_px) + 1):
-        draw.line([(0, origin[1] + k * step_px), (W, origin[1] + k * step_px)], fill=ink, width=1)
+    _ticks_grid_only(draw, view, style)
     outline = np.append(fov_px, fov_px[:1], axis=0)
     draw.line([tuple(p) for p in outline], fill=rgb8(mix(style.background, style.camera, 0.5)), width=1)
 
 
 def _top_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
-    """The camera (dot + viewing direction) and the scale bar."""
-    camera = row.camera
+    """The camera (dot + viewing direction, or an edge marker) and the ticks."""
     draw = _draw(img)
-    c = project_view_px(view.clip_from_world, camera.center_world * [1, 0, 1], view.size)
-    tip = project_view_px(view.clip_from_world, camera.center_world * [1, 0, 1] + horizontal_forward_world(camera)
-                          * (24.0 / view.px_per_m), view.size)
-    r = max(4, view.size[1] // 70)
-    ink = rgb8(style.camera)
-    draw.line([tuple(c), tuple(tip)], fill=ink, width=3)
-    draw.ellipse([c[0] - r, c[1] - r, c[0] + r, c[1] + r], fill=ink, outline=(255, 255, 255))
-    draw.text((c[0] + r + 3, c[1] + r), "camera", fill=ink, font=font(max(10, view.size[1] // 30)), anchor="lt")
-    _scale_bar(draw, view, style)
+    _camera_glyph(draw, view, row.camera, style, row.camera.center_world * [1.0, 0.0, 1.0])
+    _ticks(draw, view, style, "right of the camera", "ahead")
 
 
 # ---- the registry ------------------------------------------------------------------------------------
@@ -302,25 +493,18 @@ def ortho_basis_world(kind: str, camera: Camera) -> np.ndarray:
     return _ortho(kind).basis(camera)
 
 
-def ortho_bounds(kind: str, camera: Camera, verts_cam: np.ndarray) -> np.ndarray:
+def ortho_bounds(kind: str, camera: Camera, points_cam: np.ndarray, fit: str = "people") -> np.ndarray:
     """(2, 3) min/max (right, up, depth) view-plane coordinates of people, metres, plus what the view
-    always shows (the side view the ground's height, the top view the camera)."""
+    always shows (the side view the ground's height) and with ``fit="camera"`` the camera."""
     ortho = _ortho(kind)
     basis = ortho.basis(camera)
-    pts_view = camera.world_from_cam(np.asarray(verts_cam, dtype=np.float64).reshape(-1, 3)) @ basis.T
-    return ortho.bounds(pts_view[np.isfinite(pts_view).all(axis=1)], basis, camera)
+    pts_view = camera.world_from_cam(np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)) @ basis.T
+    return ortho.bounds(pts_view[np.isfinite(pts_view).all(axis=1)], basis, camera, fit)
 
 
-def scene_extents(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int, int], margin: float) -> dict[str, OrthoExtent]:
-    """One shared extent per orthographic view over every row (and frame) given."""
-    extents = {}
-    for view in view_specs(views) if views else ():
-        if view.ortho is None:
-            continue
-        bounds = [ortho_bounds(view.name, r.camera, r.verts_cam) for r in rows if r.camera is not None]
-        if not bounds:
-            raise ValueError(f"the {view.name} view needs a camera")
-        stacked = np.stack(bounds)
-        union = np.stack([stacked[:, 0].min(axis=0), stacked[:, 1].max(axis=0)])
-        extents[view.name] = fit_ortho_extent(union, size, margin, view.ortho.floor_room)
-    return extents
+def scene_extents(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int, int], margin: float,
+                  fit: str = "people") -> dict[str, Any]:
+    """One window per view holding every row given (and frame, when rows of several frames are given)."""
+    if fit not in FITS:
+        raise ValueError(f"fit must be one of {', '.join(FITS)}, got {fit!r}")
+    return {view.name: view.window(rows, size, margin, fit) for view in (view_specs(views) if views else ())}
