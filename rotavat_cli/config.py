@@ -20,7 +20,7 @@ from typing import Any
 from .errors import InputError
 from .sequence import read_yaml
 
-__all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default"]
+__all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default", "config_choices"]
 
 DEFAULT_CONFIG_PATH = Path(__file__).resolve().parent / "data" / "default.yaml"
 
@@ -184,3 +184,9 @@ def _drop_none(tree: dict) -> dict:
         elif value is not None:
             out[key] = value
     return out
+
+
+def config_choices(section: str) -> dict[str, tuple[str, ...]]:
+    """The keys of a config section whose value is one of a few names, with those names (--help shows them)."""
+    prefix = f"{section}."
+    return {key[len(prefix):]: names for key, names in _choices().items() if key.startswith(prefix)}

@@ -16,7 +16,11 @@ Supported containers:
   numpy array as a ``joblib.numpy_pickle.NumpyArrayWrapper`` placeholder followed by the raw array
   bytes (``joblib/numpy_pickle.py``); the placeholder is replaced here by an inert stand-in and the
   bytes are read with their size checked against what is left of the file;
-- ``.npy``/``.npz`` files whose members may be object arrays (``np.savez(..., results=dict)``).
+- ``.npy``/``.npz`` files whose members may be object arrays (``np.savez(..., results=dict)``);
+- PyTorch files: ``torch.save`` archives (zip, or the legacy stream) through :func:`load_torch` or
+  transparently through :func:`load_file`, and torch tensors inside plain pickles (``np.save`` of a
+  dict of tensors). torch's tensor-rebuilding globals are an allow-list of inert numpy builders
+  (:mod:`rotavat_cli.safe_torch`): tensors come back as numpy arrays; torch is never imported.
 
 Sizes are checked before anything is allocated, against :mod:`rotavat_cli.limits` (the config's
 ``limits:`` section): files and decompressed streams (``max_file_mb``), every array a header or a

@@ -156,14 +156,18 @@ def bev_geometry(image_size):
     return side, left, top
 
 
-def write_bev(folder: Path, scene, image_size, fmt="bev", video=False) -> Path:
-    """simple_romp ResultSaver: <image>.npz with results=dict (verts/joints without cam_trans)."""
+def write_bev(folder: Path, scene, image_size, fmt="bev", video=False, sizes=None, suffix="") -> Path:
+    """simple_romp ResultSaver: <image>.npz with results=dict (verts/joints without cam_trans).
+
+    sizes: one (W, H) per frame (photos of different sizes; default ``image_size`` for all);
+    suffix: appended to the file stems as ResultSaver's prefix does (image mode: ``_<center_thresh>``).
+    """
     folder.mkdir(parents=True, exist_ok=True)
-    side, left, top = bev_geometry(image_size)
     all_results = {}
     for i, frame in enumerate(scene):
         if not frame:
             continue  # simple_romp saves nothing when nobody is detected
+        side, left, top = bev_geometry(image_size if sizes is None else sizes[i])
         joints71 = np.stack([np.concatenate([p.joints_cam, fake_extra_joints(p, 47)]) for p in frame])
         joints71[:, 45], joints71[:, 46] = joints71[:, 1], joints71[:, 2]  # the hips BEV root-aligns on
         verts = np.stack([p.verts_cam for p in frame])
@@ -188,7 +192,7 @@ def write_bev(folder: Path, scene, image_size, fmt="bev", video=False) -> Path:
             "verts": verts - cam_trans[:, None], "joints": joints71 - cam_trans[:, None], "pj2d_org": pj2d_org,
             "track_ids": np.array([p.pid for p in frame], dtype=np.int32),
         }
-        name = f"frame_{i:04d}"
+        name = f"frame_{i:04d}{suffix}"
         if video:
             all_results[name + ".png"] = results
         else:
@@ -290,12 +294,16 @@ def smplx127_from_smpl24(person: Person) -> np.ndarray:
     return j
 
 
-def write_multihmr(folder: Path, scene, form="npz", net_size=896, fov=60.0, image_size=(640, 480)) -> Path:
-    """Per-image outputs: <image>.npy (verts only) / .npz (stacked keys) / .pkl (list of dicts)."""
+def write_multihmr(folder: Path, scene, form="npz", net_size=896, fov=60.0, image_size=(640, 480),
+                   model_name=None) -> Path:
+    """Per-image outputs: <image>.npy (verts only) / .npz (stacked keys) / .pkl (list of dicts).
+
+    model_name: name the files as the official demo does, ``<image>_<model_name>.png.npy``.
+    """
     folder.mkdir(parents=True, exist_ok=True)
     f_net = net_size / (2 * np.tan(np.radians(fov) / 2))  # j2d_smplx live in the padded network input
     for i, frame in enumerate(scene):
-        stem = folder / f"img_{i:03d}"
+        stem = folder / (f"img_{i:03d}" if model_name is None else f"img_{i:03d}_{model_name}.png")
         verts = np.array([p.verts_cam for p in frame], dtype=np.float32)
         j3d = np.array([smplx127_from_smpl24(p) for p in frame], dtype=np.float32).reshape(len(frame), 127, 3)
         j2d = project(j3d, f_net, (net_size // 2, net_size // 2)) if len(frame) else np.zeros((0, 127, 2))
@@ -355,20 +363,29 @@ def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, 
 
 
 # ---- AGORA ----------------------------------------------------------------------------------------
-def write_agora(folder: Path, scene, image_size=(3840, 2160), scene_tag="cam01", params=False) -> Path:
-    """<image>_personId_<k>.pkl dicts: verts + allSmplJoints3d (camera) and joints (24, 2) at 3840x2160."""
+def write_agora(folder: Path, scene, image_size=(3840, 2160), scene_tag="cam01", params=False, joints_2d=24,
+                root_centred=False) -> Path:
+    """<image>_personId_<k>.pkl dicts: verts + allSmplJoints3d (camera) and joints (24, 2) at 3840x2160.
+
+    joints_2d: 45 appends 21 points to 'joints' (smplx.create's SMPL output, as AGORA's own files);
+    root_centred: people written without their translation (pelvis at the camera centre, transl = 0),
+    as AGORA's sample predictions are.
+    """
     folder.mkdir(parents=True, exist_ok=True)
     focal_4k = 18.0 / 36.0 * 3840 if scene_tag.startswith("cam0") else 28.0 / 36.0 * 3840
     for i, frame in enumerate(scene):
         image = f"ag_validationset_renderpeople_bfh_archviz_5_10_{scene_tag}_{i:05d}"
         for k, p in enumerate(frame):
             joints_4k = project(p.joints_cam, focal_4k, (1920.0, 1080.0))
+            if joints_2d == 45:
+                joints_4k = np.concatenate([joints_4k, project(fake_extra_joints(p, 21), focal_4k, (1920.0, 1080.0))])
+            shift = p.joints_cam[0] if root_centred else np.zeros(3)
             if params:
                 d = {"pose2rot": True, "joints": joints_4k,
-                     "params": {"transl": p.transl[None], "betas": p.betas[None], "global_orient": p.pose[None, :1],
-                                "body_pose": p.pose[None, 1:]}}
+                     "params": {"transl": (p.transl - shift)[None], "betas": p.betas[None],
+                                "global_orient": p.pose[None, :1], "body_pose": p.pose[None, 1:]}}
             else:
-                d = {"joints": joints_4k, "verts": p.verts_cam, "allSmplJoints3d": p.joints_cam}
+                d = {"joints": joints_4k, "verts": p.verts_cam - shift, "allSmplJoints3d": p.joints_cam - shift}
             (folder / f"{image}_personId_{k}.pkl").write_bytes(pickle.dumps(d, protocol=2))
     return folder
 
@@ -446,3 +463,18 @@ def read_in_worker(seq, names):
     cached = recipe_cached(seq.frame_source.recipe)
     frames = [dict(seq.read_frame(name).data) for name in names]
     return cached, os.getpid(), id(seq.frame_source.imported), frames, seq.frame_notes(names)
+
+
+# ---- keypoint recipes: the views their errors are measured from (formats/keypoints.py docstring) ------------
+def measurement_views() -> list[tuple[np.ndarray, np.ndarray]]:
+    """(R_cam_from_body, t) of the keypoint-rule measurement: 12 directions (every 30 deg) x 0, 15, 30, 45 deg
+    above x 5 and 12 m, looking at hip height; the body frame is +Y up, facing +Z, sole at the origin."""
+    views = []
+    for dist in (5.0, 12.0):
+        for pitch in np.radians([0, 15, 30, 45]):
+            for yaw in np.radians(np.arange(0, 360, 30)):
+                turn = np.array([[np.cos(yaw), 0, np.sin(yaw)], [0, 1, 0], [-np.sin(yaw), 0, np.cos(yaw)]])
+                down = np.array([[1, 0, 0], [0, np.cos(pitch), -np.sin(pitch)], [0, np.sin(pitch), np.cos(pitch)]])
+                R = down @ np.diag([1.0, -1.0, -1.0]) @ turn  # body +Y up, facing +Z -> camera y down, facing it
+                views.append((R, np.array([0.0, 0.0, dist]) - R @ np.array([0.0, 0.9, 0.0])))
+    return views

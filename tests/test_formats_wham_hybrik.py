@@ -250,6 +250,24 @@ def test_hybrik_rows_of_one_image_are_one_frame(tmp_path, scene, model_path):
     np.testing.assert_allclose(frames[0].data["vertices"], np.stack([p.verts_cam for p in scene[0]]), atol=TOL_M)
 
 
+def test_hybrik_person_with_non_finite_joints_is_dropped_with_its_focal(tmp_path, scene):
+    src = WH.write_hybrik(tmp_path / "res.pk", scene, (W, H))
+    data = pickle.loads(src.read_bytes())
+    data["pred_xyz_29"][0, 5] = np.nan  # first image, first person (pid 3)
+    src.write_bytes(pickle.dumps(data))
+    summary = import_sequence(src, tmp_path / "out", "hybrik")
+    frame = next(open_sequence(tmp_path / "out").frames())
+    assert frame.n_people == 1 and frame.intrinsics.focals_px(1) == pytest.approx([1000 / 256 * 200])  # pid 5's
+    np.testing.assert_allclose(frame.data["joints"][0], scene[0][1].joints_cam, atol=TOL_M)
+    assert any("dropped 1 person" in w for w in summary["warnings"])
+
+
+def test_hybrik_keeps_its_stored_image_size(tmp_path, model, camera):
+    src = WH.write_hybrik(tmp_path / "res.pk", WH.single_person_scene(model, camera), (W, H))
+    summary = import_sequence(src, tmp_path / "out", "hybrik", image_size=(1280, 960))
+    assert summary["image_size"] == [W, H] and any("--image-size 1280x960 ignored" in w for w in summary["warnings"])
+
+
 @pytest.mark.parametrize("depth_factor", [2.0, 2.5])
 def test_hybrik_depth_factor_is_read_from_the_file(depth_factor, tmp_path, model, camera):
     """2.0 m: configs without BBOX_3D_SHAPE; any other value is used as fitted, with a warning."""

@@ -309,3 +309,33 @@ def test_results_go_to_stdout_and_diagnostics_to_stderr(tmp_path):
     assert cal.returncode == 0 and "focal_px" in cal.stdout and "wrote" in cal.stdout
     bad = run("info", str(tmp_path / "nowhere"))
     assert bad.returncode == 2 and bad.stdout == "" and bad.stderr.startswith("error:")
+
+
+def test_help_shows_defaults_choices_and_plain_text(runner):
+    """--help: config defaults and choices shown, flags without a type, brackets kept, SEQ named as such."""
+    def text(*args: str) -> str:  # the help's words, without the box drawing and line breaks
+        return " ".join(invoke(runner, *args).stdout.replace("│", " ").split())
+
+    align = text("align", "--help")
+    assert "[default: paper]" in align and "paper|full" in align and "[default: frame]" in align
+    assert "<bool>" not in align and "Usage: rotavat align [OPTIONS] [SEQ]" in align
+    batch = text("batch", "--help")
+    assert "pip install 'rotavat[dask]'" in batch and "local|dask" in batch and "[default: 100]" in batch
+    calibrate = text("calibrate", "--help")
+    assert "Usage: rotavat calibrate [OPTIONS] SEQ" in calibrate and "[default: --roll]" in calibrate
+    assert "[default: 1.7]" in calibrate and "grid|refine" in calibrate
+
+
+def test_align_takes_its_sequence_as_an_argument_or_with_in(tmp_path, runner):
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=2, frames=2, people=3))
+    cam = tmp_path / "s" / "gt" / "camera.yaml"
+    a = invoke(runner, "align", tmp_path / "s" / "pred", "--camera", cam, "--out", tmp_path / "a", "-q")
+    b = invoke(runner, "align", "--in", tmp_path / "s" / "pred", "--camera", cam, "--out", tmp_path / "b", "-q")
+    assert a.exit_code == 0 and b.exit_code == 0
+    assert (tmp_path / "a" / "people.csv").read_text() == (tmp_path / "b" / "people.csv").read_text()
+    both = invoke(runner, "align", tmp_path / "s" / "pred", "--in", tmp_path / "s" / "gt")
+    none = invoke(runner, "align")
+    assert both.exit_code == 2 and "two inputs given" in both.stderr
+    assert none.exit_code == 2 and "missing the input sequence SEQ" in none.stderr

@@ -21,7 +21,7 @@ echo "== 2. calibrate the camera from the people (2D feet/heads only)"
 "$rotavat" calibrate "$scene/pred" --out "$out/camera.yaml"
 
 echo "== 3. RotAvat: re-seat every mesh on the ground"
-"$rotavat" align --in "$scene/pred" --camera "$out/camera.yaml" --out "$out/pred_aligned"
+"$rotavat" align "$scene/pred" --camera "$out/camera.yaml" --out "$out/pred_aligned"
 
 echo "== 4. evaluate before and after against the ground truth"
 "$rotavat" eval "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --out "$out/eval"

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import io
+import warnings
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -317,6 +318,9 @@ def _align_chunk(task: tuple) -> tuple[list[tuple[int, dict[str, np.ndarray], st
     return results, seq.frame_notes(names)
 
 
+_SUMMARY_COLUMNS = ("depth_scale", "rotation_deg", "stature_m", "head_drift_px", "drift_mean_px", "drift_max_px")
+
+
 @dataclass
 class AlignSummary:
     """What ``align_sequence`` did (``add`` per frame, then ``finish``).
@@ -335,6 +339,8 @@ class AlignSummary:
     median_abs_depth_change_pct: float = float("nan")
     median_rotation_deg: float = float("nan")
     median_stature_m: float = float("nan")
+    median_drift_px: float = float("nan")  # median over people of their mean vertex motion in the picture
+    max_drift_px: float = float("nan")  # the largest motion of any vertex (foot and crown stay: 0)
     max_head_drift_px: float = 0.0
     _aligned_columns: list[dict[str, np.ndarray]] = field(default_factory=list, repr=False)
 
@@ -349,7 +355,7 @@ class AlignSummary:
         for name in flag[flag != ""]:
             self.flagged[str(name)] = self.flagged.get(str(name), 0) + 1
         self._aligned_columns.append({k: np.asarray(cols[k], dtype=np.float64)[ok]
-                                      for k in ("depth_scale", "rotation_deg", "stature_m", "head_drift_px")})
+                                      for k in _SUMMARY_COLUMNS})
 
     def finish(self) -> None:
         """Medians over every aligned person (small: four floats per person)."""
@@ -361,6 +367,10 @@ class AlignSummary:
         self.median_rotation_deg = float(np.median(np.abs(col["rotation_deg"])))
         self.median_stature_m = float(np.median(col["stature_m"]))
         self.max_head_drift_px = float(np.nanmax(col["head_drift_px"]))
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN drift columns stay NaN
+            self.median_drift_px = float(np.nanmedian(col["drift_mean_px"]))
+            self.max_drift_px = float(np.nanmax(col["drift_max_px"]))
         self._aligned_columns.clear()
 
 
@@ -372,7 +382,7 @@ def summarize_people_csv(people_csv: str | Path) -> AlignSummary:
         rows = list(csv.DictReader(handle))
     for frame, group in _group_rows(rows):
         cols = {"flag": np.array([r["flag"] for r in group], dtype=object)}
-        for key in ("depth_scale", "rotation_deg", "stature_m", "head_drift_px"):
+        for key in _SUMMARY_COLUMNS:
             cols[key] = np.array([float(r[key]) if r[key] else np.nan for r in group])
         summary.add(len(group), cols)
     summary.finish()

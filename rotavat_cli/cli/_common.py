@@ -18,7 +18,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from typer.core import TyperGroup
 
-from ..config import load_config, merge_config
+from ..config import config_choices, load_config, merge_config
 from ..errors import InputError, RotavatError
 from ..limits import Limits
 from ..limits import configure as configure_limits
@@ -42,6 +42,66 @@ _USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "Usag
 _CLICK_EXCEPTION = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
 
 
+# The config section whose keys are each command's options (their defaults shown in --help).
+_SECTIONS = {"calibrate": "calibrate", "align": "align", "eval": "eval", "render": "render", "export": "render",
+             "synth": "synth", "batch": "batch"}
+
+
+def _default_text(value: Any, flag: str) -> str:
+    """How --help shows a default: a flag pair by the flag that is on, lists comma-separated, null as none."""
+    if isinstance(value, bool) and "/" in flag:
+        on, off = flag.split("/")
+        return on if value else off
+    if value is None:
+        return "none"
+    if isinstance(value, (list, tuple)):
+        return " ".join(_default_text(v, "") for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def polish_help(command: Any, section: dict | None, choices: dict[str, tuple[str, ...]] | None = None) -> None:
+    """Make a command's --help read as users expect (once per command).
+
+    Help text is plain text (``pip install 'rotavat[fast]'`` keeps its brackets), flags show no
+    type, arguments show their name (SEQ), an option of a few names lists them (``choices``: config
+    key -> names), and every option shows its default: the packaged
+    config's value for options read from ``section`` (a flag left unset takes it), else the
+    command's own default.
+    """
+    if getattr(command, "_rotavat_polished", False):
+        return
+    command._rotavat_polished = True
+    if command.help:
+        command.help = escape(command.help)
+    from_config, names = {}, {}
+    for key, value in (section or {}).items():
+        if not isinstance(value, dict):
+            flag = _flag_name(key)
+            from_config[flag.split("/")[0]] = _default_text(value, flag)
+            if key in (choices or {}):
+                names[flag] = "|".join(choices[key])
+    for param in command.params:
+        if getattr(param, "help", None):
+            param.help = escape(param.help)
+        if param.param_type_name == "argument":
+            param.metavar = param.name.upper() + ("..." if param.nargs != 1 else "")
+            # the usage line too: typer writes a required argument as {seq} (its private hook, per instance)
+            param._usage_display_name = lambda metavar=param.metavar, required=param.required: (
+                metavar if required else f"[{metavar}]")
+            continue
+        if getattr(param, "is_flag", False):
+            param.metavar = ""  # a switch: no value to type
+        elif any(opt in names for opt in param.opts):
+            param.metavar = next(names[opt] for opt in param.opts if opt in names)
+        shown = next((from_config[opt] for opt in param.opts if opt in from_config), None)
+        if shown is None and param.default not in (None, False, ()) and not getattr(param, "is_flag", False):
+            shown = _default_text(param.default, "")
+        if shown in ("none", "False") or (shown == "True" and getattr(param, "is_flag", False)):
+            shown = None  # unset means "not given" (its help says what then); a lone switch is off unless given
+        if shown is not None and param.help is not None:
+            param.help = f"{param.help} \\[default: {escape(shown)}]"
+
+
 class RotavatGroup(TyperGroup):
     """Click group that answers every bad input or usage with one line on stderr and exit status 2.
 
@@ -50,6 +110,17 @@ class RotavatGroup(TyperGroup):
     exhausted, a structure nested too deep) are input problems too: one line, exit 2. Usage errors
     (a missing option, a bad value) are one line naming the command, not click's help box.
     """
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        command = super().get_command(ctx, cmd_name)
+        if command is not None:
+            section = _SECTIONS.get(cmd_name)
+            polish_help(command, load_config(None).get(section) if section else None,
+                        config_choices(section) if section else None)
+            help_option = command.get_help_option(ctx)  # click adds --help itself (cached per command)
+            if help_option is not None:
+                help_option.metavar = ""
+        return command
 
     def invoke(self, ctx: Any) -> Any:
         try:

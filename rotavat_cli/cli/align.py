@@ -1,4 +1,4 @@
-"""``rotavat align --in SEQ``: RotAvat on every mesh of a sequence."""
+"""``rotavat align SEQ``: RotAvat on every mesh of a sequence (``--in SEQ`` is the same)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..alignment import CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_sequence, camera_for_align
-from ..errors import input_errors
+from ..errors import InputError, input_errors
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
@@ -18,7 +18,8 @@ from .calibrate import run_calibration
 
 
 def align(
-    seq: Annotated[Path, typer.Option("--in", help="Input sequence directory (never modified).")],
+    seq: Annotated[Path | None, typer.Argument(help="Input sequence directory (never modified); with --from the HPS tool's output.", show_default=False)] = None,
+    in_: Annotated[Path | None, typer.Option("--in", help="The same as SEQ (kept for scripts written for earlier versions).")] = None,
     camera: Annotated[Path | None, typer.Option(help="camera.yaml to use; default SEQ/camera.yaml, else calibrate first.", dir_okay=False)] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input.", file_okay=False)] = None,
     upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
@@ -33,6 +34,11 @@ def align(
     as_json: JsonOpt = False,
 ) -> None:
     """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
+    if seq is None and in_ is None:
+        raise InputError("rotavat align: missing the input sequence SEQ (see rotavat align --help)")
+    if seq is not None and in_ is not None and seq != in_:
+        raise InputError(f"rotavat align: two inputs given ({seq} and --in {in_}): give one")
+    seq = seq if seq is not None else in_
     with input_errors("align"):
         options = AlignOptions.from_config(config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs))
     out = out or beside(seq, "_aligned")
@@ -64,6 +70,7 @@ def align(
              "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
     if summary.aligned:
         report(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
-             f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m",
-             quiet)
+               f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m; "
+               f"foot and crown keep their pixels, the other points move {summary.median_drift_px:.0f} px (median), "
+               f"{summary.max_drift_px:.0f} px at most (people.csv: drift_mean_px, drift_max_px)", quiet)
     report(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)

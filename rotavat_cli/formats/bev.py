@@ -24,7 +24,18 @@ Source: Arthur151/ROMP ``simple_romp/bev/main.py``, ``simple_romp/bev/post_parse
   meshes only approximately reproject onto the image in that camera.
 - 2D: ``pj2d_org`` are in original-image pixels (``convert_proejection_from_input_to_orgimg``).
 - Image size: not stored; ``--image-size``, else inferred from ``pj2d_org`` against the 3D joints
-  (exact for BEV up to one pixel of padding parity).
+  (exact for BEV up to one pixel of padding parity): once for a video, per file in image mode. When
+  the photos differ in size, each frame states its own ``image_size``, ``focal_length`` and
+  ``principal_point`` (contract frame keys) and meta.yaml none; a frame whose size cannot be
+  inferred among photos of different sizes is refused.
+- Names (``ResultSaver.__call__``, Arthur151/ROMP @012086a simple_romp/romp/utils.py:
+  ``splitext(save_path)[0] + f'_{prefix}'``): image mode ``<image>_<center_thresh>.npz``
+  (``image_1_0.08.npz``), video mode ``<frame>__<model id>_<center_thresh>.npz``; frame names drop
+  the suffix.
+- BEV or ROMP: ``smpl_betas`` has 11 values (SMPL+A) for BEV, 10 for ROMP; reading a file with the
+  other's reader is refused, saying which it is. Both write 71 joints (``romp/smpl.py``
+  ``VertexJointSelector``: SMPL-24, 21 vertex joints, 9 regressed extra, 17 H36M; layout ``romp71``,
+  formats/keypoints.py), which give ``feet_2d``/``heads_2d`` for frames without ``verts``.
 """
 
 from __future__ import annotations

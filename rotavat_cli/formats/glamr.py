@@ -208,7 +208,7 @@ def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)
     K = _intrinsics(people, path, warnings)
-    image_size = opts.image_size or (int(round(2 * K[0, 2])), int(round(2 * K[1, 2])))
+    image_size = opts.image_size or (round(2 * K[0, 2]), round(2 * K[1, 2]))
     rule = _focal_rule(K, image_size, path, warnings)
     with_keypoints = bool(people) and all(p.keypoints_px is not None for p in people)
     faces = model_faces(model, None if model is None else model.n_verts)

@@ -147,9 +147,9 @@ def choose_depth_factor_m(xyz_rel, uv_px, root_cam, focal_px, principal_point) -
 
 
 # ---- reading ---------------------------------------------------------------------------------
-def _image_size(data: Mapping, n_rows: int, src: Path, opts: ImportOptions,
-                warnings: list[str]) -> tuple[tuple[int, int], str]:
-    """(W, H) from 'width' / 'height' (one size for the whole file), or --image-size; and which."""
+def _image_size(data: Mapping, n_rows: int, src: Path, opts: ImportOptions, warnings: list[str]) -> tuple[int, int]:
+    """(W, H) from 'width' / 'height' (one size for the whole file): HybrIK's camera (principal point,
+    box) lives on that image, so a different --image-size is ignored, with a warning."""
     widths = as_array(get(data, "width", src), "width", src, ndim=1).reshape(-1)
     heights = as_array(get(data, "height", src), "height", src, ndim=1).reshape(-1)
     if len(widths) != n_rows or len(heights) != n_rows:
@@ -159,10 +159,9 @@ def _image_size(data: Mapping, n_rows: int, src: Path, opts: ImportOptions,
         raise fail(src, f"expected one positive image size for all rows, got {sorted(sizes)[:3]}")
     stored = next(iter(sizes))
     if opts.image_size is not None and opts.image_size != stored:
-        warnings.append(f"{src}: --image-size {opts.image_size[0]}x{opts.image_size[1]} differs from the stored "
-                        f"{stored[0]}x{stored[1]}; using --image-size")
-        return opts.image_size, "--image-size"
-    return stored, "HybrIK 'width'/'height'"
+        warnings.append(f"{src}: --image-size {opts.image_size[0]}x{opts.image_size[1]} ignored: HybrIK ran on "
+                        f"{stored[0]}x{stored[1]} images (its stored 'width'/'height')")
+    return stored
 
 
 def _rows(data: Mapping, src: Path) -> dict[str, np.ndarray]:
@@ -229,7 +228,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     if n_rows == 0:
         raise fail(src, "holds no detections")
     warnings: list[str] = []
-    image_size, size_from = _image_size(data, n_rows, src, opts, warnings)
+    image_size = _image_size(data, n_rows, src, opts, warnings)
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
     focal_px = hybrik_focal_px(box_geometry(rows["bbox"])[1])  # (N,)
     if "uvd" in rows:
@@ -273,16 +272,20 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
         path, picks = frames[index]
         source = f"{src} [{path}]"
         verts, joints = posed(picks) if pose is not None else (None, joints29[picks, :24])
+        # people_frame drops people with non-finite joints or vertices: their focals go with them
+        kept = np.isfinite(joints).reshape(len(picks), -1).all(axis=1)
+        if verts is not None:
+            kept &= np.isfinite(verts).reshape(len(picks), -1).all(axis=1)
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=joints,
                             keypoints_2d=uv_px[picks], faces=faces,
                             person_ids=np.zeros(1, np.int64) if tracked else None,
-                            extra={"focal_length": focal_px[picks].astype(np.float64)},
+                            extra={"focal_length": focal_px[picks][kept]} if kept.any() else None,
                             keypoints_layout=_KEYPOINTS_LAYOUT)
 
     meta = base_meta("hybrik", src, opts, image_size, None, principal_point, focal_kind=ASSUMED)
     meta["import"].update({
         "source_frames": [Path(path).name for path, _ in frames],
-        "image_size_from": size_from,
+        "image_size_from": "HybrIK 'width'/'height'",
         "joints_layout": "smpl24",
         "root_joint": 0,
         "keypoints_2d_layout": _KEYPOINTS_LAYOUT,

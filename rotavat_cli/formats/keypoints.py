@@ -31,9 +31,10 @@ i.e. 96 views per body:
   eyes, ears, heels and toes were located on the mesh (nose = foremost head vertex, ear = the
   outermost 1.2 cm of each side of the head, heel = hindmost foot vertex, toes = foremost vertices
   of the inner / outer foot; about +-1 cm);
-- ``smpl``: the 4 adult SMPL people (1.63-1.79 m, seated/embracing poses) of BEV's own outputs on
-  real photos (muelea/buddi demo data, the ``verts`` and 71 ``joints`` BEV wrote): SMPL's own
-  joint regressors and vertex keypoints, mesh landmarks from SMPL's vertices.
+- ``smpl``: the 4 SMPL people of BEV's own outputs on real photos (muelea/buddi demo data, the
+  ``verts`` and 71 ``joints`` BEV wrote) whose sole-to-crown length exceeds 1.4 m (1.63-1.79 m;
+  sitting or embracing couples): SMPL's own joint regressors and vertex keypoints, mesh landmarks
+  from SMPL's vertices (re-measured by tests/test_formats_realfiles.py).
 
 Coefficients were fitted by least squares on the set(s) named in brackets; the errors are over
 every view of each set (leave-one-body-out errors differ by < 0.1 % on ``anny``):
@@ -55,11 +56,11 @@ crown, LSP top of head           the point itself (no fit)                     -
 ===============================  ============================================  ===========  ===========
 
 For comparison, the ankles alone miss the mid-sole by 5.7 % (anny), the SMPL head joint misses
-the crown by ~10 %, and the H36M "head" is ~4.5 % of stature below it. Limits: standing bodies
-only (walking, bending or sitting change the proportions; the ``smpl`` set's seated people are
-the hard cases above); children have larger heads (the two BEV children: ears rule 3.6 % mean,
-SMPL-24 crown 4.8 %); the COCO sole assumes the face looks where the feet point; detectors'
-ear and shoulder points are not mesh vertices. On 4D-Humans' real walker
+the crown by ~10 %, and the H36M "head" is ~4.5 % of stature below it. Limits: upright bodies
+(bending or sitting change the proportions: on the two other people of those photos, a seated
+man and a woman BEV shaped as a child, the ears rule is 3.6 % off on average and the SMPL-24
+crown 4.8 %); children have larger heads; the COCO sole assumes the face looks where the feet
+point; detectors' ear and shoulder points are not mesh vertices. On 4D-Humans' real walker
 (/work/shared/realfiles gait, HMR 2.0 joints) the COCO sole rule is 1.4 % (max 3.5 %) from the
 mean of OpenPose toes and heels, while the ears rule puts the crown 6.7 % of stature above LSP's
 top of head: the two crowns of that file disagree, which no rule here settles.
@@ -144,12 +145,13 @@ class KeypointRecipe:
 
 
 # ---- layouts: keypoint names in order, from each tool's code ------------------------------------------
-# OpenPose BODY_25 (CMU-Perceptual-Computing-Lab/openpose, doc/02_output.md, "Pose Output Format (BODY_25)").
+# OpenPose BODY_25 (CMU-Perceptual-Computing-Lab/openpose, doc/02_output.md, "Pose Output Format (BODY_25)";
+# the same order as agora_evaluation @c72c4a9 utils.py smpl_to_openpose 'coco25').
 _OPENPOSE25 = ("nose", "neck", "right_shoulder", "right_elbow", "right_wrist", "left_shoulder", "left_elbow",
                "left_wrist", "mid_hip", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle",
                "right_eye", "left_eye", "right_ear", "left_ear", "left_big_toe", "left_small_toe", "left_heel",
                "right_big_toe", "right_small_toe", "right_heel")
-# SPIN's 24 extra joints after OpenPose's 25 (nkolot/SPIN constants.py JOINT_NAMES / JOINT_MAP; the first 19
+# SPIN's 24 extra joints after OpenPose's 25 (nkolot/SPIN @277892a constants.py JOINT_NAMES / JOINT_MAP; the first 19
 # are 4D-Humans/PHALP's SMPL_to_J19 rows, which PHALP pads with one zero row to 45).
 _SPIN_EXTRA24 = ("right_ankle_lsp", "right_knee_lsp", "right_hip_lsp", "left_hip_lsp", "left_knee_lsp",
                  "left_ankle_lsp", "right_wrist_lsp", "right_elbow_lsp", "right_shoulder_lsp", "left_shoulder_lsp",
@@ -166,26 +168,28 @@ _H36M17 = ("pelvis", "right_hip", "right_knee", "right_ankle", "left_hip", "left
            "thorax", "neck_nose", "head", "left_shoulder", "left_elbow", "left_wrist", "right_shoulder",
            "right_elbow", "right_wrist")
 # smplx's vertex joints after SMPL's 24 (vchoutas/smplx vertex_joint_selector.py: face, feet, fingertips;
-# the order of SMPL-45 from smplx.create(model_type='smpl'), used by AGORA and CLIFF; ROMP's
-# pack_smpl_info.py extra_joints_index lists the same 21).
+# the order of SMPL-45 from smplx.create(model_type='smpl'), used by AGORA (agora_evaluation @c72c4a9
+# utils.py load_model, smpl_to_openpose: nose 24, eyes 25-26, ears 27-28, toes/heels 29-34) and CLIFF;
+# Arthur151/ROMP @08209f2 simple_romp/romp/pack_smpl_info.py extra_joints_index lists the same 21).
 _VERTEX_JOINTS21 = ("nose", "right_eye", "left_eye", "right_ear", "left_ear", "left_big_toe", "left_small_toe",
                     "left_heel", "right_big_toe", "right_small_toe", "right_heel", "left_thumb", "left_index",
                     "left_middle", "left_ring", "left_pinky", "right_thumb", "right_index", "right_middle",
                     "right_ring", "right_pinky")
-# SPIN's J_regressor_extra rows (the joints 45-53 of SPIN's JOINT_MAP), used by simple_romp after SMPL-45.
+# SPIN's J_regressor_extra rows (the joints 45-53 of SPIN's JOINT_MAP), used by simple_romp after SMPL-45
+# (Arthur151/ROMP @012086a simple_romp/romp/smpl.py VertexJointSelector.forward: 24 + 21 + 9 + 17).
 _REGRESSOR_EXTRA9 = ("right_hip_extra", "left_hip_extra", "neck_lsp", "head_top_lsp", "pelvis_mpii", "thorax_mpii",
                      "spine_h36m", "jaw_h36m", "head_h36m")
 # simple_romp's last 17 (romp/smpl.py VertexJointSelector): J_regressor_h36m rows in SPIN's H36M_TO_J17 order
 # [6, 5, 4, 1, 2, 3, 16, 15, 14, 11, 12, 13, 8, 10, 0, 7, 9] of the H36M order above.
 _ROMP_J17 = tuple(f"h36m_{_H36M17[i]}" for i in (6, 5, 4, 1, 2, 3, 16, 15, 14, 11, 12, 13, 8, 10, 0, 7, 9))
-# SMPL-X (vchoutas/smplx joint_names.py JOINT_NAMES): 55 skeleton joints, then nose, eyes, ears, toes and
+# SMPL-X (vchoutas/smplx @4a05f0a joint_names.py JOINT_NAMES): 55 skeleton joints, then nose, eyes, ears, toes and
 # heels (55-65), fingertips, 51 face landmarks (to 127) and 17 face-contour points (to 144).
 _SMPLX_SKELETON = SMPL_JOINT_NAMES[:22] + ("jaw", "left_eye_smplhf", "right_eye_smplhf") + tuple(
     f"{side}_{finger}{k}" for side in ("left", "right") for finger in ("index", "middle", "pinky", "ring", "thumb")
     for k in (1, 2, 3))
 _SMPLX144 = _SMPLX_SKELETON + _VERTEX_JOINTS21[:11] + _VERTEX_JOINTS21[11:] + tuple(
     f"face_{k}" for k in range(51)) + tuple(f"contour_{k}" for k in range(17))
-# HybrIK-29 (Jeff-sjtu/HybrIK hybrik/models/layers/smpl/SMPL.py JOINT_NAMES; lbs.py leaf vertices
+# HybrIK-29 (Jeff-sjtu/HybrIK @078a7dd hybrik/models/layers/smpl/SMPL.py JOINT_NAMES; lbs.py leaf vertices
 # [411, 2445, 5905, 3216, 6617]): SMPL's 24 (HybrIK calls 15 'jaw' and 22/23 'thumb'), then head top,
 # middle fingers, big toes.
 _HYBRIK29 = SMPL_JOINT_NAMES + ("head_top_411", "left_middle", "right_middle", "left_big_toe", "right_big_toe")

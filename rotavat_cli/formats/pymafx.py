@@ -21,6 +21,9 @@ the smplx branch's model and renderer as vendored in YuliangXiu/ECON @2e20b83 ``
   2 f / (s b)]`` (b: the crop's side in px) places the crop's weak-perspective body in the full image.
 - Focal: f = 5000 px on the full image whatever its size (``focal_length=5000.``), principal point at the
   image centre (the renderer's ``IntrinsicsCamera(fx=5000, cx=W/2, cy=H/2)``): focal rule ``pymafx``.
+- Frames: 0 to the last frame with a detection (the frame count is not stored), named by the image stem
+  of their detections for an image folder, by index (``000000``) for a video (its detections all carry
+  the frames folder's name).
 - Image size: not stored; ``--image-size``, else recovered from ``orig_cam``: ``sx = s h / W`` and
   ``sy = s h / H`` with ``s = pred_cam[:, 0]`` and ``h = bboxes[:, 2]``.
 - Meshes: stored. ``--smpl-model`` picks the topology and gives faces and SMPL-24 joints: an SMPL-X model

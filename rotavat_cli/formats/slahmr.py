@@ -284,7 +284,7 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         cam_f = _per_frame(as_array(data["cam_f"], "cam_f", path), "cam_f", path, n_frames, (2,))
     tracks = _tracks(path, data, n_tracks, n_frames, warnings)
 
-    image_size = opts.image_size or (int(round(2 * intrins[2])), int(round(2 * intrins[3])))
+    image_size = opts.image_size or (round(2 * intrins[2]), round(2 * intrins[3]))
     focal, focal_per_frame, rule = _focal(intrins, cam_f, image_size, path, warnings)
     principal_point = (float(intrins[2]), float(intrins[3]))
     faces = model_faces(model, model.n_verts)

@@ -501,22 +501,21 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
     """The protocol's reported metrics, units and notes into ``result``."""
     proto = protocol(result.protocol)
     counts = {"matched": result.matched, "missed": result.missed, "false_positives": result.false_positives}
-    fps = result.fps or GVHMR_FPS
-    result.metrics, notes = aggregate(proto, columns, counts, result.tracks, fps)
+    skipped = {}
+    if result.track_pairs and result.track_pairs_without_feet == result.track_pairs:
+        skipped["foot_sliding"] = ("GVHMR's foot vertices 3216, 3387, 6617, 6787 need 6,890-vertex SMPL meshes on "
+                                   "both sides" if proto.name == "wham" else
+                                   "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
+    result.metrics, notes = aggregate(proto, columns, counts, result.tracks, result.fps or GVHMR_FPS, skipped)
     result.units = {name: proto.units.get(name, "") for name in result.metrics}
     if proto.name == "spec" and not result.camera:
         notes.append("w_mpjpe: needs a camera.yaml on both sides (each side's gravity frame)")
-    if proto.track_metrics and result.tracks is not None:
-        if result.track_pairs and result.track_pairs_without_feet == result.track_pairs:
-            why = ("GVHMR's foot vertices 3216, 3387, 6617, 6787 need 6,890-vertex SMPL meshes on both sides"
-                   if proto.name == "wham" else "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
-            notes.append(f"foot_sliding: skipped: {why}")
-        elif result.track_pairs_without_feet:
-            notes.append(f"foot_sliding: {result.track_pairs_without_feet} of {result.track_pairs} matched pairs "
-                         "lack the foot points and are left out")
-        if proto.name == "wham" and result.fps is None:
-            notes.append(f"fps: the ground truth's meta.yaml gives none; GVHMR's {GVHMR_FPS:g} is used for "
-                         "accel_err and jitter")
+    if proto.track_metrics and result.track_pairs_without_feet and "foot_sliding" not in skipped:
+        notes.append(f"foot_sliding: {result.track_pairs_without_feet} of {result.track_pairs} matched pairs lack "
+                     "the foot points and are left out")
+    if proto.name == "wham" and result.tracks is not None and result.fps is None:
+        notes.append(f"fps: the ground truth's meta.yaml gives none; GVHMR's {GVHMR_FPS:g} is used for accel_err "
+                     "and jitter")
     if proto.name == "agora" and result.frames_pred_only:
         notes.append(f"{result.frames_pred_only} prediction frame(s) without ground truth ignored, as AGORA does")
     result.notes = notes

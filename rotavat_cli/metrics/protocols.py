@@ -48,7 +48,7 @@ import numpy as np
 
 from ..landmarks import SMPL_JOINT_NAMES
 from .scene import detection_scores, normalize_by_f1
-from .temporal import TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte
+from .temporal import WINDOWS, TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte
 
 __all__ = ["PROTOCOLS", "PROTOCOL_NAMES", "Protocol", "root_points", "agora_prf1", "agora_round", "protocol"]
 
@@ -174,14 +174,20 @@ def _mean(values: np.ndarray) -> float:
 
 
 def aggregate(proto: Protocol, columns: Mapping[str, list], counts: Mapping[str, int],
-              tracks: TrackSeries | None, fps: float) -> tuple[dict[str, float], list[str]]:
+              tracks: TrackSeries | None, fps: float,
+              skipped: Mapping[str, str] | None = None) -> tuple[dict[str, float], list[str]]:
     """The protocol's reported metrics from per-pair columns, match counts and tracks, and notes.
 
     columns: per-pair values under their report names; counts: matched, missed, false_positives;
-    tracks: the accumulated tracks or None (no track ids); fps: frames per second (GVHMR's units).
+    tracks: the accumulated tracks or None (no track ids); fps: frames per second (GVHMR's units);
+    skipped: metrics this data cannot give (beyond the protocol's own), with why.
     """
     out = {name: _mean(np.asarray(columns[name], dtype=np.float64)) for name in proto.pair_metrics}
-    notes = [f"{name}: skipped: {why}" for name, why in proto.skipped.items()]
+    skipped = {**proto.skipped, **(skipped or {})}
+    reasons: dict[str, list[str]] = {}
+    for name, why in skipped.items():
+        reasons.setdefault(why, []).append(name)
+    notes = [f"{', '.join(names)}: skipped: {why}" for why, names in reasons.items()]
     if proto.detection == "rotavat":
         out.update(detection_scores(counts["matched"], counts["missed"], counts["false_positives"]))
         out["nmje"] = float(normalize_by_f1(out["mpjpe"], out["f1"]))
@@ -191,13 +197,14 @@ def aggregate(proto: Protocol, columns: Mapping[str, list], counts: Mapping[str,
         out.update(agora_prf1(counts["matched"], counts["missed"], counts["false_positives"]))
         out["nmje"] = _agora_normalised(out["mpjpe"], out["f1"])
     if proto.track_metrics:
-        track_values, track_notes = _track_metrics(proto, tracks, fps)
+        track_values, track_notes = _track_metrics(proto, tracks, fps, skipped)
         out.update(track_values)
         notes += track_notes
     return out, notes
 
 
-def _track_metrics(proto: Protocol, tracks: TrackSeries | None, fps: float) -> tuple[dict[str, float], list[str]]:
+def _track_metrics(proto: Protocol, tracks: TrackSeries | None, fps: float,
+                   skipped: Mapping[str, str]) -> tuple[dict[str, float], list[str]]:
     """The protocol's temporal/trajectory metrics; NaN with a note where they cannot be computed."""
     out = {name: math.nan for name in proto.track_metrics}
     if tracks is None:
@@ -206,9 +213,14 @@ def _track_metrics(proto: Protocol, tracks: TrackSeries | None, fps: float) -> t
     windows = {"accel_err": "accel", "jitter": "jitter", "foot_sliding": "foot_sliding"}
     scale = _window_scales(proto, fps)
     for name, metric in windows.items():
-        if metric not in tracks.metrics:
+        if metric not in tracks.metrics or name in skipped:
             continue
         sums = tracks.per_track(metric)
+        if not any(c for _, c in sums.values()):
+            notes.append(f"{name}: no value: " + (
+                "no true foot point is in contact (moves < 1 cm per frame) in any track" if metric == "foot_sliding"
+                else f"no track has {WINDOWS[metric]} matched frames"))
+            continue
         if proto.pooled:
             total, n = sum(s for s, _ in sums.values()), sum(c for _, c in sums.values())
             out[name] = total / n * scale[name] if n else math.nan

@@ -160,7 +160,8 @@ def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
         return ""
     k = names.index(name)
     try:
-        result = evaluate(pred, gt, EvalOptions(), frames=(k, k + 1))
+        # numpy engine: a frame's few people are scored at once; numba's start-up (~2 s) would dominate
+        result = evaluate(pred, gt, dataclasses.replace(EvalOptions(), engine="numpy"), frames=(k, k + 1))
     except RotavatError as exc:
         return f"vs gt: not comparable ({exc})"
     m = result.metrics
@@ -259,9 +260,11 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     every_frame = [[_window_row(r) for r in rows_of(n)] for n in names]
     if opts.scale == "shared":
         extents = scene_extents([r for rows in every_frame for r in rows], opts.views, opts.size, opts.style.margin, opts.fit)
-    else:
-        extents = [scene_extents([rows[i] for rows in every_frame], opts.views, opts.size, opts.style.margin, opts.fit)
-                   for i in range(len(seqs))]
+    else:  # each row its own side/top windows; the camera's view shows the same part of the image in every row
+        shared = scene_extents([r for rows in every_frame for r in rows], tuple(v for v in opts.views if v not in placed),
+                               opts.size, opts.style.margin, opts.fit)
+        extents = [{**scene_extents([rows[i] for rows in every_frame], tuple(placed), opts.size, opts.style.margin, opts.fit),
+                    **shared} for i in range(len(seqs))]
     del every_frame
     files, images, captions = [], [], {}
     with open_rasterizer(opts.renderer) as rasterizer:

@@ -157,9 +157,9 @@ def _front_window(rows: list[RowFrame], size: tuple[int, int], margin: float, fi
     if fit == "camera" or not rows:
         return None
     boxes = []
-    for row in rows:
-        pts = _with_ghost(row)
-        pts = pts[pts[:, 2] > _NEAR_M]
+    for row in rows:  # not the ghosts: drawn in another row's focal, they may land anywhere in the image
+        pts = row.points_cam.reshape(-1, 3)
+        pts = pts[np.isfinite(pts).all(axis=1) & (pts[:, 2] > _NEAR_M)]
         if len(pts):
             uv = pts[:, :2] / pts[:, 2:] * row.focal_px + np.asarray(row.principal_point)
             boxes.append(np.concatenate([uv.min(axis=0), uv.max(axis=0)]))
@@ -390,16 +390,23 @@ def _side_fov_edges_world(camera: Camera) -> np.ndarray:
 
 
 def _side_fov_px(view: PanelView, camera: Camera) -> np.ndarray:
-    """(K, 2) panel polygon of the camera's field of view from the side, cut at the ground and far off."""
-    far_m = 4.0 * math.hypot(*view.size) / view.px_per_m + np.linalg.norm(
-        np.asarray(view.extent.center_m) - [0.0, camera.height_m])
-    ends = []
+    """(K, 2) panel polygon of the camera's field of view from the side, cut at the ground and far off:
+    the camera, where the lower edge meets the ground (or its far end), along the ground (when only the
+    lower edge meets it), the upper edge's ground hit or far end."""
+    far_m = 4.0 * math.hypot(*view.size) / view.px_per_m + float(np.linalg.norm(
+        np.asarray(view.extent.center_m) - [0.0, camera.height_m]))
+    ends, grounded = [], []
     for d in _side_fov_edges_world(camera):
-        t = far_m / max(np.linalg.norm(d), 1e-9)
-        if d[1] < 0:
-            t = min(t, camera.height_m / -d[1])  # where the edge meets the ground
-        ends.append(camera.center_world + t * d)
-    return project_view_px(view.clip_from_world, np.stack([camera.center_world, *ends]), view.size)
+        t = far_m / max(float(np.linalg.norm(d)), 1e-9)
+        hits = d[1] < 0 and camera.height_m / -d[1] < t
+        ends.append(camera.center_world + (camera.height_m / -d[1] if hits else t) * d)
+        grounded.append(hits)
+    pts = [camera.center_world, ends[0]]
+    if grounded[0] and not grounded[1]:
+        fwd = _side_basis(camera)[0]
+        pts.append(camera.center_world * [1.0, 0.0, 1.0] + far_m * fwd)  # the ground, far ahead
+    pts.append(ends[1])
+    return project_view_px(view.clip_from_world, np.stack(pts), view.size)
 
 
 def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
@@ -408,7 +415,7 @@ def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     draw = _draw(img)
     wedge = _side_fov_px(view, camera)
     ink = rgb8(style.camera)
-    for end in wedge[1:]:
+    for end in (wedge[1], wedge[-1]):  # the edges of the field of view
         draw.line([tuple(wedge[0]), tuple(end)], fill=(*ink, 150), width=1)
     _camera_glyph(draw, view, camera, style, camera.center_world)
     _ticks(draw, view, style, "ahead of the camera", "height")
