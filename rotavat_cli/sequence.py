@@ -654,13 +654,26 @@ def _check_meta(meta: dict, source: Path) -> None:
             raise _fail(str(source), f"key '{key}' must be a {'name' if kind is str else 'number'}, got {value!r:.60}")
 
 
+def can_align(frame: Frame) -> bool:
+    """Whether ``rotavat align`` can place the frame's people: meshes, or joints with their mid-sole and
+    crown pixels (joint-level alignment; rotavat_cli.alignment)."""
+    return frame.get("vertices") is not None or all(frame.get(k) is not None for k in ("joints", "feet_2d", "heads_2d"))
+
+
 def summarize_sequence(seq: Sequence) -> dict:
     """Validate every frame and summarise: form, frames, people, keys, sizes, intrinsics, camera."""
     people, keys, verts, joints, kps, ids = [], set(), set(), set(), set(), set()
     frame_sizes = set()
     centred = behind = 0
+    not_alignable, other_focal = [], []  # frame names
+    meta_focal = seq.intrinsics.focal_px
     for frame in seq.frames():
         people.append(frame.n_people)
+        if frame.n_people and not can_align(frame):
+            not_alignable.append(frame.name)
+        stated = frame.intrinsics.focals_px(frame.n_people) if frame.n_people else None
+        if meta_focal is not None and stated is not None and not np.allclose(stated, meta_focal, rtol=1e-6):
+            other_focal.append(frame.name)
         points = frame.get("vertices") if frame.get("vertices") is not None else frame.get("joints")
         if points is not None and frame.n_people:
             is_centred, is_behind = people_not_in_front(points)
@@ -696,6 +709,8 @@ def summarize_sequence(seq: Sequence) -> dict:
         "image_sizes": [list(size) for size in sorted(frame_sizes)],
         "people_root_centred": centred,
         "people_behind_camera": behind,
+        "frames_not_alignable": not_alignable,
+        "frames_with_another_focal": other_focal,
         "focal_px": intr.focal_px,
         "focal_kind": seq.focal_kind,
         "focal_rule": seq.meta.get("focal_rule"),

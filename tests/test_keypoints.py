@@ -13,10 +13,23 @@ import pytest
 from rotavat_cli.camera import project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
-from rotavat_cli.formats._common import (ROOT_AT_CENTRE_M, feet_heads_from, people_frame, placement_warnings,
-                                         unplaced_people)
-from rotavat_cli.formats.keypoints import (LAYOUT_NAMES, LAYOUTS, PointRule, extrapolated, feet_heads_px,
-                                           layout_by_count, mean_of, recipe_for)
+from rotavat_cli.formats._common import (
+    ROOT_AT_CENTRE_M,
+    feet_heads_from,
+    people_frame,
+    placement_warnings,
+    unplaced_people,
+)
+from rotavat_cli.formats.keypoints import (
+    LAYOUT_NAMES,
+    LAYOUTS,
+    PointRule,
+    extrapolated,
+    feet_heads_px,
+    layout_by_count,
+    mean_of,
+    recipe_for,
+)
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
@@ -147,14 +160,14 @@ def test_documented_errors_on_the_packaged_bodies():
     idx45 = [LAYOUT_NAMES["smpl45"].index(n) for n in names + ("left_ear", "right_ear")]
     sole_err, crown_err = [], []
     for R, t in F.measurement_views():
-        px = lambda p: project_cam_to_px(p @ R.T + t, 1000.0, (0.0, 0.0))  # noqa: E731
-        joints_px, sole_px, crown_px = px(bodies.joints), px(feet_cam), px(heads_cam)
+        joints_px, sole_px, crown_px, ears_px = (project_cam_to_px(points @ R.T + t, 1000.0, (0.0, 0.0))
+                                                 for points in (bodies.joints, feet_cam, heads_cam, ears))
         stature = np.linalg.norm(sole_px - crown_px, axis=-1)
         kp24 = np.full((len(bodies), 24, 2), np.nan)
         kp24[:, idx24] = joints_px[:, idx24]
         sole_err.append(np.linalg.norm(feet_heads_px(kp24, "smpl24")[0] - sole_px, axis=-1) / stature)
         kp45 = np.full((len(bodies), 45, 2), np.nan)
-        kp45[:, idx45] = np.concatenate([joints_px[:, idx24], px(ears.reshape(-1, 3)).reshape(-1, 2, 2)], axis=1)
+        kp45[:, idx45] = np.concatenate([joints_px[:, idx24], ears_px], axis=1)
         crown_err.append(np.linalg.norm(feet_heads_px(kp45, "smpl45")[1] - crown_px, axis=-1) / stature)
     sole_err, crown_err = 100 * np.array(sole_err), 100 * np.array(crown_err)
     assert sole_err.mean() == pytest.approx(0.75, abs=0.05) and sole_err.max() < 1.45
@@ -290,7 +303,7 @@ def test_a_bev_file_read_as_romp_says_so(tmp_path, scene):
 
 def test_multihmr_demo_file_names_give_the_image_stems(tmp_path, scene):
     src = F.write_multihmr(tmp_path / "mh", scene, form="npy", model_name="multiHMR_896_L")
-    assert sorted(p.name for p in src.iterdir())[0] == "img_000_multiHMR_896_L.png.npy"
+    assert min(p.name for p in src.iterdir()) == "img_000_multiHMR_896_L.png.npy"
     import_sequence(src, tmp_path / "out", "multihmr", image_size=(W, H))
     seq = open_sequence(tmp_path / "out")
     assert seq.frame_names == ("img_000", "img_001", "img_002")

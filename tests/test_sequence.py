@@ -339,3 +339,23 @@ def test_align_takes_its_sequence_as_an_argument_or_with_in(tmp_path, runner):
     none = invoke(runner, "align")
     assert both.exit_code == 2 and "two inputs given" in both.stderr
     assert none.exit_code == 2 and "missing the input sequence SEQ" in none.stderr
+
+
+def test_info_flags_what_align_would_refuse_and_focals_that_disagree(tmp_path, runner):
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=4, frames=3, people=3))
+    gt = tmp_path / "s" / "gt"
+    seq = open_sequence(gt)
+    frame = seq.read_frame("000001")
+    bare = {k: v for k, v in frame.data.items() if k not in ("vertices", "faces", "feet_2d", "heads_2d")}
+    write_frame(gt, Frame("000001", bare, frame.source), "npz")  # joints only, no foot/crown pixels
+    write_frame(gt, seq.read_frame("000002").replace(focal_length=np.float64(seq.intrinsics.focal_px * 1.5)), "npz")
+    cam, fit = read_camera_yaml(gt / "camera.yaml")
+    write_camera_yaml(gt / "camera.yaml", cam.replace(focal_px=cam.focal_px * 0.8), fit)
+    text = " ".join(invoke(runner, "info", gt).stderr.split())
+    assert "1 frames with people have neither meshes ('vertices') nor joints with 'feet_2d'/'heads_2d' (first: 000001)" in text
+    assert "1 frames state a focal length other than meta.yaml's" in text and "(first: 000002)" in text
+    assert "camera.yaml's focal" in text and "differs from the declared camera focal" in text
+    clean = invoke(runner, "info", tmp_path / "s" / "pred")
+    assert clean.exit_code == 0 and "warning" not in clean.stderr

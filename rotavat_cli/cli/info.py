@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -63,6 +64,19 @@ def sequence_warnings(summary: dict) -> list[str]:
         warnings.append(f"{summary['path']}: {summary['people_root_centred']} people are centred on the camera (their "
                         "translation is zero: a root-centred output, not placed in the camera frame); they cannot be "
                         "calibrated or aligned: import the tool's camera-frame output (its translation) instead")
+    if summary["frames_not_alignable"]:
+        names = summary["frames_not_alignable"]
+        warnings.append(f"{summary['path']}: {len(names)} frames with people have neither meshes ('vertices') nor "
+                        f"joints with 'feet_2d'/'heads_2d' (first: {names[0]}): align refuses them")
+    if summary["frames_with_another_focal"]:
+        names = summary["frames_with_another_focal"]
+        warnings.append(f"{summary['path']}: {len(names)} frames state a focal length other than meta.yaml's "
+                        f"{summary['focal_px']:g} px (first: {names[0]}): each frame's own is used; check which is right")
+    cam, declared = summary["camera"], summary["focal_px"]
+    if cam is not None and declared and summary["focal_kind"] == "camera" and \
+            not math.isclose(cam["focal_px"], declared, rel_tol=1e-3):
+        warnings.append(f"{summary['path']}: camera.yaml's focal {cam['focal_px']:.1f} px differs from the declared "
+                        f"camera focal {declared:.1f} px (meta.yaml, focal_kind: camera): one of them is wrong")
     if summary["people_behind_camera"]:
         warnings.append(f"{summary['path']}: {summary['people_behind_camera']} people are partly at or behind the camera "
                         "(z <= 0): not what the camera saw; check the file's camera frame and translation")

@@ -20,10 +20,32 @@ from ..sequence import Frame, validate_frame
 from .keypoints import feet_heads_px, recipe_for
 from .smpl import BodyModel
 
-__all__ = ["ImportOptions", "ImportedSequence", "FrameNotes", "Conclusion", "fail", "npz_has_keys", "single_file",
-           "need_image_size", "as_array", "get", "padded_square", "project_px", "image_size_from_header",
-           "people_frame", "feet_heads_from", "frame_names", "natural_key", "base_meta", "no_model_warning", "model_faces",
-           "ROOT_AT_CENTRE_M", "unplaced_people", "placement_warnings", "conclude_placement"]
+__all__ = [
+    "ROOT_AT_CENTRE_M",
+    "Conclusion",
+    "FrameNotes",
+    "ImportOptions",
+    "ImportedSequence",
+    "as_array",
+    "base_meta",
+    "conclude_placement",
+    "fail",
+    "feet_heads_from",
+    "frame_names",
+    "get",
+    "image_size_from_header",
+    "model_faces",
+    "natural_key",
+    "need_image_size",
+    "no_model_warning",
+    "npz_has_keys",
+    "padded_square",
+    "people_frame",
+    "placement_warnings",
+    "project_px",
+    "single_file",
+    "unplaced_people",
+]
 
 
 # ---- shared types --------------------------------------------------------------------------
@@ -292,9 +314,10 @@ def placement_warnings(unplaced: int, people: int, source: Any) -> list[str]:
     if unplaced == 0:
         return []
     scope = "every person" if unplaced == people else f"{unplaced} of {people} people"
-    return [f"{source}: {scope} at the camera centre or (partly) behind the camera (z <= 0): root-centred output "
-            "(no translation) or another frame, not people placed in the camera; calibrate and align cannot use "
-            "them (root-aligned metrics such as MPJPE, PVE and PA-MPJPE still apply)"]
+    message = (f"{source}: {scope} at the camera centre or (partly) behind the camera (z <= 0): root-centred "
+               "output (no translation) or another frame, not people placed in the camera; calibrate and align "
+               "cannot use them (root-aligned metrics such as MPJPE, PVE and PA-MPJPE still apply)")
+    return [message]
 
 
 def conclude_placement(notes: list[FrameNotes], source: Any) -> list[str]:

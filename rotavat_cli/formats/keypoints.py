@@ -89,8 +89,17 @@ import numpy as np
 
 from ..landmarks import SMPL_JOINT_NAMES
 
-__all__ = ["PointRule", "KeypointRecipe", "LAYOUT_NAMES", "LAYOUTS", "mean_of", "extrapolated", "feet_heads_px",
-           "recipe_for", "layout_by_count"]
+__all__ = [
+    "LAYOUTS",
+    "LAYOUT_NAMES",
+    "KeypointRecipe",
+    "PointRule",
+    "extrapolated",
+    "feet_heads_px",
+    "layout_by_count",
+    "mean_of",
+    "recipe_for",
+]
 
 
 @dataclass(frozen=True)

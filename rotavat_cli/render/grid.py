@@ -43,11 +43,6 @@ class _Mesh:
 _EMPTY = _Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
-def _finite_people(row: RowFrame, points: np.ndarray) -> np.ndarray:
-    """(P,) people with at least one finite point."""
-    return np.isfinite(points).all(axis=-1).any(axis=-1) if points.shape[1] else np.zeros(len(points), bool)
-
-
 def _mesh_of_triangles(row: RowFrame, style: RenderStyle) -> _Mesh:
     """A mesh row's finite people as one mesh with per-vertex colours and normals (view-independent)."""
     verts = np.asarray(row.verts_cam, dtype=np.float64)
@@ -176,11 +171,6 @@ def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderSt
     if labels:
         _id_labels(img, view, row, style)
     return np.asarray(img)
-
-
-def _caption(row: RowFrame) -> str:
-    """The row's caption strip text: its label, then its numbers."""
-    return f"{row.label}   {row.caption}" if row.caption else row.label
 
 
 def render_grid(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int, int], rasterize: Any,

@@ -11,8 +11,8 @@ take them unchanged:
   HybrIK-29 share SMPL's kinematic tree; OpenPose-25, SPIN-49 and PHALP-44 share OpenPose's);
 - **points**: an icosahedron per joint of a layout without bones, or per vertex of a point cloud.
 
-Sizes are in metres (``radius_m`` per person): the caller makes them at least a pixel or two in its
-view (:func:`min_radius_m`), so a skeleton 30 px tall is still visible.
+Sizes are in metres, times a per-person ``scale`` >= 1 with which the caller keeps them at least a
+pixel or so thick in its view (rotavat_cli.render.grid), so a skeleton 30 px tall is still visible.
 
 Bone lists: SMPL's from ``SMPL_PARENTS`` (rotavat_cli.formats.smpl, SMPL's kintree);
 OpenPose BODY_25's are ``POSE_BODY_25_PAIRS_RENDER_GPU`` (CMU-Perceptual-Computing-Lab/openpose
@@ -196,10 +196,13 @@ def skeleton_shapes(joints_cam: np.ndarray, bones: tuple[tuple[int, int], ...] |
     finite = np.isfinite(joints).all(axis=-1)  # (P, J)
     person = np.broadcast_to(np.arange(P)[:, None], (P, J))
     ball_r = (JOINT_RADIUS_M if bones else 1.4 * JOINT_RADIUS_M) * np.broadcast_to(np.asarray(scale, float)[:, None], (P, J))
-    parts = [_balls(joints[finite], ball_r[finite], person[finite])]
-    if bones:
-        pairs = np.asarray(bones, dtype=np.int64)
-        pairs = pairs[(pairs < J).all(axis=1)]
+    drawn = finite.copy()
+    pairs = np.asarray(bones or (), dtype=np.int64).reshape(-1, 2)
+    pairs = pairs[(pairs < J).all(axis=1)]
+    if len(pairs):  # balls at the bones' joints only (a layout's extra points would clutter the skeleton)
+        drawn &= np.isin(np.arange(J), pairs)[None]
+    parts = [_balls(joints[drawn], ball_r[drawn], person[drawn])]
+    if len(pairs):
         ok = finite[:, pairs[:, 0]] & finite[:, pairs[:, 1]]  # (P, B)
         pp, bb = np.nonzero(ok)
         parts.append(_tubes(joints[pp, pairs[bb, 0]], joints[pp, pairs[bb, 1]], BONE_RADIUS_M * np.asarray(scale, float)[pp], pp))

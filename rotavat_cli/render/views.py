@@ -356,14 +356,14 @@ def _side_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) ->
     edge-on as a line, tinted below (sunk body parts show over it)."""
     W, H = view.size
     draw = _draw(img)
-    _ticks_grid_only(draw, view, style)
-    draw.polygon([tuple(p) for p in _side_fov_px(view, row.camera)], fill=(*rgb8(style.camera), 22))
+    _grid_lines(draw, view, style)
+    draw.polygon([tuple(p) for p in _side_fov_px(view, row.camera)], fill=(*rgb8(style.camera), 16))
     v_ground = float(project_view_px(view.clip_from_world, np.zeros(3), view.size)[1])
     draw.rectangle([0, v_ground, W, H], fill=rgb8(mix(style.background, style.ground, 0.25)))
     draw.line([(0, v_ground), (W, v_ground)], fill=rgb8(style.ground), width=2)
 
 
-def _ticks_grid_only(draw: Any, view: PanelView, style: RenderStyle) -> None:
+def _grid_lines(draw: Any, view: PanelView, style: RenderStyle) -> None:
     """Faint grid lines at the tick positions (labels come after the people)."""
     W, H = view.size
     (uc, vc), s = view.extent.center_m, view.px_per_m
@@ -446,7 +446,7 @@ def _top_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     far_m = (np.hypot(*(origin - [W / 2, H / 2])) + np.hypot(W, H)) / view.px_per_m  # well past the panel
     fov_px = project_view_px(view.clip_from_world, _ground_fov_world(camera, far_m), view.size)
     draw.polygon([tuple(p) for p in fov_px], fill=rgb8(mix(style.background, style.camera, 0.08)))
-    _ticks_grid_only(draw, view, style)
+    _grid_lines(draw, view, style)
     outline = np.append(fov_px, fov_px[:1], axis=0)
     draw.line([tuple(p) for p in outline], fill=rgb8(mix(style.background, style.camera, 0.5)), width=1)
 
