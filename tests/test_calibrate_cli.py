@@ -117,6 +117,12 @@ def test_per_frame_reports_spread(scene, tmp_path, runner):
     per_frame = json.loads(result.stdout)["per_frame"]
     assert per_frame["frames_fitted"] + per_frame["frames_skipped"] == 12
     assert set(per_frame["iqr"]) >= {"pitch_deg", "height_m"}
+    fit = yaml.safe_load((tmp_path / "c.yaml").read_text())["fit"]  # the spread is kept with the camera
+    assert fit["per_frame"]["median"]["pitch_deg"] == pytest.approx(per_frame["median"]["pitch_deg"])
+    table = invoke(runner, "calibrate", scene / "gt", "--per-frame", "--out", tmp_path / "d.yaml")
+    pitch_row = next(line for line in table.stdout.splitlines() if "pitch_deg" in line)
+    median, iqr = per_frame["median"]["pitch_deg"], per_frame["iqr"]["pitch_deg"]
+    assert f"{median:.3f} ({iqr:.3f}) °" in pitch_row and "frames alone: median (IQR)" in table.stdout
 
 
 def test_config_file_sets_options(scene, tmp_path, runner):

@@ -43,10 +43,13 @@ class SequenceCalibration:
     mesh_focal_kind: str | None = None  # "camera" | "assumed" (None: no focal stated)
 
     def fit_dict(self) -> dict:
-        """The camera.yaml ``fit:`` block: the fit's own, plus the focal policy and the meshes' focal."""
+        """The camera.yaml ``fit:`` block: the fit's own, plus the focal policy, the meshes' focal and
+        (``per_frame``) the spread of the frames calibrated alone."""
         fit = {**self.result.fit_dict(), "focal_policy": self.focal_policy}
         if self.mesh_focal_px is not None:
             fit.update(mesh_focal_px=float(self.mesh_focal_px), mesh_focal_kind=self.mesh_focal_kind)
+        if self.per_frame is not None:
+            fit["per_frame"] = self.per_frame
         return fit
 
 

@@ -89,21 +89,33 @@ def _table(summary: dict) -> Table:
     fit = summary["fit"]
     std, fixed = fit.get("std", {}), fit.get("fixed", {})
     table = Table(title=f"camera ({fit.get('method')}, focal {fit.get('focal_policy')})")
-    for col in ("parameter", "value", "± std"):
+    spread = summary.get("per_frame") or {}
+    for col in ("parameter", "value", "± std") + (("frames alone: median (IQR)",) if spread else ()):
         table.add_column(col)
     rows = [("focal_px", "px"), ("pitch_deg", "°"), ("roll_deg", "°"), ("height_m", "m")]
     if fit.get("person_height") == "estimated":
         rows.append(("person_height_m", "m"))
     for key, unit in rows:
-        table.add_row(key, f"{summary[key]:.3f} {unit}", _std_cell(std.get(key), fixed.get(key)))
+        alone = [_spread_cell(spread, key, unit)] if spread else []
+        table.add_row(key, f"{summary[key]:.3f} {unit}", _std_cell(std.get(key), fixed.get(key)), *alone)
     if "distortion" in fit:
         table.add_row("distortion", f"{fit['distortion']:+.4f}", _std_cell(std.get("distortion"), None))
     mesh = (f"; meshes made with f {fit['mesh_focal_px']:.0f} px ({fit['mesh_focal_kind']})"
             if fit.get("mesh_focal_px") is not None else "")
+    alone = (f"; {spread['frames_fitted']} frames calibrated alone ({spread['frames_skipped']} skipped)"
+             if spread else "")
     table.caption = (f"{fit.get('inliers')}/{fit.get('pairs')} pairs inliers over {fit.get('frames')} frames, "
                      f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}"
-                     f"{mesh}")
+                     f"{mesh}{alone}")
     return table
+
+
+def _spread_cell(spread: dict, key: str, unit: str) -> str:
+    """A parameter's median over the frames calibrated alone and its interquartile range."""
+    median, iqr = (spread.get(k, {}).get(key) for k in ("median", "iqr"))
+    if median is None or iqr is None or not np.isfinite(median):
+        return "n/a"
+    return f"{median:.3f} ({iqr:.3f}) {unit}"
 
 
 def _std_cell(sd: float | None, fixed: str | None) -> str:
