@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 import _format_fixtures as F
+import _fixtures_pymafx_trace as PT
 import numpy as np
 import pytest
 from conftest import invoke, tree_hash
@@ -64,6 +65,10 @@ def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
         return F.write_agora(folder / "agora", scene)
     if fmt == "bedlam":
         return F.write_bedlam(folder / "scene.npz", scene)
+    if fmt == "pymafx":
+        return PT.write_pymafx(folder / "output.pkl", scene, (W, H))
+    if fmt == "trace":
+        return PT.write_trace(folder / "trace_demo.npz", scene, (W, H))
     raise AssertionError(fmt)
 
 
@@ -86,6 +91,10 @@ def _expected(fmt: str, camera):
         return 18.0 / 36.0 * 3840, (1920, 1080), (3840, 2160)
     if fmt == "bedlam":
         return 28.0 / 36.0 * 1280, (640, 360), (1280, 720)
+    if fmt == "pymafx":
+        return 5000.0, (W / 2, H / 2), (W, H)
+    if fmt == "trace":
+        return 548.0 / 512 * side, (side / 2, side / 2 - (side - H) // 2), (W, H)
     raise AssertionError(fmt)
 
 
@@ -98,7 +107,7 @@ def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
     return src, out, summary
 
 
-ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam"]
+ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace"]
 
 
 def test_available_formats():
@@ -116,7 +125,8 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
     assert seq.meta["source"] == fmt
     # ground truth knows the camera; every HPS tool guessed its focal (by its documented rule)
     assert seq.focal_kind == ("camera" if fmt in ("agora", "bedlam") else "assumed")
-    assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans"}.get(fmt)
+    assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans",
+                                          "pymafx": "pymafx", "trace": "trace"}.get(fmt)
     assert intr.image_size == size
     assert intr.focal_px == pytest.approx(focal, rel=1e-9)
     assert intr.principal_point == pytest.approx(pp, abs=1e-9)
@@ -139,10 +149,13 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
         if kp is not None and fmt != "romp":  # ROMP's 2D are weak-perspective
             proj = F.project(expected_joints, focal, pp)
             idx = {"spec": slice(25, 49), "4dhumans": slice(None, 24), "bedlam": slice(None, 24),
-                   "agora": slice(None, 24), "bev": slice(None, 24)}.get(fmt)
+                   "agora": slice(None, 24), "bev": slice(None, 24), "trace": slice(None, 24)}.get(fmt)
             if fmt == "multihmr":
                 proj = proj[:, :22]
                 idx = slice(None, 22)
+            if fmt == "pymafx":  # COCO-17 detections: the fixture puts them on the first 17 joints
+                proj = proj[:, :17]
+                idx = slice(None, 17)
             np.testing.assert_allclose(kp[:, idx, :2], proj, atol=TOL_PX * max(1, focal / 1000))
     assert summary["has_vertices"] and summary["joints_layout"].startswith("smpl24")
     assert invoke(runner, "info", out).exit_code == 0
@@ -432,8 +445,12 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
     src = _write(fmt, tmp_path, scene, model, camera)
     if fmt in ("bev", "romp"):
         F.evil_npz(sorted(src.glob("*.npz"))[0], marker)
-    elif fmt == "4dhumans":
+    elif fmt in ("4dhumans", "pymafx"):
         src.write_bytes(F.evil_pickle(marker))
+    elif fmt == "trace":  # npz: the 'outputs' object member pickles a code-executing object
+        obj = np.empty((), dtype=object)
+        obj[()] = {"cam_trans": F.Evil(marker)}
+        np.savez(src, outputs=obj, imgpaths=np.array(["/data/00000000.jpg"]))
     elif fmt == "spec":
         (src / "spec_results" / "000000.pkl").write_bytes(F.evil_pickle(marker, protocol=2))
     elif fmt == "agora":
