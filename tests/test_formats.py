@@ -11,6 +11,7 @@ from pathlib import Path
 
 import _format_fixtures as F
 import _fixtures_pymafx_trace as PT
+import _fixtures_slahmr_glamr as SG
 import numpy as np
 import pytest
 from conftest import invoke, tree_hash
@@ -69,6 +70,10 @@ def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
         return PT.write_pymafx(folder / "output.pkl", scene, (W, H))
     if fmt == "trace":
         return PT.write_trace(folder / "trace_demo.npz", scene, (W, H))
+    if fmt == "slahmr":  # the run folder: motion_chunks/<seq>_<iteration>_world_results.npz + track_info.json
+        return SG.write_slahmr(folder / "slahmr_run", scene, model)
+    if fmt == "glamr":
+        return SG.write_glamr(folder / "glamr_out" / "grecon" / "demo_seed1.pkl", scene)
     raise AssertionError(fmt)
 
 
@@ -95,6 +100,10 @@ def _expected(fmt: str, camera):
         return 5000.0, (W / 2, H / 2), (W, H)
     if fmt == "trace":
         return 548.0 / 512 * side, (side / 2, side / 2 - (side - H) // 2), (W, H)
+    if fmt == "slahmr":  # SLAHMR's default intrinsics: (W + H) / 2 at the image centre
+        return (W + H) / 2, (W / 2, H / 2), (W, H)
+    if fmt == "glamr":  # GLAMR's HybrIK: 1000 px at the image centre
+        return 1000.0, (W / 2, H / 2), (W, H)
     raise AssertionError(fmt)
 
 
@@ -107,7 +116,7 @@ def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
     return src, out, summary
 
 
-ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace"]
+ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace", "slahmr", "glamr"]
 
 
 def test_available_formats():
@@ -126,7 +135,8 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
     # ground truth knows the camera; every HPS tool guessed its focal (by its documented rule)
     assert seq.focal_kind == ("camera" if fmt in ("agora", "bedlam") else "assumed")
     assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans",
-                                          "pymafx": "pymafx", "trace": "trace"}.get(fmt)
+                                          "pymafx": "pymafx", "trace": "trace", "slahmr": "slahmr",
+                                          "glamr": "glamr"}.get(fmt)
     assert intr.image_size == size
     assert intr.focal_px == pytest.approx(focal, rel=1e-9)
     assert intr.principal_point == pytest.approx(pp, abs=1e-9)
@@ -156,12 +166,15 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
             if fmt == "pymafx":  # COCO-17 detections: the fixture puts them on the first 17 joints
                 proj = proj[:, :17]
                 idx = slice(None, 17)
+            if fmt == "glamr":  # body26fk: SMPL's joints at some of its slots only
+                proj = proj[:, list(SG.BODY26FK_SMPL.values())]
+                idx = list(SG.BODY26FK_SMPL)
             np.testing.assert_allclose(kp[:, idx, :2], proj, atol=TOL_PX * max(1, focal / 1000))
     assert summary["has_vertices"] and summary["joints_layout"].startswith("smpl24")
     assert invoke(runner, "info", out).exit_code == 0
 
 
-@pytest.mark.parametrize("fmt", ["bev", "4dhumans", "bedlam"])
+@pytest.mark.parametrize("fmt", ["bev", "4dhumans", "bedlam", "slahmr", "glamr"])
 def test_track_ids_are_kept(fmt, tmp_path, scene, model, camera, model_path):
     _, out, _ = _import(fmt, tmp_path, scene, model, camera, model_path)
     frames = [f for f in open_sequence(out).frames() if f.n_people]
@@ -459,6 +472,15 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
         for p in src.iterdir():
             p.unlink()
         (src / "img_000.pkl").write_bytes(F.evil_pickle(marker))
+    elif fmt == "slahmr":  # npz: an object member where arrays are expected
+        results = next((src / "motion_chunks").glob("*_world_results.npz"))
+        data = dict(np.load(results, allow_pickle=False))
+        obj = np.empty((), dtype=object)
+        obj[()] = F.Evil(marker)
+        data["trans"] = obj
+        np.savez(results, **data)
+    elif fmt == "glamr":
+        src.write_bytes(F.evil_pickle(marker))
     elif fmt in ("cliff", "bedlam"):  # npz: an object member where arrays are expected
         data = dict(np.load(src, allow_pickle=False))
         obj = np.empty((), dtype=object)

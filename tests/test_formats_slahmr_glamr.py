@@ -146,6 +146,21 @@ def test_slahmr_given_intrinsics_are_assumed_without_a_rule(tmp_path, scene, mod
                for w in summary["warnings"])
 
 
+def test_slahmr_optimised_focal_is_written_per_frame(tmp_path, scene, model, smplh_path):
+    """With opt_cams SLAHMR saves its per-frame focal ('cam_f', (T, 2)): each frame states its own."""
+    run = G.write_slahmr(tmp_path / "run", scene, model)
+    results = run / "motion_chunks" / "demo_000060_world_results.npz"
+    data = dict(np.load(results, allow_pickle=False))
+    data["cam_f"] = np.array([[600.0, 602.0], [610.0, 612.0], [620.0, 622.0]], np.float32)
+    np.savez(results, **data)
+    summary = import_sequence(run, tmp_path / "out", "slahmr", smpl_model=smplh_path)
+    seq = open_sequence(tmp_path / "out")
+    assert "focal_length" not in seq.meta and "focal_rule" not in seq.meta and seq.focal_kind == "assumed"
+    assert [float(f.data["focal_length"]) for f in seq.frames()] == [601.0, 611.0, 621.0]
+    assert any("optimised per frame (opt_cams: 'cam_f')" in w for w in summary["warnings"])
+    _assert_people(next(seq.frames()), scene[0])
+
+
 def test_slahmr_refusals_name_the_file(tmp_path, scene, model, smplh_path, runner):
     run = G.write_slahmr(tmp_path / "run", scene, model)
     results = run / "motion_chunks" / "demo_000060_world_results.npz"

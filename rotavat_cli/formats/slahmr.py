@@ -247,6 +247,47 @@ def _focal(intrins: np.ndarray, cam_f: np.ndarray | None, image_size: tuple[int,
     return 0.5 * (fx + fy), per_frame, None
 
 
+@dataclass(frozen=True)
+class _Params:
+    """SLAHMR's world results, validated: B tracks over T frames."""
+
+    trans: np.ndarray  # (B, T, 3) SMPL-H transl, world, metres
+    root_orient: np.ndarray  # (B, T, 3) axis-angle, world
+    pose_body: np.ndarray  # (B, T, 63) axis-angle, body joints 1..21
+    betas: np.ndarray  # (B, S)
+    cam_R: np.ndarray  # (T, 3, 3) world -> camera
+    cam_t: np.ndarray  # (T, 3) world -> camera, metres
+    intrins: np.ndarray  # (4,) fx, fy, cx, cy px
+    cam_f: np.ndarray | None  # (T, 2) px when SLAHMR optimised the focal (opt_cams)
+
+
+def _params(data: dict, path: Path) -> _Params:
+    """Validate the arrays of a world results file (shapes named in each refusal)."""
+    missing = sorted(_KEYS - set(data))
+    if missing:
+        raise fail(path, f"not SLAHMR world results with cameras (missing {', '.join(missing)})")
+    trans = as_array(data["trans"], "trans", path, ndim=3, last=(3,))
+    n_tracks, n_frames = trans.shape[:2]
+    root_orient = as_array(data["root_orient"], "root_orient", path, ndim=3, last=(3,))
+    pose_body = as_array(data["pose_body"], "pose_body", path)
+    if root_orient.shape[:2] != (n_tracks, n_frames) or pose_body.size != n_tracks * n_frames * 3 * _N_BODY_JOINTS:
+        raise fail(path, f"'root_orient' and 'pose_body' must be (B, T, 3) and (B, T, 63) with (B, T) = "
+                         f"({n_tracks}, {n_frames}) of 'trans'")
+    betas = as_array(data["betas"], "betas", path, ndim=2)
+    if len(betas) != n_tracks:
+        raise fail(path, f"'betas' must be (B, S) with B = {n_tracks}, got {list(betas.shape)}")
+    intrins = as_array(data["intrins"], "intrins", path).reshape(-1)
+    if intrins.size < 4 or intrins.size % 4 or not np.all(np.isfinite(intrins[:4])) or np.any(intrins[:4] <= 0):
+        raise fail(path, "'intrins' must hold positive (fx, fy, cx, cy)")
+    cam_f = None
+    if "cam_f" in data:
+        cam_f = _per_frame(as_array(data["cam_f"], "cam_f", path), "cam_f", path, n_frames, (2,))
+    return _Params(trans, root_orient, pose_body.reshape(n_tracks, n_frames, 3 * _N_BODY_JOINTS), betas,
+                   _per_frame(as_array(data["cam_R"], "cam_R", path), "cam_R", path, n_frames, (3, 3)),
+                   _per_frame(as_array(data["cam_t"], "cam_t", path), "cam_t", path, n_frames, (3,)),
+                   intrins[:4], cam_f)
+
+
 def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     """SLAHMR world results (file, phase folder or run folder) -> contract frames in each image's camera."""
     path = find_results(src)
@@ -257,45 +298,26 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         raise fail(path, "SLAHMR's motion-prior results are in the prior's canonical frame: import the "
                          f"matching *{_WORLD_SUFFIX} instead")
     data = safe_pickle.load_npz(path, keys=_KEYS | {"track_mask", "cam_f"})  # other members are never read
-    missing = sorted(_KEYS - set(data))
-    if missing:
-        raise fail(path, f"not SLAHMR world results with cameras (missing {', '.join(missing)})")
+    params = _params(data, path)
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)
-    trans = as_array(data["trans"], "trans", path, ndim=3, last=(3,))
-    n_tracks, n_frames = trans.shape[:2]
-    root_orient = as_array(data["root_orient"], "root_orient", path, ndim=3, last=(3,))
-    pose_body = as_array(data["pose_body"], "pose_body", path)
-    if root_orient.shape[:2] != (n_tracks, n_frames) or pose_body.size != n_tracks * n_frames * 3 * _N_BODY_JOINTS:
-        raise fail(path, f"'root_orient' and 'pose_body' must be (B, T, 3) and (B, T, 63) with (B, T) = "
-                         f"({n_tracks}, {n_frames}) of 'trans'")
-    pose_body = pose_body.reshape(n_tracks, n_frames, 3 * _N_BODY_JOINTS)
-    betas = as_array(data["betas"], "betas", path, ndim=2)
-    if len(betas) != n_tracks:
-        raise fail(path, f"'betas' must be (B, S) with B = {n_tracks}, got {list(betas.shape)}")
-    cam_R = _per_frame(as_array(data["cam_R"], "cam_R", path), "cam_R", path, n_frames, (3, 3))
-    cam_t = _per_frame(as_array(data["cam_t"], "cam_t", path), "cam_t", path, n_frames, (3,))
-    intrins = as_array(data["intrins"], "intrins", path).reshape(-1)
-    if intrins.size < 4 or intrins.size % 4 or not np.all(np.isfinite(intrins[:4])) or np.any(intrins[:4] <= 0):
-        raise fail(path, "'intrins' must hold positive (fx, fy, cx, cy)")
-    intrins = intrins[:4]
-    cam_f = None
-    if "cam_f" in data:
-        cam_f = _per_frame(as_array(data["cam_f"], "cam_f", path), "cam_f", path, n_frames, (2,))
+    n_tracks, n_frames = params.trans.shape[:2]
     tracks = _tracks(path, data, n_tracks, n_frames, warnings)
 
+    intrins = params.intrins
     image_size = opts.image_size or (round(2 * intrins[2]), round(2 * intrins[3]))
-    focal, focal_per_frame, rule = _focal(intrins, cam_f, image_size, path, warnings)
+    focal, focal_per_frame, rule = _focal(intrins, params.cam_f, image_size, path, warnings)
     principal_point = (float(intrins[2]), float(intrins[3]))
     faces = model_faces(model, model.n_verts)
     names = frame_names([f"{tracks.first_image + t:06d}" for t in range(n_frames)], warnings)
 
     def build(index: int, notes: FrameNotes) -> Frame:
         keep = np.flatnonzero(tracks.present[:, index])
-        pose = pose_from_body(root_orient[keep, index], pose_body[keep, index], model.n_joints)
-        verts_world, joints_world = lbs(model, betas[keep], pose, trans[keep, index])
-        verts_cam = world_to_cam(verts_world, cam_R[index], cam_t[index])
-        joints_cam, _ = joints_to_smpl24(world_to_cam(joints_world, cam_R[index], cam_t[index]))
+        pose = pose_from_body(params.root_orient[keep, index], params.pose_body[keep, index], model.n_joints)
+        verts_world, joints_world = lbs(model, params.betas[keep], pose, params.trans[keep, index])
+        R_cam_from_world, t_cam_from_world = params.cam_R[index], params.cam_t[index]
+        verts_cam = world_to_cam(verts_world, R_cam_from_world, t_cam_from_world)
+        joints_cam, _ = joints_to_smpl24(world_to_cam(joints_world, R_cam_from_world, t_cam_from_world))
         extra = {} if focal_per_frame is None else {"focal_length": np.float64(focal_per_frame[index])}
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=verts_cam,
                             joints=joints_cam, person_ids=tracks.ids[keep], faces=faces, n_verts=model.n_verts,
@@ -312,10 +334,11 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         "keypoints_2d_layout": None,
         "feet_heads_from": feet_heads_from(None, True),
         "person_ids": f"SLAHMR track ids; people per frame from {tracks.source}",
-        "conventions": "camera frame = OpenCV, metres; vertices = cam_R[t] SMPL-H(root_orient, pose_body, betas) "
-                       "+ trans (world) + cam_t[t]; focal = intrins (SLAHMR default (W + H) / 2); frames named by "
-                       "image index in the shot (image names are not stored)",
+        "conventions": "camera frame = OpenCV, metres; vertices = cam_R[t] (SMPL-H(root_orient, pose_body, betas) "
+                       "+ trans) + cam_t[t] (world -> camera of image t); focal = intrins (SLAHMR default (W + H) / 2); "
+                       "frames named by image index in the shot (image names are not stored)",
     })
+
     def conclude(notes: list[FrameNotes]) -> Conclusion:
         return Conclusion(warnings=conclude_placement(notes, path))
 
