@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import io
 import math
+import pickle
 import struct
 import zipfile
 import zlib
@@ -64,7 +65,7 @@ from . import safe_pickle as _sp
 from .errors import InputError
 from .limits import human_bytes
 
-__all__ = ["load_torch", "load_torch_bytes", "is_torch_zip", "is_legacy_torch", "TORCH_GLOBALS", "MAGIC_NUMBER"]
+__all__ = ["MAGIC_NUMBER", "TORCH_GLOBALS", "is_legacy_torch", "is_torch_zip", "load_torch", "load_torch_bytes"]
 
 MAGIC_NUMBER = 0x1950A86A20F9469CFC6C  # torch/serialization.py
 PROTOCOL_VERSION = 1001  # torch/serialization.py (legacy stream)
@@ -78,7 +79,7 @@ class TorchDtype(str):
 
     stored: np.dtype
 
-    def __new__(cls, name: str, stored: str) -> "TorchDtype":
+    def __new__(cls, name: str, stored: str) -> TorchDtype:
         self = super().__new__(cls, f"torch.{name}")
         self.stored = np.dtype(stored)
         return self
@@ -558,7 +559,7 @@ def load_torch_bytes(data: bytes, source: str) -> Any:
     except _ERRORS as exc:
         raise InputError(f"{source}: torch archive: corrupt ({str(exc).splitlines()[0] or type(exc).__name__})") from None
     except (ValueError, TypeError, IndexError, AttributeError, struct.error, UnicodeDecodeError, OverflowError,
-            _sp.pickle.UnpicklingError) as exc:
+            pickle.UnpicklingError) as exc:
         detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"{source}: torch archive: not readable ({detail})") from None
 

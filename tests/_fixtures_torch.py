@@ -25,11 +25,10 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import _format_fixtures as F
 import numpy as np
 
-import _format_fixtures as F
 from rotavat_cli.formats.smpl import SMPL_PARENTS
-from rotavat_cli.rotations import axis_angle_to_matrix
 
 MAGIC_NUMBER = 0x1950A86A20F9469CFC6C
 PROTOCOL_VERSION = 1001
@@ -351,6 +350,5 @@ def bent_elbow_pose(n: int) -> np.ndarray:
     return pose
 
 
-__all__ = ["Storage", "Tensor", "Global", "Call", "tensor", "transposed", "torch_zip_bytes", "legacy_bytes",
-           "np_save_tensors", "write_synthetic_smplx", "gvhmr_K", "gvhmr_results", "write_gvhmr", "write_tram",
-           "bent_elbow_pose", "axis_angle_to_matrix"]
+__all__ = ["Call", "Global", "Storage", "Tensor", "bent_elbow_pose", "gvhmr_K", "gvhmr_results", "legacy_bytes",
+           "np_save_tensors", "tensor", "torch_zip_bytes", "transposed", "write_gvhmr", "write_synthetic_smplx", "write_tram"]

@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 import _format_fixtures as F
+import _fixtures_torch as T
 import _fixtures_pymafx_trace as PT
 import _fixtures_slahmr_glamr as SG
 import numpy as np
@@ -66,6 +67,10 @@ def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
         return F.write_agora(folder / "agora", scene)
     if fmt == "bedlam":
         return F.write_bedlam(folder / "scene.npz", scene)
+    if fmt == "gvhmr":  # one tracked person per frame: the scene's people one after another
+        return T.write_gvhmr(folder / "gvhmr", [p for frame in scene for p in frame], (W, H))
+    if fmt == "tram":
+        return T.write_tram(folder / "tram", scene, (W, H))
     if fmt == "pymafx":
         return PT.write_pymafx(folder / "output.pkl", scene, (W, H))
     if fmt == "trace":
@@ -96,6 +101,10 @@ def _expected(fmt: str, camera):
         return 18.0 / 36.0 * 3840, (1920, 1080), (3840, 2160)
     if fmt == "bedlam":
         return 28.0 / 36.0 * 1280, (640, 360), (1280, 720)
+    if fmt == "gvhmr":
+        return np.hypot(W, H), (W / 2, H / 2), (W, H)
+    if fmt == "tram":
+        return float(side), (W / 2, H / 2), (W, H)
     if fmt == "pymafx":
         return 5000.0, (W / 2, H / 2), (W, H)
     if fmt == "trace":
@@ -107,16 +116,24 @@ def _expected(fmt: str, camera):
     raise AssertionError(fmt)
 
 
+def _model_for(fmt: str, model_path: Path) -> Path:
+    """The model file a format's parameters need: GVHMR's are SMPL-X (the synthetic SMPL-X on the same mesh)."""
+    if fmt != "gvhmr":
+        return model_path
+    smplx = model_path.with_name("SMPLX_SYNTH.npz")
+    return smplx if smplx.exists() else T.write_synthetic_smplx(smplx, model_path)
+
+
 def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
     src = _write(fmt, tmp_path, scene, model, camera)
     if fmt in ("cliff", "multihmr"):
         kw.setdefault("image_size", (W, H))
     out = tmp_path / "out"
-    summary = import_sequence(src, out, fmt, smpl_model=model_path, **kw)
+    summary = import_sequence(src, out, fmt, smpl_model=_model_for(fmt, model_path), **kw)
     return src, out, summary
 
 
-ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace", "slahmr", "glamr"]
+ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace", "slahmr", "glamr", "gvhmr", "tram"]
 
 
 def test_available_formats():
@@ -136,11 +153,12 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
     assert seq.focal_kind == ("camera" if fmt in ("agora", "bedlam") else "assumed")
     assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans",
                                           "pymafx": "pymafx", "trace": "trace", "slahmr": "slahmr",
+                                          "gvhmr": "cliff", "tram": "tram",
                                           "glamr": "glamr"}.get(fmt)
     assert intr.image_size == size
     assert intr.focal_px == pytest.approx(focal, rel=1e-9)
     assert intr.principal_point == pytest.approx(pp, abs=1e-9)
-    people = [frame for frame in scene if frame]
+    people = [[p] for frame in scene for p in frame] if fmt == "gvhmr" else [frame for frame in scene if frame]
     frames = [f for f in seq.frames() if f.n_people]
     assert len(frames) == len(people)
     for frame, truth in zip(frames, people):
@@ -481,6 +499,12 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
         np.savez(results, **data)
     elif fmt == "glamr":
         src.write_bytes(F.evil_pickle(marker))
+    elif fmt == "gvhmr":  # torch archive: a code-running global in data.pkl
+        src.write_bytes(T.torch_zip_bytes({"smpl_params_incam": T.Call(T.Global("os", "system"), (f"touch {marker}",))},
+                                          name="hmr4d_results"))
+    elif fmt == "tram":  # np.save of a dict: a code-running global beside the tensors
+        T.np_save_tensors(src / "hps" / "hps_track_0.npy",
+                          {"pred_rotmat": T.Call(T.Global("os", "system"), (f"touch {marker}",))})
     elif fmt in ("cliff", "bedlam"):  # npz: an object member where arrays are expected
         data = dict(np.load(src, allow_pickle=False))
         obj = np.empty((), dtype=object)
@@ -624,6 +648,7 @@ def _report(result) -> dict:
 def test_from_gives_what_import_then_run_gives(fmt, tmp_path, model, camera, model_path, runner, monkeypatch):
     """calibrate/align/eval --from FMT give byte for byte the camera.yaml, aligned sequence and metrics
     of importing first; no temporary directory or file is made, the input is never touched."""
+    model_path = _model_for(fmt, model_path)
     (tmp_path / "in").mkdir()
     src = _write(fmt, tmp_path / "in", _from_scene(model, camera), model, camera)
     size = ["--image-size", W, H] if fmt in ("cliff", "multihmr") else []
@@ -666,6 +691,7 @@ def test_from_gives_what_import_then_run_gives(fmt, tmp_path, model, camera, mod
 @pytest.mark.parametrize("fmt", ALL)
 def test_imported_sequence_is_what_import_writes(fmt, tmp_path, model, camera, model_path):
     """Frame by frame (in any order, twice), meta.yaml content and camera: those of import + open_sequence."""
+    model_path = _model_for(fmt, model_path)
     src = _write(fmt, tmp_path, _from_scene(model, camera), model, camera)
     options = {"smpl_model": model_path, "image_size": (W, H) if fmt in ("cliff", "multihmr") else None}
     import_sequence(src, tmp_path / "out", fmt, **options)

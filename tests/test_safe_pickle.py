@@ -4,20 +4,22 @@ with a one-line InputError and without running any code."""
 from __future__ import annotations
 
 import io
-import re
-import zipfile
 import os
 import pickle
+import re
 import subprocess
+import tarfile
+import zipfile
 import zlib
 from collections import OrderedDict
 from pathlib import Path
 
+import _fixtures_torch as T
 import _format_fixtures as F
 import numpy as np
 import pytest
 
-from rotavat_cli import limits, safe_pickle
+from rotavat_cli import limits, safe_pickle, safe_torch
 from rotavat_cli.errors import InputError
 
 
@@ -273,10 +275,6 @@ def test_defaultdict_with_another_factory_is_refused():
 
 
 # ---- torch files (rotavat_cli.safe_torch): read without torch, written by hand (tests/_fixtures_torch.py) ----
-import _fixtures_torch as T  # noqa: E402
-
-from rotavat_cli import safe_torch  # noqa: E402
-
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
 
 
@@ -411,8 +409,6 @@ def test_other_torch_layouts_are_refused_by_name(tmp_path):
         archive.writestr("model/data.pkl", b"")
         archive.writestr("model/constants.pkl", b"")
     tar = io.BytesIO()
-    import tarfile
-
     with tarfile.open(fileobj=tar, mode="w") as archive:
         info = tarfile.TarInfo("storages")
         archive.addfile(info, io.BytesIO(b""))

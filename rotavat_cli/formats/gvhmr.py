@@ -89,7 +89,7 @@ def _intrinsics(K: np.ndarray, opts: ImportOptions, source: Path,
         raise fail(source, "'K_fullimg' must hold positive, finite focal lengths and principal points")
     if np.any(np.abs(K[:, 0, 0] - K[:, 1, 1]) > 1e-6 * focal):
         warnings.append(f"{source}: K_fullimg has fx != fy; using their mean")
-    stored = tuple(int(round(2 * float(c))) for c in np.median(principal, axis=0))
+    stored = tuple(round(2 * float(c)) for c in np.median(principal, axis=0))
     if opts.image_size is not None:
         if stored != opts.image_size:
             warnings.append(f"{source}: --image-size {opts.image_size[0]}x{opts.image_size[1]} differs from the "

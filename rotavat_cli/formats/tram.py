@@ -162,7 +162,7 @@ def read_tram(src: Path, opts: ImportOptions) -> ImportedSequence:
     images = _images(folder)
     stems = _frame_stems(images, None if rotation is None else len(rotation), tracks)
     header = image_size_from_header(images[0]) if images else None
-    centre_size = (int(round(2 * center[0])), int(round(2 * center[1])))
+    centre_size = (round(2 * float(center[0])), round(2 * float(center[1])))
     image_size = opts.image_size or header or centre_size
     size_from = "--image-size" if opts.image_size else "images/ header" if header else "2 x img_center (est_calib)"
     if image_size != centre_size:
