@@ -11,6 +11,7 @@ from pathlib import Path
 
 import _format_fixtures as F
 import _fixtures_torch as T
+import _fixtures_wham_hybrik as WH
 import _fixtures_pymafx_trace as PT
 import _fixtures_slahmr_glamr as SG
 import numpy as np
@@ -71,6 +72,10 @@ def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
         return T.write_gvhmr(folder / "gvhmr", [p for frame in scene for p in frame], (W, H))
     if fmt == "tram":
         return T.write_tram(folder / "tram", scene, (W, H))
+    if fmt == "wham":
+        return WH.write_wham(folder / "wham_output.pkl", scene)
+    if fmt == "hybrik":  # rows of one image are its people (the demo writes one per image)
+        return WH.write_hybrik(folder / "res.pk", scene, (W, H))
     if fmt == "pymafx":
         return PT.write_pymafx(folder / "output.pkl", scene, (W, H))
     if fmt == "trace":
@@ -105,6 +110,10 @@ def _expected(fmt: str, camera):
         return np.hypot(W, H), (W / 2, H / 2), (W, H)
     if fmt == "tram":
         return float(side), (W / 2, H / 2), (W, H)
+    if fmt == "wham":  # compute_cam_intrinsics: the image diagonal at the image centre
+        return np.hypot(W, H), (W / 2, H / 2), (W, H)
+    if fmt == "hybrik":  # no sequence focal: one per person in each frame, 1000 / 256 * box width
+        return None, (W / 2, H / 2), (W, H)
     if fmt == "pymafx":
         return 5000.0, (W / 2, H / 2), (W, H)
     if fmt == "trace":
@@ -126,14 +135,15 @@ def _model_for(fmt: str, model_path: Path) -> Path:
 
 def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
     src = _write(fmt, tmp_path, scene, model, camera)
-    if fmt in ("cliff", "multihmr"):
+    if fmt in ("cliff", "multihmr", "wham"):
         kw.setdefault("image_size", (W, H))
     out = tmp_path / "out"
     summary = import_sequence(src, out, fmt, smpl_model=_model_for(fmt, model_path), **kw)
     return src, out, summary
 
 
-ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace", "slahmr", "glamr", "gvhmr", "tram"]
+ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace", "slahmr", "glamr", "gvhmr", "tram",
+       "wham", "hybrik"]
 
 
 def test_available_formats():
@@ -153,15 +163,19 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
     assert seq.focal_kind == ("camera" if fmt in ("agora", "bedlam") else "assumed")
     assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans",
                                           "pymafx": "pymafx", "trace": "trace", "slahmr": "slahmr",
-                                          "gvhmr": "cliff", "tram": "tram",
+                                          "gvhmr": "cliff", "tram": "tram", "wham": "cliff",
                                           "glamr": "glamr"}.get(fmt)
     assert intr.image_size == size
-    assert intr.focal_px == pytest.approx(focal, rel=1e-9)
+    assert intr.focal_px == (None if focal is None else pytest.approx(focal, rel=1e-9))
     assert intr.principal_point == pytest.approx(pp, abs=1e-9)
     people = [[p] for frame in scene for p in frame] if fmt == "gvhmr" else [frame for frame in scene if frame]
     frames = [f for f in seq.frames() if f.n_people]
     assert len(frames) == len(people)
     for frame, truth in zip(frames, people):
+        if fmt == "hybrik":  # each person's own focal, from its box
+            focal = frame.intrinsics.focals_px(len(truth))
+            assert focal == pytest.approx([1000 / 256 * WH.hybrik_box_width(p) for p in truth], rel=1e-9)
+            focal = focal[:, None, None]
         expected_verts = np.stack([p.verts_cam for p in truth])
         expected_joints = np.stack([p.joints_cam for p in truth])
         np.testing.assert_allclose(frame.data["vertices"], expected_verts, atol=TOL_M)
@@ -177,7 +191,8 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
         if kp is not None and fmt != "romp":  # ROMP's 2D are weak-perspective
             proj = F.project(expected_joints, focal, pp)
             idx = {"spec": slice(25, 49), "4dhumans": slice(None, 24), "bedlam": slice(None, 24),
-                   "agora": slice(None, 24), "bev": slice(None, 24), "trace": slice(None, 24)}.get(fmt)
+                   "agora": slice(None, 24), "bev": slice(None, 24), "trace": slice(None, 24),
+                   "hybrik": slice(None, 24)}.get(fmt)
             if fmt == "multihmr":
                 proj = proj[:, :22]
                 idx = slice(None, 22)
@@ -187,7 +202,7 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
             if fmt == "glamr":  # body26fk: SMPL's joints at some of its slots only
                 proj = proj[:, list(SG.BODY26FK_SMPL.values())]
                 idx = list(SG.BODY26FK_SMPL)
-            np.testing.assert_allclose(kp[:, idx, :2], proj, atol=TOL_PX * max(1, focal / 1000))
+            np.testing.assert_allclose(kp[:, idx, :2], proj, atol=TOL_PX * max(1, np.max(focal) / 1000))
     assert summary["has_vertices"] and summary["joints_layout"].startswith("smpl24")
     assert invoke(runner, "info", out).exit_code == 0
 
@@ -476,7 +491,7 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
     src = _write(fmt, tmp_path, scene, model, camera)
     if fmt in ("bev", "romp"):
         F.evil_npz(sorted(src.glob("*.npz"))[0], marker)
-    elif fmt in ("4dhumans", "pymafx"):
+    elif fmt in ("4dhumans", "pymafx", "wham", "hybrik"):
         src.write_bytes(F.evil_pickle(marker))
     elif fmt == "trace":  # npz: the 'outputs' object member pickles a code-executing object
         obj = np.empty((), dtype=object)
@@ -651,7 +666,7 @@ def test_from_gives_what_import_then_run_gives(fmt, tmp_path, model, camera, mod
     model_path = _model_for(fmt, model_path)
     (tmp_path / "in").mkdir()
     src = _write(fmt, tmp_path / "in", _from_scene(model, camera), model, camera)
-    size = ["--image-size", W, H] if fmt in ("cliff", "multihmr") else []
+    size = ["--image-size", W, H] if fmt in ("cliff", "multihmr", "wham") else []
     opts = ["--from", fmt, "--smpl-model", model_path, *size]
     imported = tmp_path / "imported"
     import_sequence(src, imported, fmt, smpl_model=model_path, image_size=(W, H) if size else None)
@@ -693,7 +708,7 @@ def test_imported_sequence_is_what_import_writes(fmt, tmp_path, model, camera, m
     """Frame by frame (in any order, twice), meta.yaml content and camera: those of import + open_sequence."""
     model_path = _model_for(fmt, model_path)
     src = _write(fmt, tmp_path, _from_scene(model, camera), model, camera)
-    options = {"smpl_model": model_path, "image_size": (W, H) if fmt in ("cliff", "multihmr") else None}
+    options = {"smpl_model": model_path, "image_size": (W, H) if fmt in ("cliff", "multihmr", "wham") else None}
     import_sequence(src, tmp_path / "out", fmt, **options)
     written = open_sequence(tmp_path / "out")
     with imported_sequence(src, fmt, **options) as seq:

@@ -184,6 +184,7 @@ def test_wham_real_output_imports(tmp_path, runner):
     assert np.all((depth > 4.0) & (depth < 4.8))
     px = 800.0 * verts[..., :2] / verts[..., 2:3] + [320.0, 240.0]
     assert px.min() > 0 and px[..., 0].max() < 640 and px[..., 1].max() < 480  # WHAM's meshes lie on its image
+    assert np.all(verts[:, 412, 1] < verts[:, [3216, 6617], 1].min(axis=1))  # SMPL crown above the toes: y down
     stature = verts[..., 1].max(axis=1) - verts[..., 1].min(axis=1)
     assert np.all((stature > 1.5) & (stature < 1.9))
     assert all(f.data["person_ids"].tolist() == [0] for f in frames)
@@ -236,6 +237,8 @@ def test_hybrik_without_a_model_gives_its_network_joints(tmp_path, model, camera
     frame = next(open_sequence(tmp_path / "out").frames())
     np.testing.assert_allclose(frame.data["joints"][0], scene[0][0].joints_cam, atol=TOL_M)  # first 24 of 29
     assert frame.data["keypoints_2d"].shape == (1, 29, 2) and "vertices" not in frame.data
+    np.testing.assert_allclose(frame.data["heads_2d"], frame.data["keypoints_2d"][:, 24], atol=1e-4)  # head top
+    assert frame.data["feet_2d"][0, 1] > frame.data["keypoints_2d"][0, 7:9, 1].max()  # below the ankles
     assert not summary["has_vertices"] and any("smpl-model" in w for w in summary["warnings"])
 
 
@@ -391,8 +394,10 @@ def test_hybrik_real_output_imports(tmp_path, runner):
     assert np.all((joints[:, 0, 2] > 7.0) & (joints[:, 0, 2] < 10.0))
     head_to_toes = np.linalg.norm(raw["pred_xyz_29"][:, 24] - raw["pred_xyz_29"][:, 27:].mean(axis=1), axis=-1) * 2.2
     assert np.median(head_to_toes) == pytest.approx(1.65, abs=0.2)
+    # joints only: feet and heads from the 2D keypoints (hybrik29 recipe: head-top leaf for the crown)
+    assert seq.meta["import"]["feet_heads_from"].startswith("keypoints_2d, hybrik29")
+    heads = np.stack([f.data["heads_2d"][0] for f in frames])
+    np.testing.assert_allclose(heads, kp[:, 24], atol=1e-3)
     result = invoke(runner, "calibrate", out, "--out", tmp_path / "cam.yaml")
-    if result.exit_code == 2:  # joints only: no foot/head points until a 'hybrik29' keypoint recipe exists
-        assert "feet_2d" in _one_line_error(result)
-    else:
-        assert result.exit_code == 0, result.output
+    assert result.exit_code == 0, result.output
+    assert read_camera_yaml(tmp_path / "cam.yaml")[0].focal_px > 0

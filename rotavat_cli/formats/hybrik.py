@@ -54,7 +54,7 @@ from ..focal import ASSUMED, hybrik_focal_px
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
                       frame_names, get, model_faces, no_model_warning, people_frame, project_px)
-from .smpl import BodyModel, lbs, pose_to_matrices
+from .smpl import lbs, pose_to_matrices
 
 __all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px"]
 
