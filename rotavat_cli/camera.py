@@ -49,6 +49,7 @@ __all__ = [
     "reexpress_cam",
     "camera_parameters",
     "people_not_in_front",
+    "ROOT_CENTRED_M",
     "check_camera_bounds",
     "MAX_IMAGE_SIDE_PX",
     "MAX_FOCAL_PX",
@@ -179,28 +180,32 @@ def reexpress_cam(points_cam: np.ndarray, roots_cam: np.ndarray, focal_from_px: 
     return np.asarray(points_cam, dtype=np.float64) + (new_roots - roots)[..., None, :]
 
 
-ROOT_CENTRED_M = 0.3  # a body whose centre is this near the camera centre was never placed in the camera frame
+ROOT_CENTRED_M = 0.5  # a root this near the camera centre is a root-centred body, not a person in view
 
 
-def people_not_in_front(points_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def people_not_in_front(points_cam: np.ndarray, roots_cam: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Which people (P,) cannot be what the camera saw, from their points (P, N, 3) in the camera frame.
 
-    Returns ``(root_centred, behind)``: the body's centre lies within 0.3 m of the camera centre (a
-    root-centred output, its translation zero or never applied, e.g. AGORA's sample predictions),
-    and some of its points are at or behind the camera plane (z <= 0). Non-finite points are ignored.
+    Returns ``(root_centred, behind)``: the root (``roots_cam`` (P, 3), e.g. the pelvis joint;
+    default the mean of the points) lies within 0.5 m of the camera centre (a root-centred output,
+    its translation zero or never applied, e.g. AGORA's sample predictions); some of the points are
+    at or behind the camera plane (z <= 0). Non-finite points are ignored. Such people cannot be
+    calibrated from or aligned; root-aligned metrics (MPJPE, PVE, PA-*) still apply to them.
 
     >>> pts = np.array([[[0.0, -0.8, 0.1], [0.0, 0.9, -0.1]], [[0.2, -0.8, 5.0], [0.2, 0.9, 5.1]]])
     >>> [v.tolist() for v in people_not_in_front(pts)]
     [[True, False], [True, False]]
     """
     points = np.asarray(points_cam, dtype=np.float64)
-    if points.shape[0] == 0:
-        return np.zeros(0, bool), np.zeros(0, bool)
+    if points.shape[0] == 0 or points.shape[1] == 0:
+        return np.zeros(points.shape[0], bool), np.zeros(points.shape[0], bool)
     finite = np.isfinite(points).all(axis=-1)  # (P, N)
     with np.errstate(invalid="ignore"):
-        centre = np.where(finite[..., None], points, 0.0).sum(axis=1) / np.maximum(finite.sum(axis=1), 1)[:, None]
         behind = (finite & (points[..., 2] <= 0.0)).any(axis=1)
-    centred = finite.any(axis=1) & (np.linalg.norm(centre, axis=-1) < ROOT_CENTRED_M)
+        if roots_cam is None:
+            roots_cam = np.where(finite[..., None], points, 0.0).sum(axis=1) / np.maximum(finite.sum(axis=1), 1)[:, None]
+        distance = np.linalg.norm(np.asarray(roots_cam, dtype=np.float64), axis=-1)
+    centred = finite.any(axis=1) & (distance < ROOT_CENTRED_M)
     return centred, behind
 
 

@@ -59,7 +59,7 @@ PER_PERSON_KEYS: dict[str, tuple[int | None | tuple[int, ...], ...]] = {
     "person_ids": (),
 }
 # Keys where NaN marks a missing value instead of an error (undetected 2D keypoints).
-_NAN_ALLOWED = {"keypoints_2d"}
+_NAN_ALLOWED = {"keypoints_2d", "feet_2d", "heads_2d"}  # a person may lack a keypoint (NaN row)
 META_FILE = "meta.yaml"
 CAMERA_FILE = "camera.yaml"
 

@@ -10,11 +10,10 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 
-from rotavat_cli.camera import project_cam_to_px
+from rotavat_cli.camera import ROOT_CENTRED_M, project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
 from rotavat_cli.formats._common import (
-    ROOT_AT_CENTRE_M,
     feet_heads_from,
     people_frame,
     placement_warnings,
@@ -193,8 +192,6 @@ def test_people_frame_writes_feet_and_heads_without_meshes_only():
     assert feet_heads_from("nope", False) is None
 
 
-@pytest.mark.xfail(strict=True, reason="sequence.validate_frame refuses NaN in feet_2d/heads_2d until the lead adds "
-                                       "them to _NAN_ALLOWED (a missing recipe point is a NaN row by design)")
 def test_people_frame_keeps_a_person_missing_a_point_as_a_nan_row():
     kp = np.stack([_openpose_person(50), _openpose_person(150)])
     kp[1, 21] = np.nan
@@ -204,12 +201,12 @@ def test_people_frame_keeps_a_person_missing_a_point_as_a_nan_row():
 
 
 def test_unplaced_people_and_their_warning():
-    """Root within ROOT_AT_CENTRE_M of the camera centre, or any point at or behind the camera plane: not placed."""
+    """Root within ROOT_CENTRED_M of the camera centre, or any point at or behind the camera plane: not placed."""
     body = np.array([[0.0, 0.0, 0.0], [0.0, -0.9, 0.05], [0.0, 0.9, -0.05]])  # root first, metres
     joints = np.stack([body + [0, 0, 6.0],  # in front of the camera
                        body,  # root-centred: root at the camera centre (and half behind it)
-                       body + [0, 0, ROOT_AT_CENTRE_M - 0.1],  # root 0.4 m ahead: at the centre, all z > 0
-                       body + [0, 0, ROOT_AT_CENTRE_M + 0.1]])  # root 0.6 m ahead, all z > 0: placed
+                       body + [0, 0, ROOT_CENTRED_M - 0.1],  # root 0.4 m ahead: at the centre, all z > 0
+                       body + [0, 0, ROOT_CENTRED_M + 0.1]])  # root 0.6 m ahead, all z > 0: placed
     assert unplaced_people(None, joints).tolist() == [False, True, True, False]
     verts = joints.copy()
     verts[3, 2, 2] = -0.01  # one vertex behind the camera plane

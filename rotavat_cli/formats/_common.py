@@ -14,14 +14,13 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Camera, project_cam_to_px
+from ..camera import Camera, people_not_in_front, project_cam_to_px
 from ..errors import InputError
 from ..sequence import Frame, validate_frame
 from .keypoints import feet_heads_px, recipe_for
 from .smpl import BodyModel
 
 __all__ = [
-    "ROOT_AT_CENTRE_M",
     "Conclusion",
     "FrameNotes",
     "ImportOptions",
@@ -288,25 +287,17 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
 
 
 # ---- people not placed in the camera ---------------------------------------------------------
-ROOT_AT_CENTRE_M = 0.5  # a root this close to the camera centre is a root-centred body, not a person in view
-
-
 def unplaced_people(vertices_cam: np.ndarray | None, joints_cam: np.ndarray | None) -> np.ndarray:
-    """(P,) bool: people whose root (joint 0, else the vertices' mean) lies within ``ROOT_AT_CENTRE_M`` of
-    the camera centre, or with any point at or behind the camera plane (z <= 0).
+    """(P,) bool: people root-centred or (partly) behind the camera (:func:`rotavat_cli.camera.people_not_in_front`,
+    the root being joint 0 when there are joints, else the vertices' mean).
 
-    vertices_cam: (P, V, 3) or None; joints_cam: (P, J, 3) or None; camera frame, metres. Such people
-    were written without their translation (root-centred output) or in another frame: calibration
-    and align cannot use them, root-aligned metrics (MPJPE, PVE, PA-*) still can.
+    vertices_cam: (P, V, 3) or None; joints_cam: (P, J, 3) or None; camera frame, metres.
     """
     points = vertices_cam if vertices_cam is not None and vertices_cam.shape[1] else joints_cam
-    if points is None or len(points) == 0 or points.shape[1] == 0:
-        return np.zeros(0 if points is None else len(points), dtype=bool)
-    points = np.asarray(points, dtype=np.float64)
-    root = joints_cam[:, 0] if joints_cam is not None and joints_cam.shape[1] else points.mean(axis=1)
-    at_centre = np.linalg.norm(np.asarray(root, dtype=np.float64), axis=-1) < ROOT_AT_CENTRE_M
-    behind = (points[..., 2] <= 0.0).any(axis=1)
-    return at_centre | behind
+    if points is None:
+        return np.zeros(0, dtype=bool)
+    roots = joints_cam[:, 0] if joints_cam is not None and joints_cam.ndim == 3 and joints_cam.shape[1] else None
+    return np.logical_or(*people_not_in_front(points, roots))
 
 
 def placement_warnings(unplaced: int, people: int, source: Any) -> list[str]:

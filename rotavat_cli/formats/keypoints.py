@@ -202,6 +202,14 @@ _SMPLX144 = _SMPLX_SKELETON + _VERTEX_JOINTS21[:11] + _VERTEX_JOINTS21[11:] + tu
 # [411, 2445, 5905, 3216, 6617]): SMPL's 24 (HybrIK calls 15 'jaw' and 22/23 'thumb'), then head top,
 # middle fingers, big toes.
 _HYBRIK29 = SMPL_JOINT_NAMES + ("head_top_411", "left_middle", "right_middle", "left_big_toe", "right_big_toe")
+# TRACE's 44 (Arthur151/ROMP simple_romp/trace2 models/smpl.py): SMPL's 24, the first 11 vertex joints (face,
+# toes, heels) and SPIN's 9 regressor rows (head top at 38).
+_TRACE44 = SMPL_JOINT_NAMES + _VERTEX_JOINTS21[:11] + _REGRESSOR_EXTRA9
+# GLAMR's body26fk (NVlabs/GLAMR @8c2213f lib/models/smpl.py get_ordered_joint_names("body26fk")).
+_BODY26FK = ("pelvis_mpii", "left_hip", "right_hip", "spine_h36m", "left_knee", "right_knee", "neck", "left_ankle",
+             "right_ankle", "left_big_toe", "right_big_toe", "left_small_toe", "right_small_toe", "left_heel",
+             "right_heel", "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
+             "left_elbow", "right_elbow", "left_wrist", "right_wrist")
 
 LAYOUT_NAMES: dict[str, tuple[str, ...]] = {
     "openpose25": _OPENPOSE25,
@@ -217,6 +225,8 @@ LAYOUT_NAMES: dict[str, tuple[str, ...]] = {
     "smplx127": _SMPLX144[:127],
     "smplx144": _SMPLX144,
     "hybrik29": _HYBRIK29,
+    "trace44": _TRACE44,
+    "body26fk": _BODY26FK,
 }
 
 
@@ -265,9 +275,9 @@ def _recipe(layout: str, sole: PointRule, crown: PointRule, describes: str) -> K
 LAYOUTS: dict[str, KeypointRecipe] = {
     "openpose25": _recipe("openpose25", _feet_mean("openpose25"), _ears_crown("openpose25"), f"{_TXT_FEET}; {_TXT_EARS}"),
     **{name: _recipe(name, _feet_mean(name), mean_of(*_at(name, "head_top_lsp")), f"{_TXT_FEET}; {_TXT_LSP}")
-       for name in ("spin49", "phalp44", "phalp45", "romp54", "romp71")},
+       for name in ("spin49", "phalp44", "phalp45", "romp54", "romp71", "trace44")},
     **{name: _recipe(name, _feet_mean(name), _ears_crown(name), f"{_TXT_FEET}; {_TXT_EARS}")
-       for name in ("smpl45", "smplx127", "smplx144")},
+       for name in ("smpl45", "smplx127", "smplx144", "body26fk")},
     "coco17": _recipe(
         "coco17",
         extrapolated(_at("coco17", *_ANKLES), _at("coco17", *_HIPS), K_SOLE_COCO,
