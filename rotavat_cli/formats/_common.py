@@ -375,7 +375,7 @@ def base_meta(fmt: str, src: Path, opts: ImportOptions, image_size: tuple[int, i
 def no_model_warning(fmt: str) -> str:
     """The message for parameter-only formats imported without --smpl-model."""
     return (f"{fmt} stores SMPL parameters, not meshes, and no --smpl-model was given: imported joints only; "
-            "PVE/W-PVE and align (which needs meshes) will be unavailable")
+            "PVE/W-PVE are unavailable and align works at joint level (from the 2D keypoints' feet and heads)")
 
 
 def model_faces(model: BodyModel | None, n_verts: int | None) -> np.ndarray | None:
