@@ -102,11 +102,14 @@ def _choices() -> dict[str, tuple[str, ...]]:
     from .metrics import ENGINES
     from .metrics.evaluate import MATCHES, PROTOCOL_NAMES
     from .render import RENDERERS
+    from .render.sequences import GHOSTS, SCALES
+    from .render.views import FITS
 
     return {"calibrate.method": METHODS, "calibrate.residual": RESIDUALS, "calibrate.points": POINTS,
             "align.upright": UPRIGHT, "align.height_from": HEIGHT_FROM, "eval.match": MATCHES, "eval.engine": ENGINES,
             "eval.protocol": PROTOCOL_NAMES,
-            "render.renderer": RENDERERS, "batch.executor": EXECUTORS}
+            "render.renderer": RENDERERS, "render.fit": FITS, "render.scale": SCALES, "render.ghost": GHOSTS,
+            "batch.executor": EXECUTORS}
 
 
 def _check_type(default: Any, value: Any, key: str, source: str) -> Any:

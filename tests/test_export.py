@@ -61,9 +61,9 @@ def test_frustum_and_ground_geometry():
 def test_glb_round_trip(scene, tmp_path):
     before = tree_hash(scene)
     out = tmp_path / "frame.glb"
-    summary = export_frame(scene / "gt", out, frame=1)
-    assert summary["frame"] == "000001" and summary["people"] == 3
     seq = open_sequence(scene / "gt")
+    summary = export_frame(seq, out, frame=1)
+    assert summary["frame"] == "000001" and summary["people"] == 3 and summary["drawn_as"] == "mesh"
     cam = seq.camera
     W, H = cam.image_size
 

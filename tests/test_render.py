@@ -13,11 +13,15 @@ from PIL import Image
 from rotavat_cli.camera import Camera
 from rotavat_cli.config import default_config
 from rotavat_cli.errors import RotavatError
-from rotavat_cli.render import (REGISTRY, RENDERERS, VIEWS, FigureOptions, RenderStyle, RowFrame,
-                                clip_from_cam_perspective, fit_ortho_extent, front_view, horizontal_forward_world,
-                                open_rasterizer, ortho_basis_world, ortho_view, parse_views, person_colors,
-                                project_view_px, rasterize_numpy, read_row, render_grid, render_panel, scene_extents,
-                                select_frames)
+from rotavat_cli.landmarks import foot_head_points
+from rotavat_cli.render import (LABEL_PX, REGISTRY, RENDERERS, VIEWS, FigureOptions, RenderStyle, RowFrame,
+                                clip_from_cam_perspective, figure_steps, fit_ortho_extent, front_view,
+                                ground_truth_row, horizontal_forward_world, layout_bones, layout_name, metrics_caption,
+                                open_rasterizer, ortho_basis_world, ortho_view, parse_views, person_colors, plot_tracks,
+                                project_view_px, rasterize_numpy, read_row, render_grid, render_panel, render_sequences,
+                                scene_extents, select_frames, sequence_camera, sequence_tracks)
+from rotavat_cli.render.skeleton import JOINT_RADIUS_M
+from rotavat_cli.render.views import side_fov_px, tick_marks
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 from rotavat_cli.synth.bodies import load_bodies
@@ -64,6 +68,11 @@ def _people_row(camera: Camera, ground_xz: np.ndarray, ids: list[int], lift_m: l
     verts_cam = camera.cam_from_world(verts_world)
     return RowFrame(label, verts_cam, lib.faces, np.asarray(ids), camera.image_size, camera.focal_px,
                     camera.principal_point, camera)
+
+
+def _panel_top(i: int, height: int = SIZE[1]) -> int:
+    """First pixel row of grid row ``i``'s panels (header strip, then per row a caption strip and panels)."""
+    return LABEL_PX + i * (LABEL_PX + height) + LABEL_PX
 
 
 def _masks(panel: np.ndarray) -> np.ndarray:
@@ -161,7 +170,7 @@ def test_front_silhouettes_match_projected_bounds(rasterizer):
     cam = _camera()
     row = _people_row(cam, np.array([[-2.5, -9.0], [0.0, -7.0], [2.5, -11.0]]), [0, 1, 2])
     view = front_view(row, cam.image_size)  # panel = image size: pixels map one to one
-    panel = render_panel(row, view, rasterizer.rasterize, STYLE)
+    panel = render_panel(row, view, rasterizer.rasterize, STYLE, labels=False)
     masks = _masks(panel)
     for p in range(3):
         uv = cam.project(row.verts_cam[p])
@@ -175,7 +184,7 @@ def test_side_view_feet_on_ground_line_and_floating_shows(rasterizer):
     row = _people_row(cam, np.array([[0.0, -6.0], [0.5, -9.0], [-0.5, -12.0]]), [0, 1, 2], lift_m=[0.0, 0.0, 0.5])
     ext = scene_extents([row], ("side",), SIZE, STYLE.margin)["side"]
     view = ortho_view("side", cam, ext, SIZE)
-    panel = render_panel(row, view, rasterizer.rasterize, STYLE)
+    panel = render_panel(row, view, rasterizer.rasterize, STYLE, labels=False)
     ground = np.array([round(255 * c) for c in STYLE.ground])
     line_hits = (np.abs(panel.astype(int) - ground).max(axis=-1) <= 3).sum(axis=1)
     v_line = int(np.argmax(line_hits))  # the ground line: the row with most ground-coloured pixels
@@ -194,9 +203,9 @@ def test_top_view_places_people_and_camera(rasterizer):
     cam = _camera()
     ground_xz = np.array([[-3.0, -8.0], [0.0, -5.0], [3.0, -10.0]])
     row = _people_row(cam, ground_xz, [0, 1, 2])
-    ext = scene_extents([row], ("top",), SIZE, STYLE.margin)["top"]
+    ext = scene_extents([row], ("top",), SIZE, STYLE.margin, fit="camera")["top"]  # the camera in the window
     view = ortho_view("top", cam, ext, SIZE)
-    panel = render_panel(row, view, rasterizer.rasterize, STYLE)
+    panel = render_panel(row, view, rasterizer.rasterize, STYLE, labels=False)
     masks = _masks(panel)
     expected = project_view_px(view.clip_from_world, np.stack([ground_xz[:, 0], 0 * ground_xz[:, 0], ground_xz[:, 1]], 1), SIZE)
     for p in range(3):
@@ -212,8 +221,8 @@ def test_colors_follow_ids_not_order(rasterizer):
     row = _people_row(cam, np.array([[-2.5, -9.0], [0.0, -7.0], [2.5, -11.0]]), [0, 1, 2])
     flipped = RowFrame(row.label, row.verts_cam[::-1], row.faces, row.person_ids[::-1], row.image_size,
                        row.focal_px, row.principal_point, cam)
-    a = render_panel(row, front_view(row, SIZE), rasterizer.rasterize, STYLE).astype(int)
-    b = render_panel(flipped, front_view(flipped, SIZE), rasterizer.rasterize, STYLE).astype(int)
+    a = render_panel(row, front_view(row, SIZE), rasterizer.rasterize, STYLE, labels=False).astype(int)
+    b = render_panel(flipped, front_view(flipped, SIZE), rasterizer.rasterize, STYLE, labels=False).astype(int)
     assert np.mean(np.abs(a - b).max(axis=-1) > 8) < 0.002
     masks = _masks(a)
     assert all(m.sum() > 50 for m in masks)
@@ -225,7 +234,7 @@ def test_empty_frame_draws_the_scene_without_people(rasterizer):
     row = RowFrame("empty", np.zeros((0, lib.vertices.shape[1], 3)), lib.faces, np.zeros(0, int), cam.image_size,
                    cam.focal_px, cam.principal_point, cam)
     fig = render_grid([row], ("front", "side", "top"), SIZE, rasterizer.rasterize, STYLE)
-    assert fig.shape == (26 + SIZE[1], 26 + 3 * SIZE[0], 3)
+    assert fig.shape == (LABEL_PX + LABEL_PX + SIZE[1], 3 * SIZE[0], 3)
     assert not _masks(fig).any()
 
 
@@ -235,8 +244,8 @@ def test_renderers_agree():
     row = _people_row(cam, np.array([[-1.5, -5.0], [0.3, -5.5], [1.8, -6.0]]), [0, 1, 2])
     view = front_view(row, SIZE)
     with open_rasterizer("gl") as gl:
-        a = render_panel(row, view, gl.rasterize, STYLE)
-    b = render_panel(row, view, rasterize_numpy, STYLE)
+        a = render_panel(row, view, gl.rasterize, STYLE, labels=False)
+    b = render_panel(row, view, rasterize_numpy, STYLE, labels=False)
     ma, mb = _masks(a), _masks(b)
     for p in range(3):
         assert (ma[p] & mb[p]).sum() / (ma[p] | mb[p]).sum() > 0.9  # differences: anti-aliased edges only
@@ -249,9 +258,9 @@ def test_grid_shares_one_scale_across_rows():
     ext = scene_extents([near, far], ("side",), SIZE, STYLE.margin)["side"]
     alone = scene_extents([near], ("side",), SIZE, STYLE.margin)["side"]
     assert ext.px_per_m < alone.px_per_m  # the far row's person widens everyone's window
-    fig = render_grid([near, far], ("front", "side"), SIZE, rasterize_numpy, STYLE)
-    assert fig.shape == (26 + 2 * SIZE[1], 26 + 2 * SIZE[0], 3)
-    side = [fig[26 + i * SIZE[1]:26 + (i + 1) * SIZE[1], 26 + SIZE[0]:] for i in range(2)]
+    fig = render_grid([near, far], ("front", "side"), SIZE, rasterize_numpy, STYLE, labels=False)
+    assert fig.shape == (LABEL_PX + 2 * (LABEL_PX + SIZE[1]), 2 * SIZE[0], 3)
+    side = [fig[_panel_top(i):_panel_top(i) + SIZE[1], SIZE[0]:] for i in range(2)]
     h0 = np.ptp(np.nonzero(_masks(side[0])[0])[0])
     h1 = np.ptp(np.nonzero(_masks(side[1])[1])[0])
     assert abs(h0 - h1) <= 3  # same body height in px: one metric scale
@@ -276,7 +285,7 @@ def _lowest_rows(row: RowFrame, view, rasterize) -> list[int]:
     for p in range(len(row.person_ids)):
         alone = RowFrame(row.label, row.verts_cam[p:p + 1], row.faces, np.array([0]), row.image_size, row.focal_px,
                          row.principal_point, row.camera)
-        rows.append(int(_box(_masks(render_panel(alone, view, rasterize, STYLE))[0])[3]))
+        rows.append(int(_box(_masks(render_panel(alone, view, rasterize, STYLE, labels=False))[0])[3]))
     return rows
 
 
@@ -305,7 +314,7 @@ def test_cli_render_before_after_grid(runner, scene, tmp_path):
     assert summary["renderer"] in ("gl", "fallback") and summary["rows"] == ["pred", "gt"]
     assert summary["frames"] == ["000000", "000002"]
     with Image.open(tmp_path / "fig" / "000002.png") as img:
-        assert img.size == (26 + 3 * 200, 26 + 2 * 120)
+        assert img.size == (3 * 200, LABEL_PX + 2 * (LABEL_PX + 120))
     assert tree_hash(scene) == before
 
 
@@ -342,7 +351,7 @@ def test_cli_render_front_over_video_frame(runner, scene, tmp_path):
     invoke(runner, "render", scene / "pred", "--views", "front", "--image", frames, "--out", tmp_path / "fig",
            "--size", "320", "180", "--renderer", "fallback", "-q")
     with Image.open(tmp_path / "fig" / "000000.png") as img:
-        pixel = np.asarray(img)[26 + 5, 26 + 5].astype(int)  # image corner: no person there
+        pixel = np.asarray(img)[_panel_top(0) + 5, 5].astype(int)  # image corner: no person there
     assert np.abs(pixel - [255, 0, 255]).max() <= 8
 
 
@@ -375,7 +384,7 @@ def test_cli_renders_every_registry_view(runner, scene, tmp_path, name):
                            tmp_path / "fig", "--size", "64", "36", "--json"))
     assert summary["views"] == [name]
     with Image.open(summary["files"][0]) as img:
-        assert img.size == (26 + 64, 26 + 36)
+        assert img.size == (64, LABEL_PX + LABEL_PX + 36)
 
 
 def test_cli_refuses_an_unknown_view_listing_the_registry(runner, scene, tmp_path):
@@ -405,3 +414,333 @@ def test_render_and_export_read_a_tool_output_with_from(runner, tmp_path):
     e2 = invoke(runner, "export", imported, "--camera", cam, "--out", tmp_path / "b.glb", "-q")
     assert e1.exit_code == 0 and e2.exit_code == 0, e1.stderr + e2.stderr
     assert (tmp_path / "a.glb").read_bytes() == (tmp_path / "b.glb").read_bytes()
+
+
+# ---- issue 19: every sequence renderable, error visible ------------------------------------------
+def _joints_row(camera: Camera, ground_xz: np.ndarray, ids: list[int], label: str = "joints") -> RowFrame:
+    """SMPL-24 joints of the synthetic bodies standing at world ground points, no vertices."""
+    lib = load_bodies()
+    P = len(ids)
+    pos = np.stack([ground_xz[:, 0], np.zeros(P), ground_xz[:, 1]], axis=1)
+    joints_cam = camera.cam_from_world(lib.joints[np.arange(P) % len(lib)] + pos[:, None, :])
+    return RowFrame(label, np.zeros((P, 0, 3)), np.zeros((0, 3), np.int64), np.asarray(ids), camera.image_size,
+                    camera.focal_px, camera.principal_point, camera, joints_cam=joints_cam, joints_layout="smpl24")
+
+
+def test_joint_layouts_give_bones_by_name():
+    assert layout_bones("smpl24")[:4] == ((0, 1), (0, 2), (0, 3), (1, 4))  # SMPL's kintree: pelvis -> hips, spine
+    assert len(layout_bones("smpl24")) == 23 and len(layout_bones("smplx127")) == 21  # SMPL-X: no SMPL hand joints
+    assert (8, 9) in layout_bones("phalp44 (OpenPose-25 + 19 extra)")  # OpenPose mid_hip -> right_hip
+    assert layout_bones("cliff45x") is None and layout_bones(None) is None
+    assert layout_name(None, 24) == "smpl24" and layout_name("phalp44 (...)", 44) == "phalp44"
+    assert layout_name("phalp44", 10) is None  # a declared layout longer than the joints: not that layout
+
+
+def test_joints_only_row_draws_its_skeleton_where_the_joints_project(rasterizer):
+    cam = _camera()
+    row = _joints_row(cam, np.array([[-1.5, -5.0], [0.0, -5.5], [1.5, -6.5]]), [0, 1, 2])
+    assert row.kind == "skeleton"
+    panel = render_panel(row, front_view(row, cam.image_size), rasterizer.rasterize, STYLE, labels=False)
+    masks = _masks(panel)
+    for p in range(3):
+        uv = cam.project(row.joints_cam[p])
+        inside = np.floor(uv).astype(int)
+        hit = masks[p][inside[:, 1], inside[:, 0]]
+        assert hit.mean() >= 0.9, f"person {p}: {hit.sum()} of 24 joints covered"
+        r_px = 1.5 * JOINT_RADIUS_M * cam.focal_px / row.joints_cam[p, :, 2].min() + PX_TOL
+        expected = np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+        np.testing.assert_allclose(_box(masks[p]), expected + [-r_px, -r_px, r_px, r_px], atol=r_px)
+
+
+def test_joints_only_skeleton_stands_on_the_side_view_ground(rasterizer):
+    cam = _camera()
+    row = _joints_row(cam, np.array([[0.0, -6.0], [0.5, -9.0]]), [0, 1])
+    ext = scene_extents([row], ("side",), SIZE, STYLE.margin)["side"]
+    view = ortho_view("side", cam, ext, SIZE)
+    masks = _masks(render_panel(row, view, rasterizer.rasterize, STYLE, labels=False))
+    lib = load_bodies()
+    for p in range(2):
+        lowest_joint_m = lib.joints[p, :, 1].min()  # the feet joints' height above the ground
+        v_expected = project_view_px(view.clip_from_world, np.array([0.0, lowest_joint_m, 0.0]), SIZE)[1]
+        r_px = JOINT_RADIUS_M * ext.px_per_m
+        assert abs(_box(masks[p])[3] - v_expected) <= r_px + PX_TOL + 1
+
+
+def test_point_cloud_row_covers_the_mesh_silhouette(rasterizer):
+    cam = _camera()
+    mesh = _people_row(cam, np.array([[-1.0, -6.0], [1.2, -8.0]]), [0, 1])
+    cloud = RowFrame("cloud", mesh.verts_cam, np.zeros((0, 3), np.int64), mesh.person_ids, mesh.image_size,
+                     mesh.focal_px, mesh.principal_point, cam)
+    assert cloud.kind == "points"
+    view = front_view(mesh, cam.image_size)
+    a = _masks(render_panel(mesh, view, rasterizer.rasterize, STYLE, labels=False))
+    b = _masks(render_panel(cloud, view, rasterizer.rasterize, STYLE, labels=False))
+    for p in range(2):
+        assert (a[p] & b[p]).sum() / a[p].sum() > 0.9  # the points close into the body's shape...
+        assert (a[p] & b[p]).sum() / (a[p] | b[p]).sum() > 0.65  # ...a pixel thicker at most
+
+
+def test_person_ids_are_labelled_above_each_person():
+    cam = _camera()
+    row = _people_row(cam, np.array([[-2.5, -9.0], [2.5, -9.0]]), [4, 17])
+    view = front_view(row, cam.image_size)
+    bare = render_panel(row, view, rasterize_numpy, STYLE, labels=False).astype(int)
+    labelled = render_panel(row, view, rasterize_numpy, STYLE, labels=True).astype(int)
+    changed = np.abs(bare - labelled).max(axis=-1) > 30
+    for p in range(2):
+        uv = cam.project(row.verts_cam[p])
+        x0, x1, top = uv[:, 0].min(), uv[:, 0].max(), uv[:, 1].min()
+        ys, xs = np.nonzero(changed[:, int(x0) - 10:int(x1) + 10])
+        assert len(ys) > 10 and ys.max() <= top + 2 and ys.min() >= top - 25  # just above the head
+    assert not changed[int(cam.project(row.verts_cam).reshape(-1, 2)[:, 1].max()) + 3:].any()  # nothing below
+
+
+def test_default_palette_is_distinct_for_20_people():
+    palette = RenderStyle().palette
+    assert len(palette) >= 20 and len(set(palette)) == len(palette)
+
+    def lab(rgb):  # sRGB -> CIELAB (D65)
+        c = np.asarray(rgb, dtype=float)
+        lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+        xyz = lin @ np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]).T
+        f = np.cbrt(xyz / [0.95047, 1.0, 1.08883])
+        return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])], axis=-1)
+
+    L = lab(palette[:20])
+    d = np.linalg.norm(L[:, None] - L[None], axis=-1) + 1e9 * np.eye(20)
+    assert d.min() > 25  # clearly different colours (CIE76), the 12 of a crowd and more
+    assert np.linalg.norm(L - lab(RenderStyle().background), axis=-1).min() > 35  # and all stand out
+    assert len({tuple(c) for c in person_colors(np.arange(20), palette)}) == 20
+
+
+def test_tick_marks_are_metres_from_the_camera():
+    cam = _camera()
+    row = _people_row(cam, np.array([[0.0, -6.0], [1.0, -14.0]]), [0, 1])
+    for kind in ("side", "top"):
+        ext = scene_extents([row], (kind,), SIZE, STYLE.margin, fit="camera")[kind]
+        view = ortho_view(kind, cam, ext, SIZE)
+        xs, ys = tick_marks(view)
+        assert len(xs) >= 3 and len(ys) >= 2
+        step = xs[1][0] - xs[0][0]
+        assert step in (0.5, 1.0, 2.0, 5.0, 10.0)
+        B = ortho_basis_world(kind, cam)
+        foot = cam.center_world * [1, 0, 1]
+        for u, x in xs:  # panel x of tick u = the world point u metres along the panel's right axis
+            assert abs(project_view_px(view.clip_from_world, foot + u * B[0], SIZE)[0] - x) < 1e-6
+        for v, y in ys:
+            assert abs(project_view_px(view.clip_from_world, foot + v * B[1], SIZE)[1] - y) < 1e-6
+    side_ys = tick_marks(ortho_view("side", cam, scene_extents([row], ("side",), SIZE, 0.05)["side"], SIZE))[1]
+    ground_y = dict(side_ys)[0.0]  # the side view's height 0 is the ground line
+    assert abs(ground_y - project_view_px(ortho_view("side", cam, scene_extents([row], ("side",), SIZE, 0.05)["side"],
+                                                     SIZE).clip_from_world, np.zeros(3), SIZE)[1]) < 1e-6
+
+
+def test_side_view_draws_the_camera_at_its_height_and_its_field_of_view(rasterizer):
+    cam = Camera((320, 180), 200.0, None, np.deg2rad(20.0), 0.0, 4.0)  # no roll: edges at pitch +- vfov/2
+    row = _people_row(cam, np.array([[0.0, -8.0]]), [0])
+    ext = scene_extents([row], ("side",), SIZE, STYLE.margin, fit="camera")["side"]
+    view = ortho_view("side", cam, ext, SIZE)
+    panel = render_panel(row, view, rasterizer.rasterize, STYLE, labels=False).astype(int)
+    magenta = (np.abs(panel - [255, 0, 255]).max(axis=-1) <= 3)
+    cu, cv = project_view_px(view.clip_from_world, cam.center_world, SIZE)
+    assert magenta[int(cv), int(cu)]  # the camera dot at its position...
+    v_ground = project_view_px(view.clip_from_world, np.zeros(3), SIZE)[1]
+    assert abs((v_ground - cv) / ext.px_per_m - 4.0) < 0.02  # ...4 m above the ground line
+    wedge = side_fov_px(view, cam)  # camera, lower edge's ground hit, ..., upper edge's end
+    lower_deg = 20.0 + np.rad2deg(cam.vertical_fov_rad) / 2
+    hit_m = 4.0 / np.tan(np.deg2rad(lower_deg))  # where the lower edge meets the ground, ahead of the camera
+    np.testing.assert_allclose(wedge[1], project_view_px(view.clip_from_world, hit_m * ortho_basis_world("side", cam)[0],
+                                                         SIZE), atol=1e-6)
+    upper = wedge[-1] - wedge[0]
+    assert np.isclose(np.rad2deg(np.arctan2(-upper[1], upper[0])), np.rad2deg(cam.vertical_fov_rad) / 2 - 20.0, atol=1e-6)  # rising
+    # framed on the people, the camera is off the panel: a marker on the left edge at its height
+    ext = scene_extents([row], ("side",), SIZE, STYLE.margin)["side"]
+    view = ortho_view("side", cam, ext, SIZE)
+    cu, cv = project_view_px(view.clip_from_world, cam.center_world, SIZE)
+    assert cu < 0
+    panel = render_panel(row, view, rasterizer.rasterize, STYLE, labels=False).astype(int)
+    ys, xs = np.nonzero(np.abs(panel - [255, 0, 255]).max(axis=-1) <= 3)
+    near = xs < 20
+    assert near.sum() > 10 and abs(np.median(ys[near]) - np.clip(cv, 0, SIZE[1])) < 12
+
+
+def test_ghost_is_drawn_faintly_over_the_row_in_its_camera(rasterizer):
+    cam = _camera()
+    aligned = _people_row(cam, np.array([[0.0, -8.0]]), [0], label="aligned")
+    gt = _people_row(cam, np.array([[0.0, -9.0]]), [0], label="gt")  # the truth 1 m farther
+    row = RowFrame(aligned.label, aligned.verts_cam, aligned.faces, aligned.person_ids, aligned.image_size,
+                   aligned.focal_px, aligned.principal_point, cam, ghost=gt)
+    ext = scene_extents([row], ("side",), SIZE, STYLE.margin)["side"]  # the window holds the ghost too
+    view = ortho_view("side", cam, ext, SIZE)
+    plain = render_panel(aligned, view, rasterizer.rasterize, STYLE, labels=False).astype(float)
+    ghosted = render_panel(row, view, rasterizer.rasterize, STYLE, labels=False).astype(float)
+    truth = _masks(render_panel(gt, view, rasterizer.rasterize, STYLE, labels=False))[0]
+    body = _masks(plain.astype(np.uint8))[0]
+    only_ghost = truth & ~body
+    diff = np.abs(ghosted[only_ghost] - plain[only_ghost]).max(axis=-1)
+    assert only_ghost.sum() > 100 and np.mean(diff > 20) > 0.9  # the ghost shows where the truth is...
+    red = ghosted[only_ghost][:, 0] - ghosted[only_ghost][:, 1]
+    assert np.median(red) < 0.6 * 255  # ...faintly (its fill is mostly background)
+    assert np.abs(ghosted[body & ~truth] - plain[body & ~truth]).max() < 1.0  # the row's own body is untouched
+    front = front_view(row, cam.image_size)  # the camera's view: no ghost (every body fits its own pixels there)
+    assert np.array_equal(render_panel(row, front, rasterizer.rasterize, STYLE, labels=False),
+                          render_panel(aligned, front, rasterizer.rasterize, STYLE, labels=False))
+
+
+def test_front_view_frames_the_people_or_the_whole_image():
+    cam = Camera((3840, 2160), 1800.0, None, np.deg2rad(10.0), 0.0, 8.0)
+    row = _people_row(cam, np.array([[-3.0, -80.0], [3.0, -90.0]]), [0, 1])
+    uv = cam.project(row.verts_cam).reshape(-1, 2)
+    crop = scene_extents([row], ("front",), SIZE, STYLE.margin)["front"]
+    x0, y0, x1, y1 = crop.box_px
+    assert x0 <= uv[:, 0].min() and x1 >= uv[:, 0].max() and y0 <= uv[:, 1].min() and y1 >= uv[:, 1].max()
+    assert (x1 - x0) < 0.4 * 3840 and np.isclose((x1 - x0) / (y1 - y0), SIZE[0] / SIZE[1])
+    assert scene_extents([row], ("front",), SIZE, STYLE.margin, fit="camera")["front"] is None
+    tall = [np.ptp(np.nonzero(_masks(render_panel(row, front_view(row, SIZE, c), rasterize_numpy, STYLE, labels=False))[0])[0])
+            for c in (None, crop)]
+    assert tall[1] > 2.5 * tall[0]  # framed on the people, they are bigger
+
+
+def test_rows_are_placed_by_their_own_camera(runner, scene, tmp_path):
+    """--camera is for the rows without a camera.yaml: the ground truth stays in its true camera."""
+    from rotavat_cli.camera import camera_parameters
+    from rotavat_cli.sequence import write_camera_yaml
+
+    gt_cam = open_sequence(scene / "gt").camera
+    wrong = gt_cam.replace(pitch_rad=gt_cam.pitch_rad + np.deg2rad(5.0), height_m=gt_cam.height_m + 0.4)
+    write_camera_yaml(tmp_path / "wrong.yaml", wrong)
+    seqs = [open_sequence(scene / "pred"), open_sequence(scene / "gt")]
+    summary = render_sequences(seqs, tmp_path / "fig", FigureOptions(camera_path=tmp_path / "wrong.yaml",
+                                                                     views=("side",), renderer="fallback", size=(160, 90)))
+    p_wrong, p_gt = camera_parameters(wrong), camera_parameters(gt_cam)
+    assert f"pitch {p_wrong['pitch_deg']:.1f}°" in summary.captions["pred"]  # no camera.yaml: --camera
+    assert f"pitch {p_gt['pitch_deg']:.1f}°" in summary.captions["gt"] and f"height {p_gt['height_m']:.2f} m" in summary.captions["gt"]
+    assert summary.gt == "gt" and summary.captions["gt"].startswith("ground truth")
+    assert sequence_camera(seqs[1], tmp_path / "wrong.yaml") == gt_cam
+
+
+def test_captions_give_the_frame_metrics_against_the_ground_truth(scene, tmp_path):
+    from rotavat_cli.metrics.evaluate import evaluate
+
+    pred, gt = open_sequence(scene / "pred"), open_sequence(scene / "gt")
+    expected = evaluate(pred, gt, frames=(1, 2)).metrics  # frame 000001 alone
+    caption = metrics_caption(pred, gt, "000001")
+    assert f"W-MPJPE {expected['w_mpjpe']:.0f} mm" in caption and "(4/4 matched)" in caption
+    assert f"lean {expected['lean_deg']:.1f}°" in caption and f"foot height {expected['foot_height']:.0f} mm" in caption
+    assert expected["w_mpjpe"] > 100  # a raw prediction: the number says something
+    assert ground_truth_row("auto", ["pred", "gt"], []) == 1 and ground_truth_row("auto", ["a", "b"], []) is None
+    with pytest.raises(RotavatError, match="names no row"):
+        ground_truth_row("truth", ["pred", "gt"], [])
+
+
+def test_cli_ghost_needs_a_ground_truth_row(runner, scene, tmp_path):
+    result = invoke(runner, "render", scene / "pred", "--camera", scene / "gt" / "camera.yaml", "--ghost", "gt",
+                    "--out", tmp_path / "fig")
+    assert result.exit_code == 2 and "--ghost gt needs a ground-truth row" in result.stderr
+    assert len(result.stderr.strip().splitlines()) <= 3
+    summary = _json(invoke(runner, "render", scene / "pred", scene / "gt", "--camera", scene / "gt" / "camera.yaml",
+                           "--ghost", "gt", "--gt", "2", "--out", tmp_path / "fig2", "--size", "160", "90",
+                           "--renderer", "fallback", "--json"))
+    assert summary["gt"] == "gt" and "W-MPJPE" in summary["captions"]["pred"]
+
+
+def test_cli_joints_only_sequence_renders_every_view_and_exports(runner, tmp_path):
+    """A joints-only import (no vertices, no faces) renders in every view and exports as a skeleton."""
+    cam = _camera()
+    row = _joints_row(cam, np.array([[-1.0, -7.0], [1.5, -9.0]]), [3, 5])
+    seq = tmp_path / "joints"
+    seq.mkdir()
+    (seq / "meta.yaml").write_text("image_size: [320, 180]\nfocal_length: 200.0\nfocal_kind: camera\n"
+                                   "import: {format: test, joints_layout: smpl24}\n")
+    np.savez(seq / "000000.npz", joints=row.joints_cam.astype(np.float32), person_ids=np.array([3, 5]))
+    from rotavat_cli.sequence import write_camera_yaml
+
+    write_camera_yaml(seq / "camera.yaml", cam)
+    summary = _json(invoke(runner, "render", seq, "--out", tmp_path / "fig", "--size", "160", "90", "--renderer",
+                           "fallback", "--glb", "--json"))
+    assert summary["views"] == list(VIEWS) and (tmp_path / "fig" / "000000.png").exists()
+    result = invoke(runner, "export", seq, "--out", tmp_path / "s.glb", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["drawn_as"] == "skeleton"
+    import trimesh
+
+    loaded = trimesh.load(tmp_path / "s.glb", force="scene")
+    person = loaded.geometry["joints/person_5"]
+    transform, _ = loaded.graph["joints/person_5"]
+    pts = trimesh.transform_points(person.vertices, transform)
+    joints_world = cam.world_from_cam(row.joints_cam[1])
+    dist = np.linalg.norm(pts[:, None] - joints_world[None], axis=-1).min(axis=0)
+    assert dist.max() < 0.05  # a ball at every joint, in the world frame
+    assert abs(pts[:, 1].min() - (load_bodies().joints[1, :, 1].min() - JOINT_RADIUS_M)) < 0.01
+
+
+def test_cli_progress_counts_the_frames_and_out_keeps_no_stale_pictures(runner, scene, tmp_path):
+    seqs = [open_sequence(scene / "gt")]
+    calls = []
+    opts = FigureOptions(every=1, renderer="fallback", size=(64, 36), views=("side",))
+    assert figure_steps(seqs, opts) == 3
+    render_sequences(seqs, tmp_path / "a", opts, lambda: calls.append(1))
+    assert len(calls) == 3
+    opts = FigureOptions(every=1, renderer="fallback", size=(64, 36), views=("side",), plots=True)
+    calls.clear()
+    render_sequences(seqs, tmp_path / "b", opts, lambda: calls.append(1))
+    assert figure_steps(seqs, opts) == 6 == len(calls)  # 3 rendered frames + 3 frames read for the plots
+    out = tmp_path / "fig"
+    for frames in ("0,1", "2"):
+        result = invoke(runner, "render", scene / "gt", "--frames", frames, "--out", out, "--size", "64", "36",
+                        "--renderer", "fallback", "-q")
+        assert result.exit_code == 0, result.stderr
+    assert sorted(p.name for p in out.glob("*.png")) == ["000002.png"]
+
+
+def test_track_plots_measure_foot_height_lean_and_stature(scene, tmp_path):
+    gt = open_sequence(scene / "gt")
+    tracks = sequence_tracks(gt, gt.camera, "gt")
+    assert tracks.ids == [0, 1, 2, 3] and tracks.source == "mesh landmarks"
+    heights = np.array([v for series in tracks.values["foot_height_m"].values() for _, v in series])
+    leans = np.array([v for series in tracks.values["lean_deg"].values() for _, v in series])
+    assert len(heights) == 12 and np.abs(heights).max() < 0.02 and leans.max() < 3.0  # the truth stands upright on the ground
+    frame = gt.read_frame("000000")
+    feet, heads = foot_head_points(frame.data["vertices"])
+    stature = dict(tracks.values["stature_m"][int(frame.person_ids[0])])[0]
+    assert stature == pytest.approx(np.linalg.norm(heads[0] - feet[0]))
+    png = plot_tracks(tmp_path / "t.png", tracks, RenderStyle().palette)
+    with Image.open(png) as img:
+        assert img.size == (900, 720)
+        pixels = np.asarray(img.convert("RGB")).reshape(-1, 3)
+    for rgb in person_colors(np.array(tracks.ids), RenderStyle().palette):  # one line per track, in its colour
+        assert (np.abs(pixels.astype(int) - np.round(255 * np.asarray(rgb))).max(axis=1) <= 2).sum() > 50
+
+
+def test_mp4_is_the_rendered_frames(runner, scene, tmp_path):
+    av = pytest.importorskip("av")
+    summary = _json(invoke(runner, "render", scene / "gt", "--every", "1", "--mp4", "--out", tmp_path / "fig",
+                           "--size", "81", "45", "--views", "side", "--renderer", "fallback", "--json"))
+    assert str(tmp_path / "fig" / "render.mp4") in summary["files"]
+    with av.open(str(tmp_path / "fig" / "render.mp4")) as container:
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+    assert len(frames) == 3 and frames[0].shape == (LABEL_PX + LABEL_PX + 46, 82, 3)  # padded to even sizes
+    with Image.open(tmp_path / "fig" / "000000.png") as img:
+        png = np.asarray(img).astype(int)
+    assert np.abs(frames[0][:png.shape[0], :png.shape[1]].astype(int) - png).mean() < 12  # lossy, but the same picture
+
+
+def test_mp4_without_the_extra_says_how_to_install(runner, scene, tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "av", None)  # as without rotavat[video]: import fails
+    result = invoke(runner, "render", scene / "gt", "--mp4", "--out", tmp_path / "fig")
+    assert result.exit_code == 2 and "pip install 'rotavat[video]'" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "fig").exists()
+
+
+def test_scale_row_gives_each_row_its_window(scene, tmp_path):
+    seqs = [open_sequence(scene / "pred"), open_sequence(scene / "gt")]
+    cam = seqs[1].camera
+    rows = [read_row(s, "000000", s.path.name, cam) for s in seqs]
+    own = [scene_extents([r], ("side",), SIZE, STYLE.margin)["side"] for r in rows]
+    shared = scene_extents(rows, ("side",), SIZE, STYLE.margin)["side"]
+    assert max(e.px_per_m for e in own) > 1.5 * shared.px_per_m  # the prediction's depth error widens a shared window
+    figure = render_sequences(seqs, tmp_path / "fig", FigureOptions(views=("side",), renderer="fallback", size=SIZE,
+                                                                    camera_path=scene / "gt" / "camera.yaml"))
+    assert figure.rows == ["pred", "gt"]

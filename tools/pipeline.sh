@@ -26,8 +26,10 @@ echo "== 3. RotAvat: re-seat every mesh on the ground"
 echo "== 4. evaluate before and after against the ground truth"
 "$rotavat" eval "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --out "$out/eval"
 
-echo "== 5. render the before/after figure (rows: prediction, aligned, ground truth)"
-"$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --frames 0 \
+echo "== 5. render the before/after figure (rows: prediction, aligned, ground truth; the truth as a ghost over the others)"
+# each row in its own camera: the prediction in the estimated one (--camera), the aligned output in the camera it
+# was aligned with, the ground truth in the true one (gt/camera.yaml)
+"$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --ghost gt --frames 0 \
   --size 480 270 --out "$out/figure"
 
 echo
@@ -35,5 +37,5 @@ echo "outputs in $out/:"
 echo "  camera.yaml          the estimated camera"
 echo "  pred_aligned/        aligned meshes (npz), camera.yaml, people.csv"
 echo "  eval/metrics.md      before/after metrics (also metrics.json)"
-echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth"
+echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth (errors in the row captions)"
 exit 0

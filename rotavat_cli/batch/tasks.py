@@ -251,6 +251,8 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         camera = out / "aligned" / "camera.yaml" if "align" in steps else state["camera_file"]
         with input_errors():
             figure = FigureOptions.from_config(plan["config"]["render"], Path(camera) if camera else None)
+        # the last row is the ground truth (its folder is rarely named gt): each row in its own camera
+        figure = replace(figure, gt=str(len(paths)) if job["gt"] else "none")
         with staged_directory(out / "render", "render") as staging:
             summary = render_sequences([open_sequence(p) for p in paths], staging, figure)
         row["render"] = {"renderer": summary.renderer, "files": [Path(f).name for f in summary.files]}

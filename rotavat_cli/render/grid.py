@@ -164,7 +164,7 @@ def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderSt
     base = np.asarray(img, dtype=np.float32) / 255.0
     alpha = layer[..., 3:4]
     out = base * (1.0 - alpha) + layer[..., :3] * alpha
-    if row.ghost is not None:
+    if row.ghost is not None and spec.shows_ghost:
         out = _ghost_over(out, _mesh_layer(_row_mesh(row.ghost, style, view), view, rasterize), style)
     img = Image.fromarray(np.round(255.0 * np.clip(out, 0.0, 1.0)).astype(np.uint8))
     spec.over(img, view, row, style)

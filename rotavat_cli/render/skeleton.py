@@ -9,7 +9,7 @@ take them unchanged:
   layout's joint *names* (:data:`rotavat_cli.formats.keypoints.LAYOUT_NAMES`), so one bone list per
   skeleton family serves every layout that carries its joints (SMPL-24, SMPL-45, SMPL-X and
   HybrIK-29 share SMPL's kinematic tree; OpenPose-25, SPIN-49 and PHALP-44 share OpenPose's);
-- **points**: an icosahedron per joint of a layout without bones, or per vertex of a point cloud.
+- **points**: an icosahedron per joint of a layout without bones, an octahedron per vertex of a point cloud.
 
 Sizes are in metres, times a per-person ``scale`` >= 1 with which the caller keeps them at least a
 pixel or so thick in its view (rotavat_cli.render.grid), so a skeleton 30 px tall is still visible.
@@ -144,19 +144,28 @@ def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
     return v / np.linalg.norm(v, axis=1, keepdims=True), f
 
 
-_BALL_V, _BALL_F = _icosahedron()
+def _octahedron() -> tuple[np.ndarray, np.ndarray]:
+    """Unit octahedron: (6, 3) vertices, (8, 3) faces (point clouds: thousands of them per person)."""
+    v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]], dtype=np.int64)
+    return v, f
+
+
+_BALL = _icosahedron()  # joints
+_DOT = _octahedron()  # points: 8 triangles instead of 20 (a 1 cm ball shows no facets)
 _TUBE_SIDES = 6
 
 
-def _balls(centres: np.ndarray, radius: np.ndarray, person: np.ndarray) -> Shapes:
-    """An icosahedron of ``radius`` (M,) around each of ``centres`` (M, 3)."""
+def _balls(centres: np.ndarray, radius: np.ndarray, person: np.ndarray, shape: tuple = _BALL) -> Shapes:
+    """A ``shape`` (unit vertices, faces) of ``radius`` (M,) around each of ``centres`` (M, 3)."""
+    unit_v, unit_f = shape
     M = len(centres)
     if M == 0:
         return Shapes.empty()
-    points = centres[:, None, :] + radius[:, None, None] * _BALL_V[None]
-    faces = (_BALL_F[None] + len(_BALL_V) * np.arange(M)[:, None, None]).reshape(-1, 3)
-    return Shapes(points.reshape(-1, 3), faces, np.repeat(person, len(_BALL_V)),
-                  np.broadcast_to(_BALL_V, (M, len(_BALL_V), 3)).reshape(-1, 3).copy())
+    points = centres[:, None, :] + radius[:, None, None] * unit_v[None]
+    faces = (unit_f[None] + len(unit_v) * np.arange(M)[:, None, None]).reshape(-1, 3)
+    return Shapes(points.reshape(-1, 3), faces, np.repeat(person, len(unit_v)),
+                  np.broadcast_to(unit_v, (M, len(unit_v), 3)).reshape(-1, 3).copy())
 
 
 def _tubes(a: np.ndarray, b: np.ndarray, radius: np.ndarray, person: np.ndarray) -> Shapes:
@@ -218,4 +227,4 @@ def point_shapes(points_cam: np.ndarray, scale: np.ndarray) -> Shapes:
     finite = np.isfinite(pts).all(axis=-1)
     person = np.broadcast_to(np.arange(P)[:, None], (P, N))
     radius = POINT_RADIUS_M * np.broadcast_to(np.asarray(scale, float)[:, None], (P, N))
-    return _balls(pts[finite], radius[finite], person[finite])
+    return _balls(pts[finite], radius[finite], person[finite], _DOT)

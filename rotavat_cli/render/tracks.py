@@ -35,9 +35,10 @@ from .style import RGB, font, person_colors, rgb8
 
 __all__ = ["TRACK_SERIES", "Tracks", "sequence_tracks", "plot_tracks"]
 
-# (key, panel title, unit, reference line): what the plot shows, top to bottom
-TRACK_SERIES = (("foot_height_m", "foot height above the ground", "m", 0.0), ("lean_deg", "lean from vertical", "°", 0.0),
-                ("stature_m", "stature (mid-sole to crown)", "m", None))
+# (key, panel title, unit, reference line, smallest span shown): what the plot shows, top to bottom
+TRACK_SERIES = (("foot_height_m", "foot height above the ground", "m", 0.0, 0.1),
+                ("lean_deg", "lean from vertical", "°", 0.0, 2.0),
+                ("stature_m", "stature (mid-sole to crown)", "m", None, 0.1))
 
 
 @dataclass
@@ -88,7 +89,7 @@ def sequence_tracks(seq: Sequence, camera: Camera, label: str, progress: Callabl
     return tracks
 
 
-def _panel(draw, box: tuple[int, int, int, int], title: str, unit: str, ref: float | None,
+def _panel(draw, box: tuple[int, int, int, int], title: str, unit: str, ref: float | None, min_span: float,
            series: dict[int, list[tuple[int, float]]], n_frames: int, colors: dict[int, RGB], face, small) -> None:
     """One plot panel inside ``box`` (x0, y0, x1, y1): axes, ticks, reference line, one line per track."""
     x0, y0, x1, y1 = box
@@ -96,8 +97,8 @@ def _panel(draw, box: tuple[int, int, int, int], title: str, unit: str, ref: flo
     lo, hi = (min(values), max(values)) if values else (0.0, 1.0)
     if ref is not None:
         lo, hi = min(lo, ref), max(hi, ref)
-    pad = max(0.05 * (hi - lo), 1e-3)
-    lo, hi = lo - pad, hi + pad
+    grow = max(0.05 * (hi - lo), 0.5 * (min_span - (hi - lo)), 0.0)  # millimetre noise is not drawn as a cliff
+    lo, hi = lo - grow, hi + grow
     draw.text((x0, y0 - 4), f"{title} ({unit})", fill=(34, 34, 34), font=face, anchor="ld")
     draw.rectangle([x0, y0, x1, y1], outline=(150, 150, 150))
     to_x = lambda i: x0 + (x1 - x0) * (i / max(n_frames - 1, 1))  # noqa: E731
@@ -133,10 +134,10 @@ def plot_tracks(path: Path, tracks: Tracks, palette: tuple[RGB, ...], size: tupl
               fill=(34, 34, 34), font=face)
     left, right, top, legend_h = 60, W - 20, 56, 28
     slot = (H - top - legend_h - 30) / len(TRACK_SERIES)
-    for k, (key, name, unit, ref) in enumerate(TRACK_SERIES):
+    for k, (key, name, unit, ref, min_span) in enumerate(TRACK_SERIES):
         y0 = int(top + k * slot)
-        _panel(draw, (left, y0, right, int(y0 + slot - 34)), name, unit, ref, tracks.values[key], tracks.n_frames,
-               colors, face, small)
+        _panel(draw, (left, y0, right, int(y0 + slot - 34)), name, unit, ref, min_span, tracks.values[key],
+               tracks.n_frames, colors, face, small)
     y_axis = H - legend_h - 22
     draw.text(((left + right) / 2, y_axis), "frame", fill=(34, 34, 34), font=small, anchor="mt")
     draw.text((left, y_axis), "0", fill=(34, 34, 34), font=small, anchor="mt")

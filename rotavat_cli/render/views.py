@@ -36,7 +36,7 @@ from .geometry import (UP_WORLD, FrontCrop, OrthoExtent, PanelView, clip_from_ca
 from .style import RenderStyle, font, mix, rgb8
 
 __all__ = ["RowFrame", "Ortho", "View", "REGISTRY", "VIEWS", "FITS", "view_specs", "parse_views", "ortho_basis_world",
-           "ortho_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers"]
+           "ortho_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers", "tick_marks", "side_fov_px"]
 
 FITS = ("people", "camera")  # what windows are fitted on: the people, or also the camera (whole image, camera in view)
 _LIGHT_RAISE = 0.4  # the light sits this much above the eye (fraction of the viewing direction)
@@ -110,6 +110,7 @@ class View:
     under: Draw  # background, before the people
     over: Draw  # annotations, after the people
     ortho: Ortho | None = None  # None: the camera's own view (perspective; needs no camera.yaml)
+    shows_ghost: bool = True  # draw a row's ghost (the camera's view does not: there every body fits its pixels)
 
     @property
     def needs_camera(self) -> bool:
@@ -261,26 +262,30 @@ def _tick_step_m(view: PanelView) -> float:
     return nice_length_m(view.size[0] / view.px_per_m / _TICKS_PER_PANEL)
 
 
-def _ticks(draw: Any, view: PanelView, style: RenderStyle, x_name: str, y_name: str) -> None:
-    """Metre tick labels along the bottom (panel right axis) and left (panel up axis) edges. Both views
-    measure from the camera: its centre is at 0 on their right axis and on the top view's up axis;
-    the side view's up axis is the height above the ground."""
+def tick_marks(view: PanelView) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+    """Metric ticks of an orthographic panel: ([(metres, panel x px)], [(metres, panel y px)]) along its
+    right and up axes, every :func:`_tick_step_m`. Both views measure from the camera: its centre is at
+    0 on their right axis and on the top view's up axis; the side view's up axis is the height above
+    the ground."""
     W, H = view.size
     (uc, vc), s = view.extent.center_m, view.px_per_m
     step = _tick_step_m(view)
-    f_px = _font_px(view)
-    ink = rgb8(style.text)
     xs = [k * step for k in range(math.ceil((uc - W / 2 / s) / step), math.floor((uc + W / 2 / s) / step) + 1)]
     ys = [k * step for k in range(math.ceil((vc - H / 2 / s) / step), math.floor((vc + H / 2 / s) / step) + 1)]
-    to_x = lambda u: W / 2 + (u - uc) * s  # noqa: E731
-    to_y = lambda v: H / 2 - (v - vc) * s  # noqa: E731
-    for u in xs:
-        x = to_x(u)
+    return [(u, W / 2 + (u - uc) * s) for u in xs], [(v, H / 2 - (v - vc) * s) for v in ys]
+
+
+def _ticks(draw: Any, view: PanelView, style: RenderStyle, x_name: str, y_name: str) -> None:
+    """Metre tick labels along the bottom (panel right axis) and left (panel up axis) edges (:func:`tick_marks`)."""
+    W, H = view.size
+    f_px = _font_px(view)
+    ink = rgb8(style.text)
+    xs, ys = tick_marks(view)
+    for u, x in xs:
         if f_px < x < W - 3 * f_px:
             draw.line([(x, H - 4), (x, H)], fill=ink, width=1)
             _label(draw, (x, H - 5), f"{u:g}", ink, f_px - 2, "md")
-    for v in ys:
-        y = to_y(v)
+    for v, y in ys:
         if 2 * f_px < y < H - 2 * f_px:
             draw.line([(0, y), (4, y)], fill=ink, width=1)
             _label(draw, (6, y), f"{v:g}", ink, f_px - 2, "lm")
@@ -312,7 +317,8 @@ def _camera_glyph(draw: Any, view: PanelView, camera: Camera, style: RenderStyle
     draw.polygon(tri, fill=ink, outline=(255, 255, 255))
     dist_m = float(np.linalg.norm((c - edge)) / view.px_per_m)
     anchor = ("l" if d[0] <= 0 else "r") + ("t" if d[1] <= 0 else "b")
-    text_xy = (edge[0] - (r + 3) * np.sign(d[0] or -1), edge[1] - (r + 3) * np.sign(d[1] or -1))
+    text_xy = (edge[0] - (r + 3) * np.sign(d[0] or -1),  # toward the panel's inside; below the axis name at the top
+               edge[1] - (r + 3) * np.sign(d[1] or -1) + (f_px + 4 if edge[1] < 3 * f_px else 0))
     _label(draw, text_xy, f"camera {dist_m:.1f} m", ink, f_px, {"lt": "la", "rt": "ra", "lb": "ld", "rb": "rd"}[anchor])
 
 
@@ -357,23 +363,20 @@ def _side_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) ->
     W, H = view.size
     draw = _draw(img)
     _grid_lines(draw, view, style)
-    draw.polygon([tuple(p) for p in _side_fov_px(view, row.camera)], fill=(*rgb8(style.camera), 16))
+    draw.polygon([tuple(p) for p in side_fov_px(view, row.camera)], fill=(*rgb8(style.camera), 16))
     v_ground = float(project_view_px(view.clip_from_world, np.zeros(3), view.size)[1])
     draw.rectangle([0, v_ground, W, H], fill=rgb8(mix(style.background, style.ground, 0.25)))
     draw.line([(0, v_ground), (W, v_ground)], fill=rgb8(style.ground), width=2)
 
 
 def _grid_lines(draw: Any, view: PanelView, style: RenderStyle) -> None:
-    """Faint grid lines at the tick positions (labels come after the people)."""
+    """Faint grid lines at the ticks (their labels come after the people)."""
     W, H = view.size
-    (uc, vc), s = view.extent.center_m, view.px_per_m
-    step = _tick_step_m(view)
     ink = (*rgb8(mix(style.background, style.grid, 0.6)), 255)
-    for k in range(math.ceil((uc - W / 2 / s) / step), math.floor((uc + W / 2 / s) / step) + 1):
-        x = W / 2 + (k * step - uc) * s
+    xs, ys = tick_marks(view)
+    for _, x in xs:
         draw.line([(x, 0), (x, H)], fill=ink, width=1)
-    for k in range(math.ceil((vc - H / 2 / s) / step), math.floor((vc + H / 2 / s) / step) + 1):
-        y = H / 2 - (k * step - vc) * s
+    for _, y in ys:
         draw.line([(0, y), (W, y)], fill=ink, width=1)
 
 
@@ -389,7 +392,7 @@ def _side_fov_edges_world(camera: Camera) -> np.ndarray:
     return rays_world[[int(np.argmin(elevation)), int(np.argmax(elevation))]]
 
 
-def _side_fov_px(view: PanelView, camera: Camera) -> np.ndarray:
+def side_fov_px(view: PanelView, camera: Camera) -> np.ndarray:
     """(K, 2) panel polygon of the camera's field of view from the side, cut at the ground and far off:
     the camera, where the lower edge meets the ground (or its far end), along the ground (when only the
     lower edge meets it), the upper edge's ground hit or far end."""
@@ -413,12 +416,12 @@ def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     """Ticks, the camera (edges of its field of view, viewing direction, position) and its numbers."""
     camera = row.camera
     draw = _draw(img)
-    wedge = _side_fov_px(view, camera)
+    wedge = side_fov_px(view, camera)
     ink = rgb8(style.camera)
     for end in (wedge[1], wedge[-1]):  # the edges of the field of view
         draw.line([tuple(wedge[0]), tuple(end)], fill=(*ink, 150), width=1)
-    _camera_glyph(draw, view, camera, style, camera.center_world)
     _ticks(draw, view, style, "ahead of the camera", "height")
+    _camera_glyph(draw, view, camera, style, camera.center_world)
     _label(draw, (view.size[0] - 4, 4), "camera: " + camera_numbers(camera), ink, _font_px(view) - 2, "ra")
 
 
@@ -454,13 +457,13 @@ def _top_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
 def _top_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
     """The camera (dot + viewing direction, or an edge marker) and the ticks."""
     draw = _draw(img)
-    _camera_glyph(draw, view, row.camera, style, row.camera.center_world * [1.0, 0.0, 1.0])
     _ticks(draw, view, style, "right of the camera", "ahead")
+    _camera_glyph(draw, view, row.camera, style, row.camera.center_world * [1.0, 0.0, 1.0])
 
 
 # ---- the registry ------------------------------------------------------------------------------------
 REGISTRY: dict[str, View] = {view.name: view for view in (
-    View("front", "front (camera view)", _front_under, _front_over),
+    View("front", "front (camera view)", _front_under, _front_over, shows_ghost=False),
     View("side", "side (orthographic)", _side_under, _side_over, Ortho(_side_basis, _side_bounds, _SIDE_FLOOR_ROOM)),
     View("top", "top (orthographic)", _top_under, _top_over, Ortho(_top_basis, _top_bounds)),
 )}
