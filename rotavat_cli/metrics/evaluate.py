@@ -182,15 +182,15 @@ def _check_joints(frame: Frame, opts: EvalOptions) -> None:
     if joints is None or frame.n_people == 0:
         return
     n_joints = joints.shape[1]
-    if opts.joints and (max(opts.joints) >= n_joints or min(opts.joints) < -n_joints):
-        bad = max(opts.joints) if max(opts.joints) >= n_joints else min(opts.joints)
-        raise InputError(f"{frame.source}: --joints asks for joint {bad} but the frame has {n_joints} joints "
-                         f"(0..{n_joints - 1})")
     proto = protocol(opts.protocol)
     needed = max(proto.first_joints or 1, 3 if proto.root == "hips" else 1)
     if n_joints < needed:
         raise InputError(f"{frame.source}: --protocol {proto.name} scores the first {needed} joints (SMPL order) "
                          f"but the frame has {n_joints}")
+    if opts.joints and (max(opts.joints) >= n_joints or min(opts.joints) < -n_joints):
+        bad = max(opts.joints) if max(opts.joints) >= n_joints else min(opts.joints)
+        raise InputError(f"{frame.source}: --joints asks for joint {bad} but the frame has {n_joints} joints "
+                         f"(0..{n_joints - 1})")
 
 
 def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> _Pairs:
@@ -506,7 +506,8 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
         skipped["foot_sliding"] = ("GVHMR's foot vertices 3216, 3387, 6617, 6787 need 6,890-vertex SMPL meshes on "
                                    "both sides" if proto.name == "wham" else
                                    "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
-    result.metrics, notes = aggregate(proto, columns, counts, result.tracks, result.fps or GVHMR_FPS, skipped)
+    tracks = result.tracks if result.track_pairs else None
+    result.metrics, notes = aggregate(proto, columns, counts, tracks, result.fps or GVHMR_FPS, skipped)
     result.units = {name: proto.units.get(name, "") for name in result.metrics}
     if proto.name == "spec" and not result.camera:
         notes.append("w_mpjpe: needs a camera.yaml on both sides (each side's gravity frame)")

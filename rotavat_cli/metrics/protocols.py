@@ -208,7 +208,8 @@ def _track_metrics(proto: Protocol, tracks: TrackSeries | None, fps: float,
     """The protocol's temporal/trajectory metrics; NaN with a note where they cannot be computed."""
     out = {name: math.nan for name in proto.track_metrics}
     if tracks is None:
-        return out, [f"{', '.join(proto.track_metrics)}: skipped: the ground truth has no person_ids (no tracks)"]
+        return out, [f"{', '.join(proto.track_metrics)}: skipped: no tracks (no matched pair whose ground truth "
+                     "has person_ids and joints)"]
     notes = []
     windows = {"accel_err": "accel", "jitter": "jitter", "foot_sliding": "foot_sliding"}
     scale = _window_scales(proto, fps)
@@ -250,11 +251,10 @@ def _whole_track_metrics(tracks: TrackSeries) -> tuple[dict[str, float], list[st
             continue
         w.append(first_frames_aligned_errors(frames["pred"], frames["gt"]))
         wa.append(chunk_aligned_errors(frames["pred"], frames["gt"]))
-        values = rte(frames["pred"][:, 0], frames["gt"][:, 0])
-        if np.isfinite(values).all():
-            rtes.append(values)
-        else:
-            still += 1
+        if not np.linalg.norm(np.diff(frames["gt"][:, 0], axis=0), axis=-1).sum() > 0.0:
+            still += 1  # a path length of 0 (or one frame): GVHMR's RTE divides by it
+            continue
+        rtes.append(rte(frames["pred"][:, 0], frames["gt"][:, 0]))
     out = {"w_mpjpe": _pooled(w) * MM_PER_M, "wa_mpjpe": _pooled(wa) * MM_PER_M, "rte": _pooled(rtes) * 100.0}
     notes = [f"rte: {still} track(s) left out: the true root never moves (a path length of 0; GVHMR divides by it)"] \
         if still else []

@@ -135,7 +135,7 @@ def rte(pred_root: np.ndarray, gt_root: np.ndarray) -> np.ndarray:
     p, g = p[0], g[0]
     if p.shape[0] == 0:
         return np.zeros(0)
-    s, rot, t = _fit(p, g, False)
+    _, rot, t = _fit(p, g, False)
     path = np.linalg.norm(np.diff(g, axis=0), axis=-1).sum()
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.linalg.norm(g - (p @ rot.T + t), axis=-1) / path
@@ -145,8 +145,9 @@ def rte(pred_root: np.ndarray, gt_root: np.ndarray) -> np.ndarray:
 
 
 def hips_relative(joints: np.ndarray) -> np.ndarray:
-    """Joints minus the midpoint of joints 1 and 2 (SMPL hips) of each frame: (T, J, 3) -> (T, J, 3)."""
-    return joints - 0.5 * (joints[:, 1:2] + joints[:, 2:3])
+    """Joints minus the midpoint of joints 1 and 2 (SMPL hips) of each frame: (T, J, 3) -> (T, J, 3) float64."""
+    j = _track(joints, "joints")
+    return j - 0.5 * (j[:, 1:2] + j[:, 2:3])
 
 
 def _window_values(metric: str, items: Mapping[str, np.ndarray], contact_m: float, accel_hips: bool) -> np.ndarray:
@@ -166,17 +167,19 @@ def _window_values(metric: str, items: Mapping[str, np.ndarray], contact_m: floa
     return foot_sliding(items["pred_feet"], items["gt_feet"], contact_m)
 
 
+_KEYS = {"accel": ("pred", "gt"), "jitter": ("pred",), "foot_sliding": ("pred_feet", "gt_feet")}  # what each reads
+
+
 def _new_windows(metric: str, before: Mapping[str, np.ndarray], after: Mapping[str, np.ndarray],
                  contact_m: float, accel_hips: bool) -> np.ndarray:
     """Values of the windows that start in ``before`` (<= 3 frames) or later and end in ``after``."""
     n_before = len(before["pred"]) if before else 0
-    joined = {k: np.concatenate([before[k], v]) if before else v for k, v in after.items()}
+    joined = {k: np.concatenate([before[k], after[k]]) if before else after[k] for k in _KEYS[metric]}
     values = _window_values(metric, joined, contact_m, accel_hips)
     done = max(0, n_before - WINDOWS[metric] + 1)  # windows entirely inside ``before``: counted already
-    if metric == "foot_sliding":  # F values per frame pair, frame-major: drop whole frame pairs
-        n_feet = after["pred_feet"].shape[1]
-        contact = np.linalg.norm(np.diff(joined["gt_feet"], axis=0), axis=-1) < contact_m
-        return values[int(contact[:done].sum()):] if n_feet else values
+    if metric == "foot_sliding" and done:  # F values per frame pair, frame-major: drop whole frame pairs
+        contact = np.linalg.norm(np.diff(joined["gt_feet"][:done + 1], axis=0), axis=-1) < contact_m
+        return values[int(contact.sum()):]
     return values[done:]
 
 
