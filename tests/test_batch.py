@@ -369,3 +369,21 @@ def test_ground_truth_in_a_tool_format_is_found_and_imported_with_gt_from(tmp_pa
         assert before["matched"] == 12 and before["metrics"]["w_mpjpe"] == pytest.approx(0.0, abs=1e-3)
     missing = invoke(runner, "batch", tmp_path / "pred", "--gt-from", "bev", *args)
     assert missing.exit_code == 2 and "--gt-from needs --gt-root" in missing.stderr
+
+
+def test_dataset_aggregate_follows_the_eval_protocol():
+    """Under eval.protocol agora the dataset's F1 and NMJE follow AGORA's rounding of the summed counts."""
+    from rotavat_cli.batch.report import aggregate_rows
+
+    def row(name, matched, missed, fp, mpjpe):
+        ev = {"protocol": "agora", "matched": matched, "missed": missed, "false_positives": fp, "people_gt": matched + missed,
+              "people_pred": matched + fp, "metrics": {"mpjpe": mpjpe, "pa_mpjpe": mpjpe / 2}, "camera": {}}
+        return {"sequence": name, "status": "done", "frames": 1, "people": matched, "eval": {"before": ev}}
+
+    agg = aggregate_rows([row("a", 30, 3, 2, 60.0), row("b", 10, 0, 7, 80.0)])["eval"]["before"]
+    # pooled: matched 40, missed 3, false positives 9; mpjpe (30 * 60 + 10 * 80) / 40 = 65.0
+    precision, recall, f1 = round(40 / 49, 2), round(40 / 43, 2), round(40 / (40 + 0.5 * 12), 2)
+    assert agg["protocol"] == "agora"
+    assert (agg["metrics"]["precision"], agg["metrics"]["recall"], agg["metrics"]["f1"]) == (precision, recall, f1)
+    assert agg["metrics"]["mpjpe"] == 65.0 and agg["metrics"]["nmje"] == round(65.0 / f1, 1)
+    assert "pve" not in agg["metrics"] and "nmve" not in agg["metrics"]  # AGORA's MVE needs its vertex subset

@@ -69,13 +69,14 @@ def _stats(values: list[float], weights: list[float]) -> dict:
 def aggregate_rows(rows: list[dict]) -> dict:
     """Dataset-level aggregate of report rows (done and skipped ones).
 
-    Counts are summed. Each per-person error metric is the mean over sequences weighted by their
-    matched people (= the mean over every matched person of the dataset when no value is missing);
-    precision, recall, F1, NMJE and NMVE are recomputed from the summed match counts; camera errors
-    and estimated camera parameters get mean, people-weighted mean, median, min and max.
+    Counts are summed. Each error metric of the sequences' protocol is the mean over sequences
+    weighted by their matched people (= the mean over every matched person of the dataset when no
+    value is missing; for a protocol's per-track metrics, the matched-weighted mean of the
+    sequences' pooled values); the detection scores and errors over F1 are recomputed from the
+    summed match counts by the protocol's own rule (AGORA's rounding included); camera errors and
+    estimated camera parameters get mean, people-weighted mean, median, min and max.
     """
-    from ..metrics import detection_scores, normalize_by_f1
-    from ..metrics.evaluate import PERSON_METRICS
+    from ..metrics.protocols import detection, protocol
 
     ok = [r for r in rows if r["status"] in ("done", "skipped")]
     counts = {"sequences": len(rows), "done": sum(r["status"] == "done" for r in rows),
@@ -95,14 +96,15 @@ def aggregate_rows(rows: list[dict]) -> dict:
             continue
         pooled = {k: sum(res[k] for res in results) for k in ("matched", "missed", "false_positives", "people_gt", "people_pred")}
         weights = [res["matched"] for res in results]
-        metrics = {m: _weighted([_num(res["metrics"].get(m)) for res in results], weights) for m in PERSON_METRICS}
-        metrics.update(detection_scores(pooled["matched"], pooled["missed"], pooled["false_positives"]))
-        metrics["nmje"] = float(normalize_by_f1(metrics["mpjpe"], metrics["f1"]))
-        metrics["nmve"] = float(normalize_by_f1(metrics["pve"], metrics["f1"]))
+        proto = protocol(results[0].get("protocol") or "paper")
+        names = [*proto.pair_metrics, *proto.track_metrics]
+        metrics = {m: _weighted([_num(res["metrics"].get(m)) for res in results], weights) for m in names}
+        metrics.update(detection(proto, metrics, pooled))
         cam_keys = sorted({k for res in results for k in res.get("camera", {})})
         people = [res["people_gt"] for res in results]
         cameras = {k: _stats([_num(res.get("camera", {}).get(k)) for res in results], people) for k in cam_keys}
-        out["eval"][side] = {"sequences": len(results), **pooled, "metrics": metrics, "camera": cameras}
+        out["eval"][side] = {"sequences": len(results), "protocol": proto.name, **pooled, "metrics": metrics,
+                             "camera": cameras}
     cams = [(r["sequence"], r["camera"], r.get("people") or 0) for r in ok if r.get("camera")]
     out["cameras"] = {
         "per_sequence": [{"sequence": s, **{k: c.get(k) for k in ("origin", "focal_px", "pitch_deg", "roll_deg", "height_m", "rmse_px")}}
@@ -122,6 +124,7 @@ def _cell(value: Any, digits: int = 1) -> str:
 
 def markdown_batch_report(report: BatchReport) -> str:
     """batch_report.md: counts, the dataset aggregate (input vs aligned), cameras, one row per sequence."""
+    from ..metrics.protocols import protocol
     from ..metrics.report import REPORT_COLUMNS, format_value
 
     agg, c = report.aggregate, report.aggregate["counts"]
@@ -133,9 +136,11 @@ def markdown_batch_report(report: BatchReport) -> str:
     if evals:
         sides = [s for s in ("before", "after") if s in evals]
         names = {"before": "input", "after": "aligned"}
-        lines += [f"## Dataset aggregate (vs `{report.gt_root}`)", "",
-                  "Errors in mm (lean in degrees), each the mean over sequences weighted by matched people; "
-                  "precision/recall/F1 from the summed counts.", "",
+        proto = protocol(evals[sides[0]].get("protocol") or "paper")
+        lines += [f"## Dataset aggregate (vs `{report.gt_root}`), protocol `{proto.name}`", "",
+                  f"Definitions of the `{proto.name}` protocol ({proto.source}); each error the mean over "
+                  "sequences weighted by matched people; precision/recall/F1 from the summed counts by the "
+                  "protocol's rule.", "",
                   "| metric | " + " | ".join(names[s] for s in sides) + (" | change |" if len(sides) == 2 else ""),
                   "|---" * (1 + len(sides) + (len(sides) == 2)) + "|"]
         for m in REPORT_COLUMNS:
@@ -145,7 +150,9 @@ def markdown_batch_report(report: BatchReport) -> str:
             change = ""
             if len(vals) == 2:
                 change = " | " + (f"{100.0 * (vals[1] - vals[0]) / abs(vals[0]):+.1f}%" if all(map(math.isfinite, vals)) and vals[0] else "–")
-            lines.append(f"| {m} | " + " | ".join(format_value(m, v) for v in vals) + change + " |")
+            unit = proto.units.get(m)
+            lines.append(f"| {m} ({proto.name}{', ' + unit if unit else ''}) | " + " | ".join(format_value(m, v) for v in vals)
+                         + change + " |")
         for s in sides:
             e = evals[s]
             cams = ", ".join(f"{k} {v['median']:.2f}" for k, v in e["camera"].items() if v.get("n") and not k.endswith("_signed"))

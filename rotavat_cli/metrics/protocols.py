@@ -50,7 +50,8 @@ from ..landmarks import SMPL_JOINT_NAMES
 from .scene import detection_scores, normalize_by_f1
 from .temporal import WINDOWS, TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte
 
-__all__ = ["PROTOCOLS", "PROTOCOL_NAMES", "Protocol", "root_points", "agora_prf1", "agora_round", "protocol"]
+__all__ = ["PROTOCOLS", "PROTOCOL_NAMES", "Protocol", "root_points", "agora_prf1", "agora_round", "protocol", "detection",
+           "aggregate"]
 
 MM_PER_M = 1000.0
 HIP_JOINTS = (SMPL_JOINT_NAMES.index("left_hip"), SMPL_JOINT_NAMES.index("right_hip"))
@@ -173,6 +174,23 @@ def _mean(values: np.ndarray) -> float:
     return float(finite.mean()) if finite.size else math.nan
 
 
+def detection(proto: Protocol, means: Mapping[str, float], counts: Mapping[str, int]) -> dict[str, float]:
+    """The protocol's detection scores and error-over-F1 numbers from the per-pair means (mm) and the
+    match counts (matched, missed, false_positives); AGORA's also round its MPJPE (returned too)."""
+    if proto.detection == "rotavat":
+        out = detection_scores(counts["matched"], counts["missed"], counts["false_positives"])
+        out["nmje"] = float(normalize_by_f1(means.get("mpjpe", math.nan), out["f1"]))
+        out["nmve"] = float(normalize_by_f1(means.get("pve", math.nan), out["f1"]))
+        return out
+    if proto.detection == "agora":
+        mpjpe = means.get("mpjpe", math.nan)
+        out = {"mpjpe": agora_round(mpjpe, 1) if math.isfinite(mpjpe) else mpjpe,
+               **agora_prf1(counts["matched"], counts["missed"], counts["false_positives"])}
+        out["nmje"] = _agora_normalised(out["mpjpe"], out["f1"])
+        return out
+    return {}
+
+
 def aggregate(proto: Protocol, columns: Mapping[str, list], counts: Mapping[str, int],
               tracks: TrackSeries | None, fps: float,
               skipped: Mapping[str, str] | None = None) -> tuple[dict[str, float], list[str]]:
@@ -188,14 +206,7 @@ def aggregate(proto: Protocol, columns: Mapping[str, list], counts: Mapping[str,
     for name, why in skipped.items():
         reasons.setdefault(why, []).append(name)
     notes = [f"{', '.join(names)}: skipped: {why}" for why, names in reasons.items()]
-    if proto.detection == "rotavat":
-        out.update(detection_scores(counts["matched"], counts["missed"], counts["false_positives"]))
-        out["nmje"] = float(normalize_by_f1(out["mpjpe"], out["f1"]))
-        out["nmve"] = float(normalize_by_f1(out["pve"], out["f1"]))
-    elif proto.detection == "agora":
-        out["mpjpe"] = agora_round(out["mpjpe"], 1) if math.isfinite(out["mpjpe"]) else out["mpjpe"]
-        out.update(agora_prf1(counts["matched"], counts["missed"], counts["false_positives"]))
-        out["nmje"] = _agora_normalised(out["mpjpe"], out["f1"])
+    out.update(detection(proto, out, counts))
     if proto.track_metrics:
         track_values, track_notes = _track_metrics(proto, tracks, fps, skipped)
         out.update(track_values)
