@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke
+from conftest import invoke, tree_hash
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError
@@ -234,3 +234,18 @@ def test_pairs_are_scored_in_batches_across_frames(tmp_path, monkeypatch):
     pve = np.array(rows["pve"])
     assert np.isnan(pve[6:9]).all() and np.isfinite(pve[:6]).all() and np.isfinite(pve[9:]).all()
     assert np.isfinite(rows["mpjpe"]).all()
+
+
+def test_default_out_is_beside_the_first_prediction_even_from_inside_it(tmp_path, monkeypatch, runner):
+    """Run from inside the prediction folder with no --out: metrics go to ../<pred>_eval, never into the input."""
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=5, frames=2, people=3))
+    before = tree_hash(tmp_path / "s" / "pred")
+    monkeypatch.chdir(tmp_path / "s" / "pred")
+    result = invoke(runner, "eval", "--gt", "../gt", "-q")
+    assert result.exit_code == 0, result.stderr
+    assert (tmp_path / "s" / "pred_eval" / "metrics.json").exists() and tree_hash(tmp_path / "s" / "pred") == before
+    monkeypatch.chdir(tmp_path / "s")
+    assert invoke(runner, "eval", "pred", "--gt", "gt", "-q").exit_code == 0  # replaces its own output
+    assert sorted(p.name for p in (tmp_path / "s" / "pred_eval").iterdir()) == ["metrics.json", "metrics.md"]
