@@ -125,8 +125,8 @@ def test_pred_defaults_to_current_directory(tmp_path, runner, monkeypatch):
     pred = write_seq(tmp_path / "pred", {"000000": people([[0, 0, 5.1]], [1])})
     monkeypatch.chdir(pred)
     before = sorted(p.name for p in pred.iterdir())
-    refused = invoke(runner, "eval", "--gt", gt)  # the reports would land inside the input: refused
-    assert refused.exit_code == 2 and "inside the input" in refused.stderr
+    inside = invoke(runner, "eval", "--gt", gt, "--out", ".")  # the reports would land inside the input: refused
+    assert inside.exit_code == 2 and "inside the input" in inside.stderr
     result = invoke(runner, "eval", "--gt", gt, "--out", tmp_path / "ev", "--json")
     assert result.exit_code == 0
     assert json.loads(result.stdout)["predictions"][0]["metrics"]["w_mpjpe"] == pytest.approx(100.0)

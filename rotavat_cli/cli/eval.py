@@ -15,8 +15,8 @@ from ..metrics.evaluate import PER_PERSON_SIGNATURE, EvalOptions, evaluate, pars
 from ..metrics.report import (check_gate_metrics, check_gate_rows, check_gates, format_value, metric_label,
                               metric_value, parse_gate, report_paths, report_rows, write_reports)
 from ..outputs import beside, check_output_file
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
-                      info, input_sequence, print_json, progress_bar, progress_enabled)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
+                      input_sequence, print_json, progress_bar, progress_enabled, report)
 
 
 def eval_(
@@ -68,11 +68,11 @@ def eval_(
         print_json({"metrics_json": str(json_path), "metrics_md": str(md_path), "gates_failed": reasons,
                     "predictions": [r.as_dict() for r in results]})
     elif not quiet:
-        console.print(_table(results))
+        report(_table(results), quiet)
         for r in results:
             for note in r.notes:
                 info(f"{Path(r.pred).name or r.pred} ({r.protocol}): {note}", quiet)
-        info(f"wrote {json_path} and {md_path}", quiet)
+        report(f"wrote {json_path} and {md_path}", quiet)
     if reasons:
         raise GateError("quality gate failed: " + "; ".join(reasons))
 

@@ -10,8 +10,8 @@ import typer
 from ..errors import InputError, input_errors
 from ..outputs import beside, check_output_file
 from ..render import RenderStyle, export_frame
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
+                      input_sequence, print_json, report)
 
 
 def export(
@@ -40,5 +40,5 @@ def export(
     if as_json:
         print_json(summary)
         return
-    info(f"wrote {summary['out']}: frame {summary['frame']}, {summary['people']} people, ground, camera "
+    report(f"wrote {summary['out']}: frame {summary['frame']}, {summary['people']} people, ground, camera "
          f"({summary['image_size'][0]}x{summary['image_size'][1]}, vertical FOV {summary['yfov_deg']:.1f}°)", quiet)

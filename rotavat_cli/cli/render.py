@@ -12,8 +12,8 @@ from ..atomic import staged_directory
 from ..errors import input_errors
 from ..outputs import beside, check_output_dir
 from ..render import FITS, GHOSTS, SCALES, VIEWS, FigureOptions, figure_steps, render_sequences
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json, progress_bar, progress_enabled)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
+                      input_sequence, print_json, progress_bar, progress_enabled, report)
 
 
 def render(
@@ -62,7 +62,7 @@ def render(
         print_json(vars(summary))
         return
     fallback = f" (fallback: {summary.renderer_note})" if summary.renderer == "fallback" and summary.renderer_note else ""
-    info(f"rendered {len(summary.frames)} frame(s) x {len(summary.rows)} row(s) x {len(summary.views)} view(s) with "
+    report(f"rendered {len(summary.frames)} frame(s) x {len(summary.rows)} row(s) x {len(summary.views)} view(s) with "
          f"{summary.renderer} ({summary.renderer_detail}){fallback} in {summary.seconds:.2f} s", quiet)
     for path in summary.files:
-        info(f"wrote {path}", quiet)
+        report(f"wrote {path}", quiet)
