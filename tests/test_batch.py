@@ -135,7 +135,7 @@ def test_batch_outputs_equal_the_single_sequence_calls(dataset, tmp_path, runner
     report = json.loads((out / "batch_report.json").read_text())
     assert [r["sequence"] for r in report["rows"]] == RELS
     md = (out / "batch_report.md").read_text()
-    assert "## Dataset aggregate" in md and "| w_mpjpe |" in md and "`a/s2` | done" in md
+    assert "## Dataset aggregate" in md and "| w_mpjpe (paper, mm) |" in md and "`a/s2` | done" in md
 
 
 def test_aggregate_is_people_weighted_with_pooled_detection():
