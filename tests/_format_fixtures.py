@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.formats.smpl import SMPL_PARENTS, BodyModel, load_body_model
@@ -478,3 +479,28 @@ def measurement_views() -> list[tuple[np.ndarray, np.ndarray]]:
                 R = down @ np.diag([1.0, -1.0, -1.0]) @ turn  # body +Y up, facing +Z -> camera y down, facing it
                 views.append((R, np.array([0.0, 0.0, dist]) - R @ np.array([0.0, 0.9, 0.0])))
     return views
+
+
+# ---- the formats' shared pytest fixtures (a test module imports the ones it uses) -----------------
+W, H = 640, 480  # the test image of the format fixtures
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory) -> Path:
+    """The synthetic SMPL-layout model file."""
+    return write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
+
+
+@pytest.fixture(scope="module")
+def model(model_path):
+    return load_model(model_path)
+
+
+@pytest.fixture(scope="module")
+def camera():
+    return scene_camera((W, H), 500.0)
+
+
+@pytest.fixture(scope="module")
+def scene(model, camera):
+    return default_scene(model, camera)

@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 import _format_fixtures as F
+from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import _fixtures_torch as T
 import _fixtures_wham_hybrik as WH
 import _fixtures_pymafx_trace as PT
@@ -30,26 +31,6 @@ from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_y
 W, H = 640, 480
 TOL_M = 1e-4  # float32 storage of metre-scale coordinates (~1e-6) plus LBS round-off
 TOL_PX = 0.02  # float32 pixels
-
-
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory) -> Path:
-    return F.write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
-
-
-@pytest.fixture(scope="module")
-def model(model_path):
-    return F.load_model(model_path)
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return F.scene_camera((W, H), 500.0)
-
-
-@pytest.fixture(scope="module")
-def scene(model, camera):
-    return F.default_scene(model, camera)
 
 
 def _write(fmt: str, folder: Path, scene, model, camera) -> Path:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import _fixtures_pymafx_trace as PT
 import _format_fixtures as F
+from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
 from conftest import invoke
@@ -25,16 +26,6 @@ REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
 
 
 @pytest.fixture(scope="module")
-def model_path(tmp_path_factory) -> Path:
-    return F.write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
-
-
-@pytest.fixture(scope="module")
-def model(model_path):
-    return F.load_model(model_path)
-
-
-@pytest.fixture(scope="module")
 def smplx_path(tmp_path_factory) -> Path:
     return PT.write_synthetic_smplx(tmp_path_factory.mktemp("model") / "SMPLX_SYNTH.npz")
 
@@ -42,16 +33,6 @@ def smplx_path(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def smplx_model(smplx_path):
     return F.load_model(smplx_path)
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return F.scene_camera((W, H), 500.0)
-
-
-@pytest.fixture(scope="module")
-def scene(model, camera):
-    return F.default_scene(model, camera)
 
 
 def _one_line_error(result) -> str:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import _fixtures_wham_hybrik as WH
 import _format_fixtures as F
+from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
 from conftest import invoke
@@ -24,26 +25,6 @@ W, H = 640, 480
 TOL_M = 1e-4  # float32 storage of metre-scale coordinates plus LBS round-off
 TOL_PX = 0.02  # float32 pixels
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
-
-
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory) -> Path:
-    return F.write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
-
-
-@pytest.fixture(scope="module")
-def model(model_path):
-    return F.load_model(model_path)
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return F.scene_camera((W, H), 500.0)
-
-
-@pytest.fixture(scope="module")
-def scene(model, camera):
-    return F.default_scene(model, camera)
 
 
 def _one_line_error(result) -> str:

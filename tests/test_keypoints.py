@@ -7,28 +7,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import _format_fixtures as F
+from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
 
 from rotavat_cli.camera import ROOT_CENTRED_M, project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
-from rotavat_cli.formats._common import (
-    feet_heads_from,
-    people_frame,
-    placement_warnings,
-    unplaced_people,
-)
-from rotavat_cli.formats.keypoints import (
-    LAYOUT_NAMES,
-    LAYOUTS,
-    PointRule,
-    extrapolated,
-    feet_heads_px,
-    layout_by_count,
-    mean_of,
-    recipe_for,
-)
+from rotavat_cli.formats._common import (feet_heads_from, people_frame, placement_warnings, unplaced_people)
+from rotavat_cli.formats.keypoints import (LAYOUT_NAMES, LAYOUTS, PointRule, extrapolated, feet_heads_px,
+                                           layout_by_count, mean_of, recipe_for)
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
@@ -218,26 +206,6 @@ def test_unplaced_people_and_their_warning():
 
 
 # ---- importers ------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory) -> Path:
-    return F.write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
-
-
-@pytest.fixture(scope="module")
-def model(model_path):
-    return F.load_model(model_path)
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return F.scene_camera((W, H), 500.0)
-
-
-@pytest.fixture(scope="module")
-def scene(model, camera):
-    return F.default_scene(model, camera)
-
-
 def test_agora_root_centred_people_are_reported(tmp_path, scene):
     src = F.write_agora(tmp_path / "agora", scene, root_centred=True)
     summary = import_sequence(src, tmp_path / "out", "agora")

@@ -36,22 +36,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (
-    Conclusion,
-    FrameNotes,
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    conclude_placement,
-    fail,
-    feet_heads_from,
-    frame_names,
-    get,
-    model_faces,
-    natural_key,
-    people_frame,
-)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
+                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
 from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs
 

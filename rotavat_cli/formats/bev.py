@@ -51,20 +51,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
-from ._common import (
-    FrameNotes,
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    fail,
-    feet_heads_from,
-    frame_names,
-    get,
-    model_faces,
-    natural_key,
-    people_frame,
-)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, get, model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _NET_INPUT = 512

@@ -32,21 +32,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (
-    FrameNotes,
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    fail,
-    feet_heads_from,
-    frame_names,
-    get,
-    model_faces,
-    no_model_warning,
-    padded_square,
-    people_frame,
-)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
+                      frame_names, get, model_faces, no_model_warning, padded_square, people_frame)
 from .smpl import lbs
 
 _KEYPOINTS_LAYOUT = "phalp44 (OpenPose-25 + 19 extra)"

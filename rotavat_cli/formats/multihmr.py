@@ -38,23 +38,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (
-    Conclusion,
-    FrameNotes,
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    conclude_placement,
-    fail,
-    feet_heads_from,
-    frame_names,
-    model_faces,
-    natural_key,
-    need_image_size,
-    people_frame,
-    project_px,
-)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
+                      fail, feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame,
+                      project_px)
 from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24
 

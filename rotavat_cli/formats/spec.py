@@ -32,22 +32,8 @@ from ..focal import ASSUMED
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
-from ._common import (
-    Conclusion,
-    FrameNotes,
-    ImportedSequence,
-    ImportOptions,
-    as_array,
-    base_meta,
-    conclude_placement,
-    fail,
-    feet_heads_from,
-    frame_names,
-    get,
-    model_faces,
-    natural_key,
-    people_frame,
-)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
+                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
