@@ -27,6 +27,7 @@ __all__ = [
     "ImportedSequence",
     "as_array",
     "base_meta",
+    "check_model_kind",
     "conclude_placement",
     "fail",
     "feet_heads_from",
@@ -42,6 +43,7 @@ __all__ = [
     "people_frame",
     "placement_warnings",
     "project_px",
+    "require_model",
     "single_file",
     "unplaced_people",
 ]
@@ -370,6 +372,29 @@ def base_meta(fmt: str, src: Path, opts: ImportOptions, image_size: tuple[int, i
         "body_model": opts.body_model.name if opts.body_model is not None else None,
     }
     return meta
+
+
+_MODEL_FILES = {"smpl": ("SMPL", 24, "SMPL_NEUTRAL.npz"), "smplx": ("SMPL-X", 55, "SMPLX_NEUTRAL.npz"),
+                "smplh": ("SMPL-H", 52, "the SMPL-H model.npz")}
+
+
+def check_model_kind(model: BodyModel | None, source: Any, tool: str, kind: str) -> BodyModel | None:
+    """``model`` when it is of the family the tool's parameters are (``kind``: smpl | smplx | smplh)
+    or None; an InputError naming the file, the tool and the joint count it needs otherwise."""
+    family, joints, _ = _MODEL_FILES[kind]
+    if model is not None and model.kind != kind:
+        raise fail(source, f"{tool} uses {family}; --smpl-model {model.name} has {model.n_joints} joints (need {joints})")
+    return model
+
+
+def require_model(model: BodyModel | None, source: Any, tool: str, kind: str) -> BodyModel:
+    """The body model a format that stores nothing but parameters needs (:func:`check_model_kind`);
+    an InputError saying to pass it when it is missing."""
+    family, _, file_name = _MODEL_FILES[kind]
+    if model is None:
+        raise fail(source, f"{tool} stores {family} parameters only (no joints, no 2D keypoints): pass --smpl-model "
+                           f"{file_name} (the {family} model file) to pose them")
+    return check_model_kind(model, source, tool, kind)
 
 
 def no_model_warning(fmt: str) -> str:

@@ -30,9 +30,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, image_size_from_header, model_faces, no_model_warning, npz_has_keys, people_frame,
-                      project_px, single_file)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
+                      feet_heads_from, frame_names, image_size_from_header, model_faces, no_model_warning, npz_has_keys,
+                      people_frame, project_px, single_file)
 from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints
 
@@ -96,8 +96,7 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     layout = "smpl24"
     n_params = 0
     if model is not None:
-        if model.kind != "smpl":
-            raise fail(path, f"CLIFF uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+        check_model_kind(model, path, "CLIFF", "smpl")
         pose = np.asarray(data.get("pose"))
         betas = as_array(data.get("shape"), "shape", path)
         n_params = min(len(pose), len(betas), len(global_t))

@@ -32,8 +32,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, model_faces, no_model_warning, padded_square, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
+                      feet_heads_from, frame_names, get, model_faces, no_model_warning, padded_square, people_frame)
 from .smpl import lbs
 
 _KEYPOINTS_LAYOUT = "phalp44 (OpenPose-25 + 19 extra)"
@@ -92,8 +92,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
     model = opts.body_model
     if model is None:
         warnings.append(no_model_warning("4D-Humans/PHALP"))
-    elif model.kind != "smpl":
-        raise fail(src, f"4D-Humans uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+    check_model_kind(model, src, "4D-Humans", "smpl")
 
     def people(frame: Mapping, source: str) -> dict[str, np.ndarray | None]:
         tids = list(get(frame, "tid", source))

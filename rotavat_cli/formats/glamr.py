@@ -56,8 +56,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
-                      fail, feet_heads_from, frame_names, get, model_faces, no_model_warning, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
+                      conclude_placement, fail, feet_heads_from, frame_names, get, model_faces, no_model_warning,
+                      people_frame)
 from .slahmr import pose_from_body, world_to_cam
 from .smpl import BodyModel, lbs
 
@@ -176,9 +177,7 @@ def _focal_rule(K: np.ndarray, image_size: tuple[int, int], source: Path, warnin
 def _check_model(model: BodyModel | None, source: Path, warnings: list[str]) -> BodyModel | None:
     if model is None:
         warnings.append(no_model_warning("GLAMR") + " (joints = the pelvis only)")
-    elif model.kind != "smpl":
-        raise fail(source, f"GLAMR uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
-    return model
+    return check_model_kind(model, source, "GLAMR", "smpl")
 
 
 def _posed_world(model: BodyModel, people: list[_Person], t: int) -> tuple[np.ndarray, np.ndarray]:

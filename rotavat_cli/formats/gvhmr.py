@@ -41,7 +41,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, model_faces, people_frame)
+                      frame_names, get, model_faces, people_frame, require_model)
 from .smpl import joints_to_smpl24, lbs
 
 _RESULTS = "hmr4d_results.pt"
@@ -128,11 +128,7 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                         "its focal is kept as the method's own (focal_kind: assumed, no focal_rule)")
 
     model = opts.body_model
-    if model is None:
-        raise fail(path, "GVHMR stores SMPL-X parameters only (no joints, no 2D keypoints): pass --smpl-model "
-                         "SMPLX_NEUTRAL.npz (the SMPL-X model file) to pose them")
-    if model.kind != "smplx":
-        raise fail(path, f"GVHMR's parameters are SMPL-X; --smpl-model {model.name} has {model.n_joints} joints (need 55)")
+    require_model(model, path, "GVHMR", "smplx")
     layout = joints_to_smpl24(np.zeros((0, model.n_joints, 3)))[1]
     faces = model_faces(model, model.n_verts)
     names = frame_names([f"{i:06d}" for i in range(n_frames)], warnings)

@@ -52,8 +52,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, hybrik_focal_px
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, model_faces, no_model_warning, people_frame, project_px)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
+                      feet_heads_from, frame_names, get, model_faces, no_model_warning, people_frame, project_px)
 from .smpl import lbs, pose_to_matrices
 
 __all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px"]
@@ -251,8 +251,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     model = opts.body_model
     pose = None
     if model is not None:
-        if model.kind != "smpl":
-            raise fail(src, f"HybrIK uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+        check_model_kind(model, src, "HybrIK", "smpl")
         pose = _pose_params(data, n_rows, src, warnings)
     elif "pred_thetas" in data:
         warnings.append(no_model_warning("HybrIK"))

@@ -32,8 +32,9 @@ from ..focal import ASSUMED
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
-                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
+                      conclude_placement, fail, feet_heads_from, frame_names, get, model_faces, natural_key,
+                      people_frame)
 from .smpl import lbs
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
@@ -108,8 +109,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         raise fail(camcalib_dir, f"no CamCalib parameters for image '{missing[0]}'")
     cams = {stem: _camcalib(calib[stem]) for stem in stems}
     model = opts.body_model
-    if model is not None and model.kind != "smpl":
-        raise fail(src, f"SPEC uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+    check_model_kind(model, src, "SPEC", "smpl")
     warnings: list[str] = []
 
     def load(stem: str) -> dict[str, np.ndarray] | None:

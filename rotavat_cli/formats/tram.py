@@ -45,7 +45,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, image_size_from_header, model_faces, people_frame)
+                      frame_names, get, image_size_from_header, model_faces, people_frame, require_model)
 from .smpl import lbs
 
 _TRACK = re.compile(r"hps_track_(\d+)\.npy$")
@@ -175,11 +175,7 @@ def read_tram(src: Path, opts: ImportOptions) -> ImportedSequence:
                         "rotavat assumes a static camera; each frame is imported in its own camera frame")
 
     model = opts.body_model
-    if model is None:
-        raise fail(folder, "TRAM stores SMPL parameters only (no joints, no 2D keypoints): pass --smpl-model "
-                           "SMPL_NEUTRAL.npz (the SMPL model file) to pose them")
-    if model.kind != "smpl":
-        raise fail(folder, f"TRAM's parameters are SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+    require_model(model, folder, "TRAM", "smpl")
     faces = model_faces(model, model.n_verts)
     names = frame_names(stems, warnings)
     rows_by_frame: dict[int, list[tuple[int, int]]] = {}
