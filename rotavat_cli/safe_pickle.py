@@ -71,7 +71,7 @@ from . import limits as _limits
 from .errors import InputError
 from .limits import human_bytes
 
-__all__ = ["loads", "load_file", "load_torch", "load_npy", "load_npy_bytes", "load_npz", "open_npz", "NpzArchive"]
+__all__ = ["loads", "load_file", "load_torch", "load_npy", "load_npy_bytes", "load_npz", "open_npz", "NpzArchive", "unpickling_errors"]
 
 _MAX_NPY_HEADER = 10_000  # numpy's own default limit for .npy headers
 _CHUNK = 1 << 24  # bytes decompressed or copied at a time
@@ -548,9 +548,36 @@ def _check_expansion(obj: Any) -> None:
                        f"holds (limit {limit:,} more: limits.max_pickle_items)")
 
 
+# What malformed pickle bytes raise in the pure-Python unpickler and the builders it calls.
+_MALFORMED = (pickle.UnpicklingError, ValueError, TypeError, IndexError, AttributeError, struct.error, UnicodeDecodeError,
+              OverflowError)
+
+
+@contextmanager
+def unpickling_errors(source: str, what: str = "") -> Iterator[None]:
+    """Context: every way unpickling hostile or broken bytes fails becomes a one-line InputError naming
+    ``source`` (and ``what`` was read, e.g. ``"torch archive: "``)."""
+    prefix = f"{source}: {what}"
+    try:
+        yield
+    except _Refused as exc:
+        raise InputError(f"{prefix}{exc}") from None
+    except EOFError:
+        raise InputError(f"{prefix}truncated pickle (unexpected end of data)") from None
+    except RecursionError:
+        raise InputError(f"{prefix}pickle nests too deeply") from None
+    except MemoryError:
+        raise InputError(f"{prefix}pickle needs more memory than available") from None
+    except KeyError:  # the dispatch table has no entry for the byte read
+        raise InputError(f"{prefix}not a readable pickle (invalid opcode)") from None
+    except _MALFORMED as exc:
+        detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{prefix}not a readable pickle ({detail})") from None
+
+
 def _load_stream(file: io.BytesIO, source: str) -> Any:
     """Unpickle one object from ``file``; every failure becomes a one-line InputError."""
-    try:
+    with unpickling_errors(source):
         unpickler = _RestrictedUnpickler(file)
         value = unpickler.load()
         if unpickler.named_torch:  # torch tensors pickled by plain pickle (np.save of a dict of tensors)
@@ -559,20 +586,6 @@ def _load_stream(file: io.BytesIO, source: str) -> Any:
             value = resolve(value)
         _check_expansion(value)
         return value
-    except _Refused as exc:
-        raise InputError(f"{source}: {exc}") from None
-    except EOFError:
-        raise InputError(f"{source}: truncated pickle (unexpected end of data)") from None
-    except RecursionError:
-        raise InputError(f"{source}: pickle nests too deeply") from None
-    except MemoryError:
-        raise InputError(f"{source}: pickle needs more memory than available") from None
-    except KeyError:  # the dispatch table has no entry for the byte read
-        raise InputError(f"{source}: not a readable pickle (invalid opcode)") from None
-    except (pickle.UnpicklingError, ValueError, TypeError, IndexError, AttributeError,
-            struct.error, UnicodeDecodeError, OverflowError) as exc:
-        detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"{source}: not a readable pickle ({detail})") from None
 
 
 def loads(data: bytes, source: str) -> Any:

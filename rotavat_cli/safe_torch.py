@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import io
 import math
-import pickle
 import struct
 import zipfile
 import zlib
@@ -543,25 +542,12 @@ def load_torch_bytes(data: bytes, source: str) -> Any:
     containers of numpy arrays; every failure is a one-line InputError naming ``source``."""
     budget = _sp._Budget()
     try:
-        value = resolve(_load_blob(data, budget, 0))
-        _sp._check_expansion(value)
-        return value
-    except _sp._Refused as exc:
-        raise InputError(f"{source}: torch archive: {exc}") from None
-    except EOFError:
-        raise InputError(f"{source}: torch archive: truncated pickle (unexpected end of data)") from None
-    except RecursionError:
-        raise InputError(f"{source}: torch archive: pickle nests too deeply") from None
-    except MemoryError:
-        raise InputError(f"{source}: torch archive: needs more memory than available") from None
-    except KeyError:
-        raise InputError(f"{source}: torch archive: not a readable pickle (invalid opcode)") from None
-    except _ERRORS as exc:
+        with _sp.unpickling_errors(source, "torch archive: "):
+            value = resolve(_load_blob(data, budget, 0))
+            _sp._check_expansion(value)
+            return value
+    except _ERRORS as exc:  # the archive around the pickle
         raise InputError(f"{source}: torch archive: corrupt ({str(exc).splitlines()[0] or type(exc).__name__})") from None
-    except (ValueError, TypeError, IndexError, AttributeError, struct.error, UnicodeDecodeError, OverflowError,
-            pickle.UnpicklingError) as exc:
-        detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"{source}: torch archive: not readable ({detail})") from None
 
 
 def load_torch(path: str | Path) -> Any:
