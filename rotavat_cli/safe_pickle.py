@@ -762,9 +762,20 @@ def _read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle:
                 raise InputError(f"{source}: corrupt or truncated array (data ends after {pos:,} of {nbytes:,} bytes)")
             flat[pos:pos + len(chunk)] = np.frombuffer(chunk, np.uint8)
             pos += len(chunk)
+    _check_text(array, what)
     if fortran:
         return array.reshape(shape[::-1]).transpose()
     return array.reshape(shape)
+
+
+def _check_text(array: np.ndarray, what: str) -> np.ndarray:
+    """``array`` unless it is a unicode array holding a code point beyond U+10FFFF (numpy reads those
+    into broken strs: SystemError once the text is used)."""
+    if array.dtype.kind == "U" and array.size:
+        codes = np.frombuffer(array.tobytes(), array.dtype.str[0] + "u4")
+        if int(codes.max()) > sys.maxunicode:
+            raise InputError(f"{what} holds invalid text (a code point beyond U+10FFFF)")
+    return array
 
 
 def _read_exactly(stream: BinaryIO, n: int, source: str) -> bytes:

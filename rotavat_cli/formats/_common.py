@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Camera, people_not_in_front, project_cam_to_px
+from ..camera import MAX_IMAGE_SIDE_PX, Camera, people_not_in_front, project_cam_to_px
 from ..errors import InputError
 from ..sequence import Frame, validate_frame
 from .keypoints import feet_heads_px, recipe_for
@@ -347,6 +347,37 @@ def frame_names(sources: list[str], warnings: list[str]) -> list[str]:
 def natural_key(name: str) -> tuple:
     """Sort key that orders 'img_2' before 'img_10'."""
     return tuple(int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name))
+
+
+_INT64 = np.iinfo(np.int64)
+MAX_FRAMES = 100_000  # frames a tool's frame indices may imply beyond 100 per detection row (~1 h of video)
+
+
+def int64_ids(ids: list[int], what: str, source: Any) -> np.ndarray:
+    """Track / person ids (P,) as int64; InputError naming ``what`` when one does not fit 64 bits."""
+    bad = [i for i in ids if not _INT64.min <= i <= _INT64.max]
+    if bad:
+        raise fail(source, f"{what} {bad[0]} does not fit in a 64-bit integer")
+    return np.asarray(ids, dtype=np.int64)
+
+
+def check_frame_range(n_frames: int, n_rows: int, source: Any, key: str) -> int:
+    """``n_frames`` (1 + the largest frame index), unless it implies far more frames than the file has
+    detection rows (a few KB naming frame 10^12 would make 10^12 frames)."""
+    if n_frames > MAX_FRAMES + 100 * n_rows:
+        raise fail(source, f"'{key}' reaches frame {n_frames - 1:,} with {n_rows:,} detection rows: not the frame "
+                           "indices of one video")
+    return n_frames
+
+
+def centre_image_size(cx: float, cy: float, source: Any, what: str) -> tuple[int, int]:
+    """(W, H) = (2 cx, 2 cy) px rounded, for tools whose principal point is the image centre; InputError
+    unless both are within 1..MAX_IMAGE_SIDE_PX (the contract's bound)."""
+    size = (2.0 * float(cx), 2.0 * float(cy))
+    if not all(np.isfinite(v) and 1 <= v <= MAX_IMAGE_SIDE_PX for v in size):
+        raise fail(source, f"{what} ({float(cx):.6g}, {float(cy):.6g}) px is not the centre of an image of at most "
+                           f"{MAX_IMAGE_SIDE_PX} px: pass --image-size W H")
+    return round(size[0]), round(size[1])
 
 
 def base_meta(fmt: str, src: Path, opts: ImportOptions, image_size: tuple[int, int] | None,

@@ -56,9 +56,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
-                      conclude_placement, fail, feet_heads_from, frame_names, get, model_faces, no_model_warning,
-                      people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
+                      check_model_kind, conclude_placement, fail, feet_heads_from, frame_names, get, int64_ids,
+                      model_faces, no_model_warning, people_frame)
 from .slahmr import pose_from_body, world_to_cam
 from .smpl import BodyModel, lbs
 
@@ -124,8 +124,9 @@ def _person(key: object, entry: object, n_frames: int, source: str) -> _Person:
     """Validate one ``person_data`` entry."""
     try:
         pid = int(key)  # type: ignore[call-overload]
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise fail(source, f"person key {str(key)[:40]!r} is not an integer id") from None
+    int64_ids([pid], "person id", source)
     where = f"{source} [person {pid}]"
 
     def series(name: str, trailing: tuple[int, ...], kinds: str = "fiu") -> np.ndarray:
@@ -157,7 +158,7 @@ def _intrinsics(people: list[_Person], source: Path, warnings: list[str]) -> np.
     K = detected[0][0]
     if not all(np.allclose(k, K, rtol=_FOCAL_RTOL) for k in detected):
         warnings.append(f"{source}: cam_K differs between frames or people; using the first detection's")
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and K[0, 2] > 0 and K[1, 2] > 0):
+    if not (np.all(np.isfinite(K)) and K[0, 0] > 0 and K[1, 1] > 0 and K[0, 2] > 0 and K[1, 2] > 0):
         raise fail(source, f"cam_K must have positive focal and principal point, got {K[:2].tolist()}")
     return K
 
@@ -207,7 +208,7 @@ def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)
     K = _intrinsics(people, path, warnings)
-    image_size = opts.image_size or (round(2 * K[0, 2]), round(2 * K[1, 2]))
+    image_size = opts.image_size or centre_image_size(K[0, 2], K[1, 2], path, "cam_K's principal point")
     rule = _focal_rule(K, image_size, path, warnings)
     with_keypoints = bool(people) and all(p.keypoints_px is not None for p in people)
     faces = model_faces(model, None if model is None else model.n_verts)

@@ -40,8 +40,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, model_faces, people_frame, require_model)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
+                      feet_heads_from, frame_names, get, model_faces, people_frame, require_model)
 from .smpl import joints_to_smpl24, lbs
 
 _RESULTS = "hmr4d_results.pt"
@@ -89,7 +89,9 @@ def _intrinsics(K: np.ndarray, opts: ImportOptions, source: Path,
         raise fail(source, "'K_fullimg' must hold positive, finite focal lengths and principal points")
     if np.any(np.abs(K[:, 0, 0] - K[:, 1, 1]) > 1e-6 * focal):
         warnings.append(f"{source}: K_fullimg has fx != fy; using their mean")
-    stored = tuple(round(2 * float(c)) for c in np.median(principal, axis=0))
+    centre = np.median(principal, axis=0)
+    stored = centre_image_size(centre[0], centre[1], source, "K_fullimg's principal point") \
+        if opts.image_size is None else tuple(round(2 * float(c)) for c in centre)
     if opts.image_size is not None:
         if stored != opts.image_size:
             warnings.append(f"{source}: --image-size {opts.image_size[0]}x{opts.image_size[1]} differs from the "

@@ -154,6 +154,8 @@ def _image_size(data: Mapping, n_rows: int, src: Path, opts: ImportOptions, warn
     heights = as_array(get(data, "height", src), "height", src, ndim=1).reshape(-1)
     if len(widths) != n_rows or len(heights) != n_rows:
         raise fail(src, f"'width'/'height' must have one entry per row ({n_rows})")
+    if not (np.all(np.isfinite(widths)) and np.all(np.isfinite(heights))):
+        raise fail(src, "'width'/'height' must be finite image sizes (px)")
     sizes = {(int(w), int(h)) for w, h in zip(widths.tolist(), heights.tolist())}
     if len(sizes) != 1 or min(next(iter(sizes))) <= 0:
         raise fail(src, f"expected one positive image size for all rows, got {sorted(sizes)[:3]}")

@@ -47,8 +47,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, model_faces, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_frame_range, fail,
+                      feet_heads_from, frame_names, get, model_faces, people_frame)
 from .smpl import BodyModel, joints_to_smpl24, posed_joints
 
 _KEYPOINTS_LAYOUT = "coco17 (openpifpaf detections: x, y, confidence)"
@@ -237,7 +237,7 @@ def read_pymafx(src: Path, opts: ImportOptions) -> ImportedSequence:
                         "not imported")
         keypoints = None
     person_ids = data.get("person_ids")
-    n_frames = int(frame_ids.max()) + 1
+    n_frames = check_frame_range(int(frame_ids.max()) + 1, n_rows, path, "frame_ids")
     sources = _frame_sources(list(person_ids) if isinstance(person_ids, (list, tuple, np.ndarray)) else None,
                              frame_ids, n_frames)
     names = frame_names(sources, warnings)

@@ -65,8 +65,9 @@ import numpy as np
 from .. import limits, safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
-                      fail, feet_heads_from, frame_names, get, model_faces, npz_has_keys, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
+                      conclude_placement, fail, feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys,
+                      people_frame)
 from .smpl import BodyModel, joints_to_smpl24, lbs
 
 __all__ = ["PHASES", "READERS", "find_results", "pose_from_body", "read_slahmr", "sniff", "world_to_cam"]
@@ -165,7 +166,7 @@ def _read_track_info(path: Path, n_tracks: int, n_frames: int) -> _Tracks:
         raise fail(path, "larger than limits.max_file_mb")
     try:
         info = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
         raise fail(path, f"not valid JSON ({exc})") from None
     tracks = get(info, "tracks", path)
     meta = get(info, "meta", path)
@@ -174,7 +175,7 @@ def _read_track_info(path: Path, n_tracks: int, n_frames: int) -> _Tracks:
         data_start = int(get(meta, "data_interval", path)[0])
         rows = {int(get(track, "index", path)): (int(tid), [bool(v) for v in get(track, "vis_mask", path)])
                 for tid, track in tracks.items()}
-    except (TypeError, ValueError, IndexError, AttributeError):
+    except (TypeError, ValueError, IndexError, AttributeError, OverflowError):
         raise fail(path, "malformed 'tracks' or 'meta' (expected SLAHMR's track_info.json)") from None
     if sorted(rows) != list(range(n_tracks)):
         raise fail(path, f"lists tracks {sorted(rows)}, the results hold {n_tracks} (not the same run?)")
@@ -182,7 +183,7 @@ def _read_track_info(path: Path, n_tracks: int, n_frames: int) -> _Tracks:
     if seq_start < 0 or any(len(m) < seq_start + n_frames for m in masks):
         raise fail(path, f"'vis_mask' shorter than seq_interval start {seq_start} + {n_frames} result frames")
     present = np.array([m[seq_start:seq_start + n_frames] for m in masks], dtype=bool).reshape(n_tracks, n_frames)
-    ids = np.array([rows[i][0] for i in range(n_tracks)], dtype=np.int64)
+    ids = int64_ids([rows[i][0] for i in range(n_tracks)], "track id", path)
     return _Tracks(ids, present, data_start + seq_start, "track_info.json vis_mask (visible frames only)")
 
 
@@ -305,7 +306,7 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     tracks = _tracks(path, data, n_tracks, n_frames, warnings)
 
     intrins = params.intrins
-    image_size = opts.image_size or (round(2 * intrins[2]), round(2 * intrins[3]))
+    image_size = opts.image_size or centre_image_size(intrins[2], intrins[3], path, "'intrins' (cx, cy)")
     focal, focal_per_frame, rule = _focal(intrins, params.cam_f, image_size, path, warnings)
     principal_point = (float(intrins[2]), float(intrins[3]))
     faces = model_faces(model, model.n_verts)

@@ -44,8 +44,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, image_size_from_header, model_faces, people_frame, require_model)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
+                      check_frame_range, fail, feet_heads_from, frame_names, get, image_size_from_header, model_faces,
+                      people_frame, require_model)
 from .smpl import lbs
 
 _TRACK = re.compile(r"hps_track_(\d+)\.npy$")
@@ -159,10 +160,13 @@ def read_tram(src: Path, opts: ImportOptions) -> ImportedSequence:
     ids = [k for k, _ in files]
     warnings: list[str] = []
 
+    check_frame_range(1 + max((int(t["frame"].max()) for t in tracks if len(t["frame"])), default=-1),
+                      sum(len(t["frame"]) for t in tracks), folder / "hps", "frame")
     images = _images(folder)
     stems = _frame_stems(images, None if rotation is None else len(rotation), tracks)
     header = image_size_from_header(images[0]) if images else None
-    centre_size = (round(2 * float(center[0])), round(2 * float(center[1])))
+    centre_size = centre_image_size(center[0], center[1], folder / "camera.npy", "'img_center'") \
+        if not (opts.image_size or header) else (round(2 * float(center[0])), round(2 * float(center[1])))
     image_size = opts.image_size or header or centre_size
     size_from = "--image-size" if opts.image_size else "images/ header" if header else "2 x img_center (est_calib)"
     if image_size != centre_size:

@@ -38,7 +38,7 @@ from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
-                      feet_heads_from, frame_names, get, model_faces, need_image_size, people_frame)
+                      feet_heads_from, frame_names, get, int64_ids, model_faces, need_image_size, people_frame)
 from .smpl import BodyModel, lbs
 
 __all__ = ["sniff", "read_wham", "READERS"]
@@ -62,7 +62,7 @@ def _track_id(key: object, source: Path) -> int:
     """A track key as an int (WHAM's keys are the tracker's integer ids)."""
     if isinstance(key, (bool, np.bool_)) or not isinstance(key, (int, np.integer)):
         raise fail(source, f"track key {key!r} is not an integer track id")
-    return int(key)
+    return int(int64_ids([int(key)], "track id", source)[0])
 
 
 def _track_arrays(track: Mapping, source: str, model: BodyModel | None) -> dict[str, np.ndarray]:

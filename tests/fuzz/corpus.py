@@ -12,6 +12,13 @@ Everything is deterministic (fixed seeds) and small: files are a few KB, except 
 bombs (1 KB for bzip2, 0.8-1.2 MB for deflate, which cannot pack more than ~1000:1), which inflate
 to gigabytes. Nothing large is ever written to disk.
 
+Every importer is covered (``FORMATS``: the tool's own files written by the test fixture writers on a
+tiny 50-vertex body, with the SMPL, SMPL-X or SMPL-H model file its parameters need); the torch-file
+importers (GVHMR's ``torch.save`` archive, TRAM's ``np.save`` of tensors, PyMAF-X's tensors inside a
+pickle) also get storages that are missing, short, or declare terabytes, and code-running globals
+where a tensor is rebuilt. :func:`slow_cases` are the memory and time bombs measured as real
+processes: ``make fuzz`` (run_fuzz.py) runs them, ``make test`` does not.
+
 >>> cases = all_cases()
 >>> len({c.id for c in cases}) == len(cases)           # ids are unique
 True
@@ -44,6 +51,10 @@ TESTS_DIR = Path(__file__).resolve().parents[1]
 if str(TESTS_DIR) not in sys.path:
     sys.path.insert(0, str(TESTS_DIR))
 
+import _fixtures_pymafx_trace as PT  # noqa: E402
+import _fixtures_slahmr_glamr as SG  # noqa: E402
+import _fixtures_torch as T  # noqa: E402
+import _fixtures_wham_hybrik as WH  # noqa: E402
 import _format_fixtures as F  # noqa: E402
 
 from rotavat_cli.camera import Camera, camera_to_yaml_dict  # noqa: E402
@@ -55,7 +66,8 @@ Check = Callable[[Path, Any], "list[str]"]
 W, H = 640, 480
 MARKER = "PWNED"  # a payload that runs creates <case folder>/PWNED...
 MAX_RSS_MB = 700.0  # rule 4: clean runs take 120-250 MB (numpy, scipy, numba); see harness.baseline
-FORMATS = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam"]
+FORMATS = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam",
+           "wham", "gvhmr", "tram", "hybrik", "pymafx", "trace", "slahmr", "glamr"]
 
 
 @dataclass
@@ -257,7 +269,15 @@ def seq_with(frame_index: int = 1, content: Content | None = None, drop: tuple[s
 
 # ---- importers' own formats --------------------------------------------------------------------
 FORMAT_SRC = {"cliff": "src/demo_cliff_hr48.npz", "bev": "src/bev", "romp": "src/romp", "4dhumans": "src/demo_video.pkl",
-              "multihmr": "src/mh", "spec": "src/spec_out", "agora": "src/agora", "bedlam": "src/scene.npz"}
+              "multihmr": "src/mh", "spec": "src/spec_out", "agora": "src/agora", "bedlam": "src/scene.npz",
+              "wham": "src/wham_output.pkl", "gvhmr": "src/gvhmr", "tram": "src/tram", "hybrik": "src/res.pk",
+              "pymafx": "src/output.pkl", "trace": "src/trace_demo.npz", "slahmr": "src/slahmr_run",
+              "glamr": "src/glamr_out"}
+# The file each importer reads first (damaged by the generic cases), when it is not the first in name order.
+_SLAHMR_WORLD = "src/slahmr_run/motion_chunks/demo_000060_world_results.npz"
+FORMAT_MAIN = {"slahmr": _SLAHMR_WORLD, "tram": "src/tram/hps/hps_track_0.npy"}
+# The body model each format's parameters need (the tiny body in that model's joint layout): model.npz.
+FORMAT_MODEL = {"gvhmr": "smplx", "slahmr": "smplh"}
 
 
 def _capture(write: Callable[[Path], Any]) -> dict[str, bytes]:
@@ -290,10 +310,39 @@ def format_files(fmt: str) -> dict[str, bytes]:
             F.write_agora(path, scene)
         elif fmt == "bedlam":
             F.write_bedlam(path, scene)
+        elif fmt == "wham":
+            WH.write_wham(path, scene)
+        elif fmt == "gvhmr":  # one tracked person per frame: the scene's people one after another
+            T.write_gvhmr(path, [p for frame in scene for p in frame], (W, H))
+        elif fmt == "tram":
+            T.write_tram(path, scene, (W, H))
+        elif fmt == "hybrik":
+            WH.write_hybrik(path, scene, (W, H))
+        elif fmt == "pymafx":
+            PT.write_pymafx(path, scene, (W, H))
+        elif fmt == "trace":
+            PT.write_trace(path, scene, (W, H))
+        elif fmt == "slahmr":
+            SG.write_slahmr(path, scene, model)
+        elif fmt == "glamr":
+            SG.write_glamr(path / "grecon" / "demo_seed1.pkl", scene)
 
     files = _capture(write)
-    files["model.npz"] = tiny_model_bytes()
+    files["model.npz"] = model_bytes(FORMAT_MODEL.get(fmt, "smpl"))
     return files
+
+
+@functools.lru_cache(maxsize=None)
+def model_bytes(kind: str = "smpl") -> bytes:
+    """The tiny body as an SMPL (24 joints), SMPL-X (55: tests/_fixtures_torch.py) or SMPL-H (52:
+    tests/_fixtures_slahmr_glamr.py) .npz: the same mesh and body joints in each layout."""
+    if kind == "smpl":
+        return tiny_model_bytes()
+    writer = {"smplx": T.write_synthetic_smplx, "smplh": SG.write_synthetic_smplh}[kind]
+    with tempfile.TemporaryDirectory() as tmp:
+        smpl = Path(tmp) / "smpl.npz"
+        smpl.write_bytes(tiny_model_bytes())
+        return writer(Path(tmp) / f"{kind}.npz", smpl).read_bytes()
 
 
 def import_args(fmt: str, src: str | None = None, out: str = "out", model: bool = True) -> list[str]:
@@ -302,8 +351,10 @@ def import_args(fmt: str, src: str | None = None, out: str = "out", model: bool 
 
 
 def format_members(fmt: str) -> list[str]:
-    """The files of ``fmt``'s source, in order."""
-    return [k for k in format_files(fmt) if k.startswith("src/")]
+    """The files of ``fmt``'s source, in order, the one its importer reads first first (FORMAT_MAIN)."""
+    members = [k for k in format_files(fmt) if k.startswith("src/")]
+    main = FORMAT_MAIN.get(fmt)
+    return [main] + [m for m in members if m != main] if main in members else members
 
 
 # =================================================================================================
@@ -600,6 +651,37 @@ def check_camera_yaml(path: str) -> Check:
     return check
 
 
+def check_meta(out: str, max_side_px: int = 100_000) -> Check:
+    """``out/meta.yaml`` states an image size of two integers in 1..100,000 px (the contract's bound,
+    docs/conventions.md) and a finite positive focal length and finite principal point when present:
+    an import writes nothing its own readers refuse."""
+
+    def check(root: Path, run: Any) -> list[str]:
+        import yaml
+
+        path = root / out / "meta.yaml"
+        if not path.is_file():
+            return [f"{out}/meta.yaml not written"]
+        meta = yaml.safe_load(path.read_text())
+        if not isinstance(meta, dict):
+            return [f"{out}/meta.yaml is not a mapping"]
+        problems = []
+        size = meta.get("image_size")
+        if size is not None and not (isinstance(size, list) and len(size) == 2 and all(
+                isinstance(v, int) and 0 < v <= max_side_px for v in size)):
+            problems.append(f"{out}/meta.yaml image_size {str(size)[:60]} is not two integers in 1..{max_side_px}")
+        focal = meta.get("focal_length")
+        if focal is not None and not (isinstance(focal, (int, float)) and np.isfinite(focal) and focal > 0):
+            problems.append(f"{out}/meta.yaml focal_length {str(focal)[:40]} is not a positive number")
+        pp = meta.get("principal_point")
+        if pp is not None and not (isinstance(pp, list) and len(pp) == 2
+                                   and np.all(np.isfinite(np.asarray(pp, float)))):
+            problems.append(f"{out}/meta.yaml principal_point {str(pp)[:60]} is not two finite numbers")
+        return problems
+
+    return check
+
+
 def check_marker(folder: str) -> Check:
     """The output folder carries rotavat's ownership marker."""
 
@@ -780,7 +862,10 @@ def gen_importers() -> list[Case]:
         def with_file(name: str, content: Content, fmt=fmt) -> Callable[[], dict]:
             return lambda: {**format_files(fmt), name: content}
 
-        ok_checks = [check_files("out/meta.yaml"), check_seq("out", None, None)]
+        ok_checks = [check_files("out/meta.yaml"), check_seq("out", None, None), check_meta("out")]
+        if fmt in PELVIS_TRUTH:  # the new importers: every person back at its known camera-frame position
+            ok_checks = [check_meta("out"), check_seq("out", None, [len(p) for p in PELVIS_TRUTH[fmt]()]),
+                         check_pelvis("out", PELVIS_TRUTH[fmt]())]
         cls = "importer"
         inputs = ["src", "model.npz"]
         cases.append(Case(f"{cls}/{fmt}/valid-control", cls, import_args(fmt), base, "ok", inputs, ["out"],
@@ -810,6 +895,7 @@ def gen_importers() -> list[Case]:
                               "refuse", inputs, [], ["model.npz"]))
     # format-specific structure damage
     cases += _importer_structure_cases()
+    cases += _new_importer_cases()
     return cases
 
 
@@ -835,14 +921,15 @@ def _npz_edit(fmt: str, member: str, edit: Callable[[dict], dict], allow_pickle:
     return files
 
 
-def _pickle_edit(fmt: str, member: str, edit: Callable[[Any], Any], joblib: bool = False) -> Callable[[], dict]:
+def _pickle_edit(fmt: str, member: str, edit: Callable[[Any], Any], joblib: bool = False,
+                 compress: int = 3) -> Callable[[], dict]:
     from rotavat_cli import safe_pickle
 
     def files() -> dict[str, Content]:
         all_files = dict(format_files(fmt))
         obj = safe_pickle.loads(_maybe_unzlib(all_files[member]), member)
         new = edit(obj)
-        all_files[member] = F.joblib_bytes(new) if joblib else pickle.dumps(new, protocol=4)
+        all_files[member] = F.joblib_bytes(new, compress=compress) if joblib else pickle.dumps(new, protocol=4)
         return all_files
 
     return files
@@ -881,7 +968,8 @@ def _importer_structure_cases() -> list[Case]:
         out.append(Case(f"{cls}/{fmt}/{name}", cls, import_args(fmt), files, expect, inputs,
                         ["out"] if expect != "refuse" else [], names or [Path(format_members(fmt)[0]).name,
                                                                          Path(format_members(fmt)[0]).stem],
-                        checks=checks or ([check_seq("out")] if expect != "refuse" else []), note=note))
+                        checks=checks or ([check_seq("out"), check_meta("out")] if expect != "refuse" else []),
+                        note=note))
 
     cliff = format_members("cliff")[0]
     add("cliff", "pose-rows-mismatch", _npz_edit("cliff", cliff, lambda d: _set(d, pose=d["pose"][:-1])), "either",
@@ -948,8 +1036,440 @@ def _importer_structure_cases() -> list[Case]:
     add("bedlam", "cam-int-singular", _npz_edit("bedlam", bed, lambda d: _set(d, cam_int=d["cam_int"] * 0.0)))
     add("bedlam", "pose-width-7", _npz_edit("bedlam", bed, lambda d: _set(d, pose_cam=d["pose_cam"][:, :7])))
     add("bedlam", "imgname-missing", _npz_edit("bedlam", bed, lambda d: _drop(d, "imgname")))
+    add("bedlam", "imgname-code-point-beyond-unicode", _npz_edit("bedlam", bed, lambda d: _set(
+        d, imgname=bad_text(d["imgname"]))), note="found by run_fuzz.py --seed 21 (iteration 94)")
     add("bedlam", "imgname-uint8", _npz_edit("bedlam", bed, lambda d: _set(d, imgname=np.zeros(len(d["imgname"]),
                                                                                                np.uint8))), "either")
+    return out
+
+
+# ---- the importers added with torch files (WHAM, GVHMR, TRAM, HybrIK, PyMAF-X, TRACE, SLAHMR, GLAMR) ---------
+@functools.lru_cache(maxsize=None)
+def fixture_scene() -> list[list[Any]]:
+    """format_files' scene: people 3 and 5 in frame 0, person 3 in frame 1, nobody in frame 2."""
+    return F.default_scene(tiny_model(), camera())
+
+
+def _pelvis(frames: list[list[Any]]) -> list[np.ndarray]:
+    return [np.array([p.joints_cam[0] for p in frame]).reshape(-1, 3) for frame in frames]
+
+
+_SCENE_FRAMES = {  # the scene's frames each tool writes (frames with nobody: kept or not, as the tool does)
+    "wham": lambda s: s[:2], "hybrik": lambda s: s[:2], "pymafx": lambda s: s[:2],
+    "gvhmr": lambda s: [[p] for frame in s for p in frame],  # one tracked person per frame
+    "tram": lambda s: s, "trace": lambda s: s, "slahmr": lambda s: s, "glamr": lambda s: s,
+}
+PELVIS_TRUTH = {fmt: (lambda pick=pick: _pelvis(pick(fixture_scene()))) for fmt, pick in _SCENE_FRAMES.items()}
+
+
+def check_pelvis(out: str, truth: list[np.ndarray], atol_m: float = 2e-3) -> Check:
+    """Frame ``i`` of ``out`` holds people whose joint 0 (camera frame, metres) is at ``truth[i]`` (P, 3)
+    (both sorted by x): the importer undid the tool's conventions."""
+
+    def check(root: Path, run: Any) -> list[str]:
+        frames = sorted((root / out).glob("*.npz"))
+        if len(frames) != len(truth):
+            return [f"{out}/ has {len(frames)} frames, expected {len(truth)}"]
+        problems = []
+        for path, want in zip(frames, truth):
+            joints = _load_npz(path).get("joints")
+            got = np.zeros((0, 3)) if joints is None else joints[:, 0].astype(np.float64)
+            if got.shape != want.shape or not np.allclose(got[np.argsort(got[:, 0])], want[np.argsort(want[:, 0])],
+                                                           atol=atol_m):
+                problems.append(f"{out}/{path.name}: pelvis {np.round(got, 3).tolist()}, expected "
+                                f"{np.round(want, 3).tolist()}")
+        return problems
+
+    return check
+
+
+def _cmd(root: Path) -> str:
+    return f"touch {root / MARKER}"
+
+
+def _replace(fmt: str, member: str, content: Content) -> Callable[[], dict]:
+    return lambda: {**format_files(fmt), member: content}
+
+
+def _tensors(obj: Any) -> Any:
+    """``obj`` with every numeric numpy array made a torch tensor (tests/_fixtures_torch.py stand-ins)."""
+    if isinstance(obj, np.ndarray) and obj.dtype in T._STORAGE_NAMES:
+        return T.tensor(obj)
+    if isinstance(obj, np.ndarray) and obj.dtype.kind == "f":
+        return T.tensor(obj.astype(np.float32))
+    if isinstance(obj, dict):
+        return {k: _tensors(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_tensors(v) for v in obj)
+    return obj
+
+
+def npy_tensors_bytes(obj: Any) -> bytes:
+    """``np.save`` of ``obj`` (a dict holding torch tensors), as TRAM writes hps_track_{k}.npy."""
+    with tempfile.TemporaryDirectory() as tmp:
+        return T.np_save_tensors(Path(tmp) / "x.npy", obj).read_bytes()
+
+
+def torch_pickle_bytes(obj: Any) -> bytes:
+    """A plain pickle (protocol 2) holding torch tensors, each storage a legacy stream (_load_from_bytes)."""
+    return T._renamed(pickle.dumps(obj, protocol=2))
+
+
+def _huge_storage_tensor(declared: int = 10**12) -> Any:
+    """A tensor whose storage declares ``declared`` float32 elements and holds 4."""
+    return T.Tensor(T.Storage(np.zeros(4, np.float32), declared=declared), 0, (2, 2), (2, 1))
+
+
+def _gvhmr_bytes(edit: Callable[[dict], dict] = lambda r: r, legacy: bool = False, **kw: Any) -> bytes:
+    """hmr4d_results.pt of the fixture scene (people one per frame), its results dict edited first."""
+    results = edit(T.gvhmr_results([p for frame in fixture_scene() for p in frame], (W, H)))
+    return T.legacy_bytes(results) if legacy else T.torch_zip_bytes(results, name="hmr4d_results", **kw)
+
+
+def _incam(edit: Callable[[dict], dict]) -> Callable[[dict], dict]:
+    return lambda r: _set(r, smpl_params_incam=edit(r["smpl_params_incam"]))
+
+
+def _load_any_npy(data: bytes) -> Any:
+    from rotavat_cli import safe_pickle
+
+    arr = safe_pickle.load_npy_bytes(data, "x.npy")
+    return arr.item() if arr.dtype.hasobject and arr.shape == () else arr
+
+
+def _tram_edit(member: str, edit: Callable[[dict], dict], tensors: bool = True) -> Callable[[], dict]:
+    """TRAM's files with ``member`` (a np.save of a dict) re-saved after ``edit``; tensors as torch's."""
+
+    def files() -> dict[str, Content]:
+        all_files = dict(format_files("tram"))
+        new = edit(dict(_load_any_npy(all_files[member])))
+        all_files[member] = npy_tensors_bytes(_tensors(new) if tensors else new)
+        return all_files
+
+    return files
+
+
+def bad_text(strings: Any, code_point: int = 0x110000) -> np.ndarray:
+    """A unicode array whose first string holds ``code_point`` (beyond U+10FFFF) in its file name:
+    numpy stores and reads it, and makes a broken str of it (SystemError when sliced)."""
+    arr = np.asarray(strings).astype(str)
+    raw = np.frombuffer(arr.tobytes(), "<u4").copy()
+    raw[max(0, len(str(arr.reshape(-1)[0])) - 5)] = code_point  # in the file name, before its extension
+    return np.frombuffer(raw.tobytes(), arr.dtype.newbyteorder("<")).reshape(arr.shape)
+
+
+def _trace_outputs(data: dict, fn: Callable[[dict], dict]) -> dict:
+    data["outputs"] = _obj(fn(dict(data["outputs"].item())))
+    return data
+
+
+def _rows_of(d: dict, key: str, fn: Callable[[np.ndarray], Any]) -> dict:
+    return _set(d, **{key: fn(np.asarray(d[key]))})
+
+
+def _glamr_people(fn: Callable[[dict], dict]) -> Callable[[dict], dict]:
+    return lambda o: _set(o, person_data={k: fn(dict(v)) for k, v in o["person_data"].items()})
+
+
+def _track_info(fn: Callable[[dict], Any]) -> Callable[[], dict]:
+    def files() -> dict[str, Content]:
+        all_files = dict(format_files("slahmr"))
+        info = json.loads(all_files[SLAHMR_TRACKS])
+        out = fn(info)
+        all_files[SLAHMR_TRACKS] = out if isinstance(out, bytes) else json.dumps(out).encode()
+        return all_files
+
+    return files
+
+
+SLAHMR_TRACKS = "src/slahmr_run/track_info.json"
+
+
+def _new_importer_cases() -> list[Case]:
+    """Format-specific damage and code-running globals for the importers of torch files and joblib
+    dicts (issue 15's classes: payloads, sizes declared but absent, wrong shapes, NaN, mismatched lengths)."""
+    structure, gadget = "importer-structure", "pickle-gadget"
+    inputs = ["src", "model.npz"]
+    out: list[Case] = []
+
+    def add(fmt: str, name: str, files: Callable[[], dict], expect: str = "refuse", names: list[str] | None = None,
+            note: str = "", payload: bool = False, args: list[str] | None = None,
+            checks: list[Check] | None = None) -> None:
+        first = format_members(fmt)[0]
+        out.append(Case(f"{gadget if payload else structure}/{fmt}/{name}", gadget if payload else structure,
+                        args or import_args(fmt), files, expect, inputs, ["out"] if expect != "refuse" else [],
+                        names or [Path(first).name, Path(first).stem],
+                        checks=(checks if checks is not None else [check_seq("out")]) + [check_meta("out")]
+                        if expect != "refuse" else [],
+                        note=note, payload=payload))
+
+    # ---- WHAM: joblib dump of defaultdict(dict) {track id: arrays} -----------------------------------
+    wham = format_members("wham")[0]
+
+    def tracks(fn: Callable[[dict], dict]) -> Callable[[dict], dict]:
+        return lambda o: {k: fn(dict(v)) for k, v in o.items()}
+
+    def wham_edit(edit: Callable[[Any], Any]) -> Callable[[], dict]:
+        return _pickle_edit("wham", wham, edit, joblib=True)
+
+    add("wham", "track-posix-system", _replace("wham", wham, lambda root: pickle.dumps(
+        {1: {"verts": Reduce(os.system, (_cmd(root),)), "frame_ids": np.arange(2)}}, protocol=2)), payload=True)
+    add("wham", "defaultdict-factory-os-system", lambda: {**format_files("wham"), wham: lambda root: pickle.dumps(
+        __import__("collections").defaultdict(os.system, {1: {"frame_ids": np.arange(2)}}), protocol=2)},
+        payload=True, note="a factory runs on every missing key")
+    add("wham", "defaultdict-factory-numpy-dtype", wham_edit(lambda o: __import__("collections").defaultdict(
+        np.dtype, dict(o))), note="an allowed global that is no builtin type: not a defaultdict factory")
+    add("wham", "verts-2-columns", wham_edit(tracks(lambda t: _rows_of(t, "verts", lambda v: v[..., :2]))))
+    add("wham", "frame-ids-rows-mismatch", wham_edit(tracks(lambda t: _rows_of(t, "frame_ids", lambda v: v[:-1]))))
+    add("wham", "frame-ids-negative", wham_edit(tracks(lambda t: _rows_of(t, "frame_ids", lambda v: v - 100))))
+    add("wham", "frame-ids-1e15", wham_edit(tracks(lambda t: _rows_of(t, "frame_ids", lambda v: v + 10**15))),
+        "either", note="frames are the indices seen: 1e15 must not make 1e15 frames")
+    add("wham", "pose-width-69", wham_edit(tracks(lambda t: _rows_of(t, "pose", lambda v: v[:, :69]))))
+    add("wham", "betas-fewer-rows", wham_edit(tracks(lambda t: _rows_of(t, "betas", lambda v: v[:0]))))
+    add("wham", "verts-nan", wham_edit(tracks(lambda t: _rows_of(t, "verts", lambda v: v * np.nan))), "either")
+    add("wham", "track-not-dict", wham_edit(lambda o: {k: [1, 2, 3] for k in o}))
+    add("wham", "track-key-string", wham_edit(lambda o: {f"id{k}": v for k, v in o.items()}))
+    add("wham", "track-key-2**70", wham_edit(lambda o: {2**70 + int(k): v for k, v in o.items()}), "either",
+        note="a track id no int64 holds: refused, or kept exactly")
+    add("wham", "verts-other-vertex-count", wham_edit(tracks(lambda t: _rows_of(t, "verts", lambda v: v[:, :20]))))
+
+    # ---- GVHMR: torch.save zip archive (data.pkl + storage records) ----------------------------------
+    gv = format_members("gvhmr")[0]
+    add("gvhmr", "data-pkl-os-system", _replace("gvhmr", gv, lambda root: _gvhmr_bytes(lambda r: _set(
+        r, smpl_params_incam=T.Call(T.Global("os", "system"), (_cmd(root),))))), payload=True)
+    add("gvhmr", "storage-built-by-eval", _replace("gvhmr", gv, lambda root: _gvhmr_bytes(_incam(lambda p: _set(
+        p, transl=T.Call(T.Global("torch._utils", "_rebuild_tensor_v2"), (
+            T.Call(T.Global("builtins", "eval"), (f"open({str(root / MARKER)!r}, 'w')",)), 0, (3, 3), (3, 1),
+            False, __import__("collections").OrderedDict())))))), payload=True)
+    add("gvhmr", "storage-record-missing", _replace("gvhmr", gv, _gvhmr_bytes(drop=("data/0",))))
+    add("gvhmr", "storage-record-short", _replace("gvhmr", gv, _gvhmr_bytes(resize={"0": 8})),
+        note="a storage record holding fewer bytes than its storage declares")
+    add("gvhmr", "storage-declares-4TB", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, betas=_huge_storage_tensor()))), ))
+    add("gvhmr", "tensor-shape-1e12", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, transl=T.Tensor(T.Storage(np.zeros(9, np.float32)), 0, (10**6, 10**6, 3), (3 * 10**6, 3, 1)))))))
+    add("gvhmr", "tensor-past-its-storage", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, transl=T.Tensor(T.Storage(np.zeros(9, np.float32)), 5, (300, 3), (3, 1)))))))
+    add("gvhmr", "tensor-negative-stride", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, transl=T.Tensor(T.Storage(np.zeros(9, np.float32)), 8, (3, 3), (-3, -1)))))))
+    add("gvhmr", "byteorder-unknown", _replace("gvhmr", gv, _gvhmr_bytes(byteorder="middle")))
+    add("gvhmr", "legacy-stream-truncated", _replace("gvhmr", gv, _gvhmr_bytes(legacy=True)[:-200]))
+    add("gvhmr", "legacy-stream-valid", _replace("gvhmr", gv, _gvhmr_bytes(legacy=True)), "ok",
+        checks=[check_seq("out", 3, [1, 1, 1]), check_pelvis("out", PELVIS_TRUTH["gvhmr"]())],
+        note="torch.save(..., _use_new_zipfile_serialization=False): the same people")
+    add("gvhmr", "transl-nan", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, transl=T.tensor(np.full((3, 3), np.nan, np.float32)))))), "either")
+    add("gvhmr", "betas-fewer-frames", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, betas=T.tensor(np.zeros((2, 10), np.float32)))))))
+    add("gvhmr", "body-pose-width-10", _replace("gvhmr", gv, _gvhmr_bytes(_incam(lambda p: _set(
+        p, body_pose=T.tensor(np.zeros((3, 10), np.float32)))))))
+    add("gvhmr", "K-zero", _replace("gvhmr", gv, _gvhmr_bytes(lambda r: _set(
+        r, K_fullimg=T.tensor(np.zeros((3, 3, 3), np.float32))))))
+    add("gvhmr", "K-inf", _replace("gvhmr", gv, _gvhmr_bytes(lambda r: _set(
+        r, K_fullimg=T.tensor(np.full((3, 3, 3), np.inf, np.float32))))))
+    add("gvhmr", "incam-not-dict", _replace("gvhmr", gv, _gvhmr_bytes(lambda r: _set(r, smpl_params_incam=[1, 2]))))
+    add("gvhmr", "K-centre-1e300-no-image-size", _replace("gvhmr", gv, _gvhmr_bytes(lambda r: _set(
+        r, K_fullimg=T.tensor(np.array([[500.0, 0, 1e300], [0, 500.0, 1e300], [0, 0, 1]], np.float64))))), "either",
+        args=import_args("gvhmr")[:5] + ["--smpl-model", "model.npz"],
+        note="the image size comes from 2 x K's principal point: 2e300 px")
+    add("gvhmr", "model-is-smpl", lambda: {**format_files("gvhmr"), "model.npz": tiny_model_bytes()},
+        note="GVHMR's parameters are SMPL-X: a 24-joint model is refused")
+
+    # ---- TRAM: np.save of dicts of torch tensors (storages as legacy streams) --------------------------
+    tram = format_members("tram")[0]
+    cam = "src/tram/camera.npy"
+    add("tram", "track-posix-system", _replace("tram", tram, lambda root: npy_tensors_bytes(
+        {"pred_rotmat": T.Call(T.Global("posix", "system"), (_cmd(root),)), "frame": T.tensor(np.arange(2))})),
+        payload=True)
+    add("tram", "camera-posix-system", _replace("tram", cam, lambda root: npy_tensors_bytes(
+        {"img_focal": T.Call(T.Global("posix", "system"), (_cmd(root),))})), payload=True, names=["camera.npy"])
+    add("tram", "storage-declares-4TB", _tram_edit(tram, lambda d: _set(d, pred_shape=_huge_storage_tensor())))
+    add("tram", "storage-stream-short", _tram_edit(tram, lambda d: _set(d, pred_shape=T.Tensor(
+        T.Storage(np.zeros(20, np.float32), declared=4000), 0, (2, 10), (10, 1)))),
+        note="a storage stream whose count promises more bytes than follow")
+    add("tram", "rotmat-24x3", _tram_edit(tram, lambda d: _rows_of(d, "pred_rotmat", lambda v: v[..., 0])))
+    add("tram", "shape-rows-mismatch", _tram_edit(tram, lambda d: _rows_of(d, "pred_shape", lambda v: v[:1])))
+    add("tram", "frame-duplicate", _tram_edit(tram, lambda d: _rows_of(d, "frame", lambda v: v * 0)))
+    add("tram", "frame-negative", _tram_edit(tram, lambda d: _rows_of(d, "frame", lambda v: v - 5)))
+    add("tram", "frame-float", _tram_edit(tram, lambda d: _rows_of(d, "frame", lambda v: v + 0.5)))
+    add("tram", "trans-nan", _tram_edit(tram, lambda d: _rows_of(d, "pred_trans", lambda v: v * np.nan)), "either")
+    add("tram", "camera-focal-nan", _tram_edit(cam, lambda d: _set(d, img_focal=np.float64(np.nan)), tensors=False),
+        names=["camera.npy"])
+    add("tram", "camera-center-negative", _tram_edit(cam, lambda d: _set(d, img_center=np.array([-320.0, 240.0])),
+                                                     tensors=False), names=["camera.npy"])
+    add("tram", "camera-not-a-dict", _replace("tram", cam, npy_bytes(np.zeros((3, 3)))), names=["camera.npy"])
+    add("tram", "camera-R-2x2", _tram_edit(cam, lambda d: _rows_of(d, "pred_cam_R", lambda v: v[:, :2, :2]),
+                                           tensors=False), names=["camera.npy"])
+    add("tram", "camera-center-1e300-no-image-size", _tram_edit(cam, lambda d: _set(d, img_center=np.array(
+        [1e300, 1e300])), tensors=False), "either", names=["camera.npy"],
+        args=import_args("tram")[:5] + ["--smpl-model", "model.npz"],
+        note="the image size comes from 2 x img_center: 2e300 px")
+    add("tram", "model-is-smplx", lambda: {**format_files("tram"), "model.npz": model_bytes("smplx")},
+        names=["tram", "model.npz"])
+
+    # ---- HybrIK: pickle of res_db (stacked rows) -----------------------------------------------------------
+    hy = format_members("hybrik")[0]
+
+    def hy_edit(edit: Callable[[dict], dict]) -> Callable[[], dict]:
+        return _pickle_edit("hybrik", hy, edit)
+
+    def boxes(fn: Callable[[np.ndarray], np.ndarray]) -> Callable[[dict], dict]:
+        return lambda o: _rows_of(o, "bbox", lambda b: fn(b.astype(np.float64).copy()))
+
+    def zero_width(b: np.ndarray) -> np.ndarray:
+        b[:, 2] = b[:, 0]
+        return b
+
+    def zero_height(b: np.ndarray) -> np.ndarray:
+        b[:, 3] = b[:, 1]
+        return b
+
+    add("hybrik", "res-db-posix-system", _replace("hybrik", hy, lambda root: pickle.dumps(
+        {"pred_xyz_29": Reduce(os.system, (_cmd(root),))}, protocol=2)), payload=True)
+    add("hybrik", "bbox-zero-width", hy_edit(boxes(zero_width)))
+    add("hybrik", "bbox-zero-height", hy_edit(boxes(zero_height)), "either",
+        note="HybrIK's focal scales with the box width only")
+    add("hybrik", "bbox-all-zero", hy_edit(boxes(lambda b: b * 0.0)))
+    add("hybrik", "bbox-negative-width", hy_edit(boxes(lambda b: b[:, [2, 1, 0, 3]])))
+    add("hybrik", "bbox-nan", hy_edit(boxes(lambda b: b * np.nan)))
+    add("hybrik", "width-nan", hy_edit(lambda o: _rows_of(o, "width", lambda v: v * np.nan)))
+    add("hybrik", "width-inf", hy_edit(lambda o: _rows_of(o, "width", lambda v: v * np.inf)))
+    add("hybrik", "width-zero", hy_edit(lambda o: _rows_of(o, "width", lambda v: v * 0)))
+    add("hybrik", "xyz-24-joints", hy_edit(lambda o: _rows_of(o, "pred_xyz_29", lambda v: v[:, :24])))
+    add("hybrik", "transl-fewer-rows", hy_edit(lambda o: _rows_of(o, "transl", lambda v: v[:1])))
+    add("hybrik", "uvd-nan", hy_edit(lambda o: _rows_of(o, "pred_uvd", lambda v: v * np.nan)))
+    add("hybrik", "uvd-other-camera", hy_edit(lambda o: _rows_of(o, "pred_uvd", lambda v: v * 1.7)),
+        note="2D and 3D that no depth factor reconciles")
+    add("hybrik", "img-path-ints", hy_edit(lambda o: _set(o, img_path=np.arange(len(o["img_path"])))))
+    add("hybrik", "img-path-code-point-beyond-unicode", hy_edit(lambda o: _set(o, img_path=bad_text(o["img_path"]))))
+    add("hybrik", "thetas-wrong-size", hy_edit(lambda o: _rows_of(o, "pred_thetas", lambda v: v[:, :100])))
+
+    # ---- PyMAF-X: joblib dump of per-detection arrays (torch tensors possible in smplx_params) -------------
+    pm = format_members("pymafx")[0]
+
+    def pm_edit(edit: Callable[[dict], dict]) -> Callable[[], dict]:
+        return _pickle_edit("pymafx", pm, edit, joblib=True, compress=0)
+
+    def pm_torch(tensor: Any) -> Callable[[], dict]:
+        from rotavat_cli import safe_pickle
+
+        return lambda: {**format_files("pymafx"), pm: torch_pickle_bytes(_set(
+            safe_pickle.loads(format_files("pymafx")[pm], pm), smplx_params=[{"shape": tensor}]))}
+
+    add("pymafx", "output-posix-system", _replace("pymafx", pm, lambda root: F.evil_pickle(root / MARKER)),
+        payload=True)
+    add("pymafx", "torch-storage-declares-4TB", pm_torch(_huge_storage_tensor()))
+    add("pymafx", "torch-storage-stream-short", pm_torch(T.Tensor(T.Storage(np.zeros(4, np.float32), declared=400),
+                                                                  0, (2, 2), (2, 1))))
+    add("pymafx", "frame-ids-negative", pm_edit(lambda o: _set(o, frame_ids=[-1 - i for i in o["frame_ids"]])))
+    add("pymafx", "verts-2-columns", pm_edit(lambda o: _rows_of(o, "verts", lambda v: v[..., :2])))
+    add("pymafx", "verts-fewer-rows", pm_edit(lambda o: _rows_of(o, "verts", lambda v: v[:1])))
+    add("pymafx", "orig-cam-t-nan", pm_edit(lambda o: _rows_of(o, "orig_cam_t", lambda v: v * np.nan)), "either")
+    add("pymafx", "joints2d-mixed-shapes", pm_edit(lambda o: _set(o, joints2d=[np.zeros((5, 3))] + list(
+        o["joints2d"][1:]))))
+    add("pymafx", "joints2d-strings", pm_edit(lambda o: _set(o, joints2d=["x"] * len(o["joints2d"]))), "either")
+    add("pymafx", "model-vertex-count-differs", lambda: {**format_files("pymafx"), "model.npz": npz_bytes(_set(
+        _load_npz_bytes(tiny_model_bytes()), v_template=np.zeros((7, 3), np.float32)))}, names=["model.npz"])
+
+    # ---- TRACE: np.savez(outputs=dict, imgpaths=...) -----------------------------------------------------
+    tr = format_members("trace")[0]
+
+    def tr_edit(fn: Callable[[dict], dict]) -> Callable[[], dict]:
+        return _npz_edit("trace", tr, lambda d: _trace_outputs(d, fn), allow_pickle=True)
+
+    add("trace", "outputs-posix-system", _replace("trace", tr, lambda root: npz_bytes(
+        {"outputs": _obj({"cam_trans": F.Evil(root / MARKER)}), "imgpaths": np.array(["/data/00000000.jpg"])})),
+        payload=True)
+    add("trace", "reorganize-idx-1e12", tr_edit(lambda o: _rows_of(o, "reorganize_idx", lambda v: v + 10**12)))
+    add("trace", "reorganize-idx-negative", tr_edit(lambda o: _rows_of(o, "reorganize_idx", lambda v: v - 7)))
+    add("trace", "reorganize-idx-fraction", tr_edit(lambda o: _rows_of(o, "reorganize_idx", lambda v: v + 0.5)))
+    add("trace", "j3d-20-joints", tr_edit(lambda o: _rows_of(o, "j3d", lambda v: v[:, :20])))
+    add("trace", "j3d-fewer-rows", tr_edit(lambda o: _rows_of(o, "j3d", lambda v: v[:1])))
+    add("trace", "cam-trans-nan", tr_edit(lambda o: _rows_of(o, "cam_trans", lambda v: v * np.nan)), "either")
+    add("trace", "track-ids-uint64-max", tr_edit(lambda o: _set(o, track_ids=np.full(len(o["track_ids"]), 2**64 - 1,
+                                                                                      np.uint64))), "either",
+        note="two people, one id no int64 holds: refused, dropped, or kept exactly")
+    add("trace", "track-ids-fewer", tr_edit(lambda o: _rows_of(o, "track_ids", lambda v: v[:1])))
+    add("trace", "thetas-width-69", tr_edit(lambda o: _rows_of(o, "smpl_thetas", lambda v: v[:, :69])))
+    add("trace", "outputs-list", _npz_edit("trace", tr, lambda d: _set(d, outputs=_obj([1, 2])), allow_pickle=True))
+    add("trace", "imgpaths-code-point-beyond-unicode", _npz_edit("trace", tr, lambda d: _set(
+        d, imgpaths=bad_text(d["imgpaths"])), allow_pickle=True), note="found by run_fuzz.py --seed 21 (iteration 493)")
+    add("trace", "imgpaths-ints", _npz_edit("trace", tr, lambda d: _set(d, imgpaths=np.arange(3)), allow_pickle=True))
+
+    # ---- SLAHMR: *_world_results.npz + track_info.json ----------------------------------------------------
+    sl = format_members("slahmr")[0]
+
+    def sl_edit(edit: Callable[[dict], dict]) -> Callable[[], dict]:
+        return _npz_edit("slahmr", sl, edit)
+
+    add("slahmr", "trans-object-posix-system", lambda: {**format_files("slahmr"), sl: lambda root: npz_bytes(_set(
+        _load_npz_bytes(format_files("slahmr")[sl]), trans=_obj(F.Evil(root / MARKER))))}, payload=True)
+    add("slahmr", "trans-nan", sl_edit(lambda d: _rows_of(d, "trans", lambda v: v * np.nan)), "either")
+    add("slahmr", "pose-body-width-60", sl_edit(lambda d: _rows_of(d, "pose_body", lambda v: v[..., :60])))
+    add("slahmr", "betas-rows-mismatch", sl_edit(lambda d: _rows_of(d, "betas", lambda v: v[:1])))
+    add("slahmr", "cam-R-3x2", sl_edit(lambda d: _rows_of(d, "cam_R", lambda v: v[..., :2])))
+    add("slahmr", "cam-t-fewer-frames", sl_edit(lambda d: _rows_of(d, "cam_t", lambda v: v[:, :1])))
+    add("slahmr", "intrins-zero", sl_edit(lambda d: _rows_of(d, "intrins", lambda v: v * 0)))
+    add("slahmr", "intrins-nan", sl_edit(lambda d: _rows_of(d, "intrins", lambda v: v * np.nan)))
+    tnames = ["track_info.json"]
+    add("slahmr", "track-info-not-json", _track_info(lambda i: b"{tracks: not json"), names=tnames)
+    add("slahmr", "track-info-deep-nesting", _track_info(lambda i: b"[" * 100_000 + b"]" * 100_000), names=tnames,
+        note="json.loads recursion on 100,000 nested lists")
+    add("slahmr", "track-info-id-2**70", _track_info(lambda i: _set(i, tracks={
+        str(2**70 + int(k)): v for k, v in i["tracks"].items()})), "either", names=tnames,
+        note="a track id no int64 holds: refused, or kept exactly")
+    add("slahmr", "track-info-index-infinity", _track_info(lambda i: json.dumps(i).replace(
+        '"index": 0', '"index": Infinity').encode()), names=tnames, note="JSON's Infinity token (json.loads reads it)")
+    add("slahmr", "track-info-seq-start-nan", _track_info(lambda i: json.dumps(i).replace(
+        '"seq_interval": [2', '"seq_interval": [NaN').encode()), names=tnames)
+    add("slahmr", "track-info-vis-mask-short", _track_info(lambda i: _set(i, tracks={
+        k: _set(v, vis_mask=v["vis_mask"][:3]) for k, v in i["tracks"].items()})), names=tnames)
+    add("slahmr", "track-info-other-run", _track_info(lambda i: _set(i, tracks={
+        k: _set(v, index=v["index"] + 5) for k, v in i["tracks"].items()})), names=tnames)
+    add("slahmr", "track-info-seq-start-1e30", _track_info(lambda i: _set(i, meta=_set(
+        i["meta"], seq_interval=[10**30, 10**30 + 3]))), names=tnames)
+    add("slahmr", "intrins-1e30-no-image-size", sl_edit(lambda d: _rows_of(d, "intrins", lambda v: v * 1e30)),
+        "either", args=import_args("slahmr")[:5] + ["--smpl-model", "model.npz"],
+        note="the image size comes from 2 x (cx, cy): 6.4e32 px")
+    add("slahmr", "model-is-smplx", lambda: {**format_files("slahmr"), "model.npz": model_bytes("smplx")},
+        names=[Path(sl).name, "model.npz"])
+
+    # ---- GLAMR: pickle of the optimiser's data dict (person_data per track id) ------------------------------
+    gl = format_members("glamr")[0]
+
+    def gl_edit(edit: Callable[[dict], dict]) -> Callable[[], dict]:
+        return _pickle_edit("glamr", gl, edit)
+
+    add("glamr", "person-data-posix-system", _replace("glamr", gl, lambda root: pickle.dumps(
+        {"person_data": {3: Reduce(os.system, (_cmd(root),))}, "cam_pose": np.zeros((3, 4, 4))}, protocol=2)),
+        payload=True)
+    add("glamr", "person-key-inf", gl_edit(lambda o: _set(o, person_data={
+        float("inf") if k == 3 else k: v for k, v in o["person_data"].items()})), note="int(inf) overflows")
+    add("glamr", "person-key-2**70", gl_edit(lambda o: _set(o, person_data={
+        2**70 + k: v for k, v in o["person_data"].items()})), "either",
+        note="a person id no int64 holds: refused, or kept exactly")
+    add("glamr", "person-key-string", gl_edit(lambda o: _set(o, person_data={
+        f"p{k}": v for k, v in o["person_data"].items()})))
+    add("glamr", "person-data-list", gl_edit(lambda o: _set(o, person_data=list(o["person_data"].values()))))
+    add("glamr", "smpl-pose-width-72", gl_edit(_glamr_people(lambda p: _rows_of(
+        p, "smpl_pose", lambda v: np.concatenate([v, v[:, :3]], axis=1)))))
+    add("glamr", "cam-pose-3x3", gl_edit(lambda o: _rows_of(o, "cam_pose", lambda v: v[:, :3, :3])))
+    add("glamr", "cam-pose-fewer-frames", gl_edit(lambda o: _rows_of(o, "cam_pose", lambda v: v[:2])))
+    add("glamr", "root-trans-nan", gl_edit(_glamr_people(lambda p: _rows_of(
+        p, "root_trans_world", lambda v: v * np.nan))), "either")
+    add("glamr", "nobody-visible", gl_edit(_glamr_people(lambda p: _set(
+        p, visible_orig=p["visible_orig"] * 0, visible=p["visible"] * 0))))
+    add("glamr", "scale-zero", gl_edit(_glamr_people(lambda p: _set(p, scale=np.zeros(3, np.float32)))), "either",
+        note="every mesh collapsed onto its root")
+    add("glamr", "kp-2d-17-joints", gl_edit(_glamr_people(lambda p: _rows_of(p, "kp_2d_pred", lambda v: v[:, :17]))))
+    def principal_inf(K: np.ndarray) -> np.ndarray:
+        K = K.copy()
+        K[:, 0, 2] = np.inf
+        return K
+
+    add("glamr", "cam-K-inf-no-image-size", gl_edit(_glamr_people(lambda p: _rows_of(p, "cam_K", principal_inf))),
+        args=import_args("glamr")[:5] + ["--smpl-model", "model.npz"],
+        note="the image size comes from 2 x cam_K's principal point: infinite here")
     return out
 
 
@@ -1501,6 +2021,85 @@ def _deflate_lie_npz() -> bytes:
     members = frame_members(vertices=npy_header("<f4", (1, 250_000_000, 3)) + bytes(1 << 20))
     return zip_raw([deflated(k, v, declared=3_000_000_000 if k == "vertices.npy" else None)
                     for k, v in members.items()])
+
+
+# ---- slow cases: measured processes that ``make fuzz`` runs (run_fuzz.py), not ``make test`` ----------
+def _zip_with(data: bytes, name: str, content: tuple[bytes, int], size: int) -> bytes:
+    """The zip ``data`` with member ``name`` replaced by a raw deflate stream (content, crc) of ``size`` bytes."""
+    members = _members_of(data)
+    packed, crc = content
+    return zip_raw([(n, zipfile.ZIP_DEFLATED, crc, packed, size) if n == name else stored(n, b)
+                    for n, b in members.items()])
+
+
+@functools.lru_cache(maxsize=None)
+def _gvhmr_big_storage(nbytes: int) -> bytes:
+    """hmr4d_results.pt whose net_outputs hold a float64 tensor of ``nbytes`` zeros in a deflated storage
+    record (~nbytes / 1000 on disk): within limits.max_array_mb, read whole by the loader."""
+    numel = nbytes // 8
+    big = T.Tensor(T.Storage(np.zeros(1, np.float64), declared=numel), 0, (numel,), (1,))
+    data = _gvhmr_bytes(lambda r: _set(r, net_outputs=_set(r["net_outputs"], extra=big)))
+    name = next(n for n, b in _members_of(data).items() if "/data/" in n and len(b) == 8)
+    return _zip_with(data, name, _deflated_zeros(b"", numel * 8), numel * 8)
+
+
+@functools.lru_cache(maxsize=None)
+def _gvhmr_big_pickle(nbytes: int) -> bytes:
+    """hmr4d_results.pt whose data.pkl record inflates to ``nbytes`` (a protocol-2 header, then zeros)."""
+    data = _gvhmr_bytes()
+    return _zip_with(data, "hmr4d_results/data.pkl", _deflated_zeros(b"\x80\x02", nbytes - 2), nbytes)
+
+
+@functools.lru_cache(maxsize=None)
+def _zlib_zeros(prefix: bytes, n_zeros: int) -> bytes:
+    """A zlib stream (joblib's zlib compression: 'x' first) of ``prefix`` + ``n_zeros`` zero bytes."""
+    comp, block = zlib.compressobj(9), bytes(1 << 22)
+    parts, left = [comp.compress(prefix)], n_zeros
+    while left:
+        chunk = block if left >= len(block) else bytes(left)
+        parts.append(comp.compress(chunk))
+        left -= len(chunk)
+    return b"".join(parts) + comp.flush()
+
+
+def gen_slow() -> list[Case]:
+    """Hostile inputs whose failure mode is memory or time: real processes, peak RSS measured. Too slow
+    (or too many processes) for the seeded corpus of ``make test``; run by ``make fuzz`` first."""
+    cls = "slow"
+    inputs = ["src", "model.npz"]
+    tram, pm, gv = format_members("tram")[0], format_members("pymafx")[0], format_members("gvhmr")[0]
+    wham = format_members("wham")[0]
+    cases = [
+        Case(f"{cls}/tram/frame-index-1e12", cls, import_args("tram"), _tram_edit(tram, lambda d: _rows_of(
+            d, "frame", lambda v: v + 10**12)), "either", inputs, ["out"], [Path(tram).name, "tram"],
+             checks=[check_seq("out"), check_meta("out")], subprocess=True, timeout_s=30, max_seconds=20,
+             note="frames 0 .. max('frame'): an image index of 1e12 must not make 1e12 frames"),
+        Case(f"{cls}/pymafx/frame-ids-1e12", cls, import_args("pymafx"), _pickle_edit(
+            "pymafx", pm, lambda o: _set(o, frame_ids=[10**12 + i for i in o["frame_ids"]]), joblib=True, compress=0),
+             "either", inputs, ["out"], [Path(pm).name], checks=[check_seq("out"), check_meta("out")],
+             subprocess=True, timeout_s=30, max_seconds=20,
+             note="frames 0 .. max(frame_ids): a frame index of 1e12 must not make 1e12 frames"),
+        Case(f"{cls}/gvhmr/storage-deflated-256MB", cls, import_args("gvhmr"), _replace(
+            "gvhmr", gv, _gvhmr_big_storage(256 << 20)), "either", inputs, ["out"], [Path(gv).name],
+             checks=[check_seq("out"), check_meta("out")], subprocess=True, timeout_s=40,
+             note="a 0.3 MB file, one 256 MB tensor (within limits.max_array_mb): peak RSS ~2x the storage"),
+        Case(f"{cls}/gvhmr/data-pkl-deflated-1GB", cls, import_args("gvhmr"), _replace(
+            "gvhmr", gv, _gvhmr_big_pickle(1 << 30)), "refuse", inputs, [], [Path(gv).name], subprocess=True,
+             timeout_s=40, note="a 1 MB file whose pickle record inflates to 1 GB of zeros (no valid opcode)"),
+        Case(f"{cls}/wham/joblib-zlib-1GB", cls, import_args("wham"), _replace(
+            "wham", wham, _zlib_zeros(b"\x80\x02", 1 << 30)), "refuse", inputs, [], [Path(wham).name],
+             subprocess=True, timeout_s=40,
+             note="WHAM's joblib.dump is zlib-compressed: 1 MB inflating to 1 GB of zeros (no valid opcode)"),
+    ]
+    return cases
+
+
+SLOW_GENERATORS: dict[str, Callable[[], list[Case]]] = {"slow": gen_slow}
+
+
+def slow_cases() -> list[Case]:
+    """The measured slow cases (``make fuzz`` only; not in :func:`all_cases`)."""
+    return [c for gen in SLOW_GENERATORS.values() for c in gen()]
 
 
 GENERATORS: dict[str, Callable[[], list[Case]]] = {

@@ -2,7 +2,7 @@
 """``make fuzz``: a randomized campaign against rotavat's hostile-input rules (issue 15).
 
 Each iteration takes a valid input (a contract sequence in npz or OBJ form, a --config file, or the
-output of one of the eight HPS tools rotavat imports), damages one of its files at random and
+output of one of the sixteen HPS tools rotavat imports), damages one of its files at random and
 runs the command that reads it; every run is checked against the rules of the fixed corpus
 (harness.py): exit 0 with a correct result or exit 2 with one ``error:`` line naming the input,
 inputs unchanged, nothing foreign touched, nothing left behind, no payload, bounded memory and time.
@@ -10,8 +10,13 @@ inputs unchanged, nothing foreign touched, nothing left behind, no payload, boun
 Mutations: byte flips, truncation at a random offset, inserted/zeroed/duplicated byte ranges; for
 npz files member deletion, duplication and renaming (including path-like names), dtype and shape
 changes and injected NaN/inf/huge values inside a member; for pickles the same on the unpickled
-tree (re-pickled with a random protocol, joblib layout kept); for YAML keys and values; for OBJ
-numbers and indices.
+tree (re-pickled with a random protocol, joblib layout kept); for torch files (``torch.save`` zip
+archives, legacy streams, ``np.save`` of dicts of tensors) the same on the loaded tree, re-saved with
+its tensors as torch's, or damage to the archive's records (storages); for YAML and JSON keys and
+values; for OBJ numbers and indices.
+
+Before the iterations, the slow measured cases of the corpus (``corpus.slow_cases``: memory and time
+bombs too slow for ``make test``) run as real processes (``--no-slow`` skips them).
 
 Every ``--memory-every``-th run is a real process with its peak RSS measured (rule 4); the others
 run in this process (fast). Iteration ``i`` is reproducible: ``--seed S --only i --keep DIR``.
@@ -93,7 +98,8 @@ def bases() -> list[Base]:
                       [C.check_camera_yaml("cal.yaml")])], C.SEQ_INPUTS + ["config.yaml"]))
     for fmt in C.FORMATS:
         files = dict(C.format_files(fmt))
-        targets = C.format_members(fmt) + (["model.npz"] if fmt in ("cliff", "4dhumans", "bedlam") else [])
+        targets = C.format_members(fmt) + (["model.npz"] if fmt in ("cliff", "4dhumans", "bedlam", "gvhmr", "slahmr")
+                                           else [])
         out.append(Base(f"import-{fmt}", files, targets,
                         [("import", C.import_args(fmt), ["out"], [C.check_files("out/meta.yaml"), C.check_seq("out")])],
                         ["src", "model.npz"]))
@@ -409,17 +415,89 @@ def mutate_obj(data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | Non
     return "obj:duplicate-lines", b"\n".join(lines[:i] + lines[i: i + 10] * 2 + lines[i + 10:])
 
 
+def mutate_torch(data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | None:
+    """A torch.save file (zip archive or legacy stream) loaded, its tree damaged, re-saved by the test
+    writers with every numeric array a torch tensor (zip or legacy stream at random)."""
+    from rotavat_cli.safe_torch import load_torch_bytes
+
+    try:
+        obj = load_torch_bytes(data, "x.pt")
+    except Exception:  # noqa: BLE001
+        return None
+    name, new = mutate_tree(obj, rng)
+    legacy = rng.random() < 0.2
+    try:
+        tensors = C._tensors(new)
+        out = C.T.legacy_bytes(tensors) if legacy else C.T.torch_zip_bytes(tensors, name="hmr4d_results")
+    except Exception:  # noqa: BLE001
+        return None
+    return ("torch-legacy:" if legacy else "torch:") + name.split(":", 1)[1], out
+
+
+def mutate_npy_dict(rel: str, data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | None:
+    """An ``np.save`` of a dict (TRAM: of torch tensors) loaded, its tree damaged, re-saved the same way."""
+    try:
+        obj = C._load_any_npy(data)
+    except Exception:  # noqa: BLE001
+        return None
+    if not isinstance(obj, dict):
+        return None
+    name, new = mutate_tree(obj, rng)
+    try:
+        return "npy:" + name.split(":", 1)[1], C.npy_tensors_bytes(C._tensors(new) if "/hps/" in rel else new)
+    except Exception:  # noqa: BLE001
+        return None
+
+
+def mutate_json(data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | None:
+    try:
+        obj = json.loads(data)
+    except ValueError:
+        return None
+    if rng.random() < 0.15:
+        token = str(rng.choice(["NaN", "Infinity", "-Infinity", "1e400", "-1", "18446744073709551616", "[[[[[]]]]]"]))
+        text = data.decode("utf-8", "replace")
+        spots = [m.start() for m in re.finditer(r"(?<=: )-?\d+", text)]
+        if spots:
+            i = spots[int(rng.integers(0, len(spots)))]
+            end = re.match(r"-?\d+", text[i:]).end()
+            return "json:token", (text[:i] + token + text[i + end:]).encode()
+    name, new = mutate_tree(obj, rng)
+
+    def plain(x: Any) -> Any:
+        if isinstance(x, np.ndarray):
+            return x.tolist()
+        if isinstance(x, np.generic):
+            return x.item()
+        if isinstance(x, dict):
+            return {str(k): plain(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [plain(v) for v in x]
+        return x
+
+    try:
+        return "json:" + name.split(":", 1)[1], json.dumps(plain(new)).encode()
+    except (TypeError, ValueError):
+        return None
+
+
 def mutate_file(rel: str, data: bytes, rng: np.random.Generator) -> tuple[str, bytes]:
     """A damaged copy of ``data`` (the file ``rel``): structural where the format allows, else bytes."""
     structural = None
     if rng.random() < 0.7:
         try:
-            if rel.endswith(".npz") or data[:2] == b"PK":
+            if rel.endswith((".pt", ".pth")) and rng.random() < 0.6:
+                structural = mutate_torch(data, rng)
+            elif rel.endswith(".npz") or data[:2] == b"PK":
                 structural = mutate_npz(data, rng)
-            elif rel.endswith(".pkl"):
+            elif rel.endswith(".npy"):
+                structural = mutate_npy_dict(rel, data, rng)
+            elif rel.endswith((".pkl", ".pk")):
                 structural = mutate_pickle(data, rng)
             elif rel.endswith(".yaml"):
                 structural = mutate_yaml(data, rng)
+            elif rel.endswith(".json"):
+                structural = mutate_json(data, rng)
             elif rel.endswith(".obj"):
                 structural = mutate_obj(data, rng)
         except Exception:  # noqa: BLE001 - a mutation numpy/yaml cannot express: damage the bytes instead
@@ -473,6 +551,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None, help="with --only: keep the case folder here")
     parser.add_argument("--report", type=Path, default=None, help="write every run record as JSON lines")
     parser.add_argument("--corpus", action="store_true", help="also run the fixed corpus first")
+    parser.add_argument("--no-slow", action="store_true",
+                        help="skip the slow measured cases (corpus.slow_cases: memory and time bombs) run first")
     parser.add_argument("--check-bomb", action="store_true",
                         help="rebuild the stored 1.2 GB bz2 bomb stream and compare (slow: 5 s)")
     args = parser.parse_args(argv)
@@ -490,6 +570,8 @@ def main(argv: list[str] | None = None) -> int:
     cases: list[C.Case] = []
     if args.corpus:
         cases += C.all_cases()
+    if not args.no_slow and args.only is None:
+        cases += C.slow_cases()
     iterations = [args.only] if args.only is not None else range(args.iterations)
     cases += [make_case(i, args.seed, all_bases) for i in iterations]
 
