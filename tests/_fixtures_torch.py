@@ -324,7 +324,7 @@ def write_tram(folder: Path, scene, image_size, focal: float | None = None, movi
         T[:, 0] = np.linspace(0.0, 0.5, n_frames)
     camera = {"pred_cam_R": R, "pred_cam_T": T, "img_focal": np.float64(max(width, height) if focal is None else focal),
               "img_center": np.array([width / 2.0, height / 2.0])}
-    np.save(folder / "camera.npy", camera, allow_pickle=True)
+    np.save(folder / "camera.npy", camera)  # a dict: pickled into the .npy, as TRAM writes it
     tracks: dict[int, list[tuple[int, F.Person]]] = {}
     for index, frame in enumerate(scene):
         for person in frame:

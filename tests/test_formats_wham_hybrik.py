@@ -236,7 +236,7 @@ def test_hybrik_rows_of_one_image_are_one_frame(tmp_path, scene, model_path):
 
 def test_hybrik_person_with_non_finite_joints_is_dropped_with_its_focal(tmp_path, scene):
     src = WH.write_hybrik(tmp_path / "res.pk", scene, (W, H))
-    data = pickle.loads(src.read_bytes())
+    data = safe_pickle.load_file(src)
     data["pred_xyz_29"][0, 5] = np.nan  # first image, first person (pid 3)
     src.write_bytes(pickle.dumps(data))
     summary = import_sequence(src, tmp_path / "out", "hybrik")
@@ -282,7 +282,7 @@ def test_uvd_to_px_is_the_demos_vis_2d():
 
 def _hybrik_damaged(path: Path, scene, damage: str) -> Path:
     WH.write_hybrik(path, scene, (W, H))
-    data = pickle.loads(path.read_bytes())
+    data = safe_pickle.load_file(path)
     if damage == "no transl":
         del data["transl"]
     elif damage == "24 joints":
@@ -320,7 +320,7 @@ def test_hybrik_malformed_files_are_refused_in_one_line(damage, needle, tmp_path
 def test_hybrik_quaternion_thetas_import_joints_only(tmp_path, model, camera, model_path):
     scene = WH.single_person_scene(model, camera)
     src = WH.write_hybrik(tmp_path / "res.pk", scene, (W, H))
-    data = pickle.loads(src.read_bytes())
+    data = safe_pickle.load_file(src)
     data["pred_thetas"] = np.zeros((len(data["transl"]), 96), np.float32)  # older HybrIK: 24 quaternions
     src.write_bytes(pickle.dumps(data))
     summary = import_sequence(src, tmp_path / "out", "hybrik", smpl_model=model_path)

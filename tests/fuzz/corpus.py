@@ -57,6 +57,7 @@ import _fixtures_torch as T  # noqa: E402
 import _fixtures_wham_hybrik as WH  # noqa: E402
 import _format_fixtures as F  # noqa: E402
 
+from rotavat_cli import safe_pickle  # noqa: E402
 from rotavat_cli.camera import Camera, camera_to_yaml_dict  # noqa: E402
 from rotavat_cli.formats.smpl import SMPL_PARENTS, load_body_model  # noqa: E402
 
@@ -372,7 +373,7 @@ def npy_header(descr: str, shape: tuple, fortran: bool = False, version: int = 1
 
 def npy_bytes(arr: np.ndarray) -> bytes:
     buf = io.BytesIO()
-    np.save(buf, arr, allow_pickle=True)
+    np.save(buf, arr)  # object arrays are pickled into the .npy (np.save's default)
     return buf.getvalue()
 
 
@@ -910,11 +911,15 @@ def _obj(value: Any) -> np.ndarray:
     return arr
 
 
-def _npz_edit(fmt: str, member: str, edit: Callable[[dict], dict], allow_pickle: bool = False) -> Callable[[], dict]:
+def _npz_edit(fmt: str, member: str, edit: Callable[[dict], dict], objects: bool = False) -> Callable[[], dict]:
+    """A fixture whose npz ``member`` is read (object members through the restricted unpickler when
+    ``objects``), edited and written again."""
     def files() -> dict[str, Content]:
         all_files = dict(format_files(fmt))
-        with np.load(io.BytesIO(all_files[member]), allow_pickle=allow_pickle) as z:
-            data = {k: z[k] for k in z.files}
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "member.npz"
+            path.write_bytes(all_files[member])
+            data = safe_pickle.load_npz(path, allow_pickle=objects)
         all_files[member] = npz_bytes(edit(data))
         return all_files
 
@@ -1375,7 +1380,7 @@ def _new_importer_cases() -> list[Case]:
     tr = format_members("trace")[0]
 
     def tr_edit(fn: Callable[[dict], dict]) -> Callable[[], dict]:
-        return _npz_edit("trace", tr, lambda d: _trace_outputs(d, fn), allow_pickle=True)
+        return _npz_edit("trace", tr, lambda d: _trace_outputs(d, fn), objects=True)
 
     add("trace", "outputs-posix-system", _replace("trace", tr, lambda root: npz_bytes(
         {"outputs": _obj({"cam_trans": F.Evil(root / MARKER)}), "imgpaths": np.array(["/data/00000000.jpg"])})),
@@ -1391,10 +1396,10 @@ def _new_importer_cases() -> list[Case]:
         note="two people, one id no int64 holds: refused, dropped, or kept exactly")
     add("trace", "track-ids-fewer", tr_edit(lambda o: _rows_of(o, "track_ids", lambda v: v[:1])))
     add("trace", "thetas-width-69", tr_edit(lambda o: _rows_of(o, "smpl_thetas", lambda v: v[:, :69])))
-    add("trace", "outputs-list", _npz_edit("trace", tr, lambda d: _set(d, outputs=_obj([1, 2])), allow_pickle=True))
+    add("trace", "outputs-list", _npz_edit("trace", tr, lambda d: _set(d, outputs=_obj([1, 2])), objects=True))
     add("trace", "imgpaths-code-point-beyond-unicode", _npz_edit("trace", tr, lambda d: _set(
-        d, imgpaths=bad_text(d["imgpaths"])), allow_pickle=True), note="found by run_fuzz.py --seed 21 (iteration 493)")
-    add("trace", "imgpaths-ints", _npz_edit("trace", tr, lambda d: _set(d, imgpaths=np.arange(3)), allow_pickle=True))
+        d, imgpaths=bad_text(d["imgpaths"])), objects=True), note="found by run_fuzz.py --seed 21 (iteration 493)")
+    add("trace", "imgpaths-ints", _npz_edit("trace", tr, lambda d: _set(d, imgpaths=np.arange(3)), objects=True))
 
     # ---- SLAHMR: *_world_results.npz + track_info.json ----------------------------------------------------
     sl = format_members("slahmr")[0]
