@@ -450,3 +450,17 @@ def test_wham_rte_leaves_out_a_standing_track(tmp_path):
     assert got.metrics["rte"] == pytest.approx(0.0, abs=1e-9)
     assert any(note.startswith("rte: 1 track(s) left out") for note in got.notes)
     assert got.metrics["w_mpjpe"] == pytest.approx(0.0, abs=1e-9)  # a constant offset is fitted away
+
+
+def test_a_newly_registered_person_metric_is_reported_under_the_paper_protocol(tmp_path, monkeypatch):
+    """CONTRIBUTING's recipe: one registry entry is enough; the paper reports every registered metric."""
+    import rotavat_cli.metrics.evaluate as E
+
+    def toy(pairs, pred_cam, gt_cam, opts):
+        return {"toy_mm": np.full(len(pairs.gt_joints), 7.0)}
+
+    families = (*E.PERSON_METRIC_FAMILIES, E.PersonMetric(("toy_mm",), toy))
+    monkeypatch.setattr(E, "PERSON_METRIC_FAMILIES", families)
+    monkeypatch.setattr(E, "PERSON_METRICS", tuple(n for f in families for n in f.names))
+    result = run(tmp_path, {"000000": frame(body()[None])}, {"000000": frame(body((0.0, 0.0, 5.1))[None])})
+    assert result.metrics["toy_mm"] == 7.0 and result.units["toy_mm"] == "mm"

@@ -150,7 +150,7 @@ def markdown_batch_report(report: BatchReport) -> str:
             change = ""
             if len(vals) == 2:
                 change = " | " + (f"{100.0 * (vals[1] - vals[0]) / abs(vals[0]):+.1f}%" if all(map(math.isfinite, vals)) and vals[0] else "–")
-            unit = proto.units.get(m)
+            unit = proto.unit(m)
             lines.append(f"| {m} ({proto.name}{', ' + unit if unit else ''}) | " + " | ".join(format_value(m, v) for v in vals)
                          + change + " |")
         for s in sides:

@@ -508,7 +508,7 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
                                    "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
     tracks = result.tracks if result.track_pairs else None
     result.metrics, notes = aggregate(proto, columns, counts, tracks, result.fps or GVHMR_FPS, skipped)
-    result.units = {name: proto.units.get(name, "") for name in result.metrics}
+    result.units = {name: proto.unit(name) for name in result.metrics}
     if proto.name == "spec" and not result.camera:
         notes.append("w_mpjpe: needs a camera.yaml on both sides (each side's gravity frame)")
     if proto.track_metrics and result.track_pairs_without_feet and "foot_sliding" not in skipped:

@@ -73,25 +73,37 @@ class Protocol:
     root: str  # "pelvis" (SMPL joint 0) | "hips" (midpoint of SMPL joints 1 and 2)
     first_joints: int | None  # the joint set: the first N joints (SMPL order); None = all or --joints
     match: str | None  # the matching it fixes (None: --match)
-    pair_metrics: Mapping[str, str]  # report name -> per-pair error of person_errors_mm it is
+    pairs: Mapping[str, str] | None  # report name -> per-pair metric it is; None: every registered one (evaluate)
     track_metrics: tuple[str, ...]  # metrics of tracks (temporal.py)
-    units: Mapping[str, str]
+    units: Mapping[str, str]  # unit of each reported metric (default_unit for the others)
+    default_unit: str = ""
     skipped: Mapping[str, str] = field(default_factory=dict)  # metric -> why it is never computed here
     detection: str | None = None  # None | "rotavat" | "agora"
     pooled: bool = False  # track metrics pooled over every window (GVHMR), else per track then averaged
     pred_only_frames_count: bool = True  # False: predictions on frames without ground truth are ignored
 
+    @property
+    def pair_metrics(self) -> Mapping[str, str]:
+        """Report name -> per-pair metric (``evaluate.PERSON_METRICS``) it is. The paper reports every
+        registered per-person metric under its own name, so a new registry entry is reported at once."""
+        if self.pairs is not None:
+            return self.pairs
+        from .evaluate import PERSON_METRICS  # the registry lives beside evaluate (it imports this module)
+
+        return {name: name for name in PERSON_METRICS}
+
+    def unit(self, name: str) -> str:
+        """The unit a metric is reported in under this protocol ('' for ratios and counts)."""
+        return self.units.get(name, self.default_unit if name in self.pair_metrics else "")
+
 
 _MM = "mm"
-_PAPER_PAIRS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
-                "root_err", "foot_height", "lean_deg", "stature_err")
 
 PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
     Protocol("paper", "the seed paper's definitions (docs/metrics.md)", "pelvis", None, None,
-             {k: k for k in _PAPER_PAIRS}, ("accel_err", "jitter", "foot_sliding"),
-             {**{k: _MM for k in _PAPER_PAIRS}, "lean_deg": "deg", "accel_err": "mm/frame^2",
-              "jitter": "mm/frame^3", "foot_sliding": "mm/frame", "nmje": _MM, "nmve": _MM},
-             detection="rotavat"),
+             None, ("accel_err", "jitter", "foot_sliding"),
+             {"lean_deg": "deg", "accel_err": "mm/frame^2", "jitter": "mm/frame^3", "foot_sliding": "mm/frame",
+              "nmje": _MM, "nmve": _MM}, default_unit=_MM, detection="rotavat"),
     Protocol("spec", "mkocabas/SPEC@308fd4a spec/utils/compute_error.py compute_error, eval_j_24", "pelvis", 24, None,
              {"mpjpe": "mpjpe", "pa_mpjpe": "pa_mpjpe", "w_mpjpe": "w_mpjpe_spec"}, (),
              {"mpjpe": _MM, "pa_mpjpe": _MM, "w_mpjpe": _MM},
