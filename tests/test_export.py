@@ -13,7 +13,7 @@ from conftest import invoke, tree_hash
 from rotavat_cli.camera import Camera
 from rotavat_cli.render import (R_CV_FROM_GL, RenderStyle, build_scene, export_frame, frustum_segments_world,
                                 ground_quad_world, read_glb_json, read_row, world_from_gl_camera, write_glb)
-from rotavat_cli.sequence import open_sequence
+from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 
 FEET_TOL_M = 0.02  # synthetic soles sit on y = 0 up to the mesh's own sole thickness
@@ -121,3 +121,14 @@ def test_cli_export_bad_input_exit_2(runner, scene, tmp_path, monkeypatch, args,
     result = invoke(runner, "export", scene / args[0], *args[1:])
     assert result.exit_code == 2, result.output
     assert message in result.stderr and "Traceback" not in result.stderr
+
+
+def test_cli_export_camera_overrides_the_sequence_own(runner, scene, tmp_path):
+    """--camera is the camera the GLB is placed by, even when SEQ has its own camera.yaml."""
+    cam, fit = read_camera_yaml(scene / "gt" / "camera.yaml")
+    write_camera_yaml(tmp_path / "wide.yaml", cam.replace(focal_px=cam.focal_px / 2), fit)
+    own = json.loads(invoke(runner, "export", scene / "gt", "--out", tmp_path / "a.glb", "--json").stdout)
+    given = json.loads(invoke(runner, "export", scene / "gt", "--camera", tmp_path / "wide.yaml", "--out",
+                              tmp_path / "b.glb", "--json").stdout)
+    assert given["yfov_deg"] > own["yfov_deg"] + 10  # half the focal: a much wider view
+    assert given["yfov_deg"] == pytest.approx(np.rad2deg(cam.replace(focal_px=cam.focal_px / 2).vertical_fov_rad))

@@ -22,7 +22,7 @@ from rotavat_cli.render import (LABEL_PX, REGISTRY, RENDERERS, VIEWS, FigureOpti
                                 scene_extents, select_frames, sequence_camera, sequence_tracks)
 from rotavat_cli.render.skeleton import JOINT_RADIUS_M
 from rotavat_cli.render.views import side_fov_px, tick_marks
-from rotavat_cli.sequence import open_sequence
+from rotavat_cli.sequence import open_sequence, read_camera_yaml
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 from rotavat_cli.synth.bodies import load_bodies
 
@@ -616,7 +616,8 @@ def test_rows_are_placed_by_their_own_camera(runner, scene, tmp_path):
     assert f"pitch {p_wrong['pitch_deg']:.1f}°" in summary.captions["pred"]  # no camera.yaml: --camera
     assert f"pitch {p_gt['pitch_deg']:.1f}°" in summary.captions["gt"] and f"height {p_gt['height_m']:.2f} m" in summary.captions["gt"]
     assert summary.gt == "gt" and summary.captions["gt"].startswith("ground truth")
-    assert sequence_camera(seqs[1], tmp_path / "wrong.yaml") == gt_cam
+    assert sequence_camera(seqs[1], tmp_path / "wrong.yaml", own_first=True) == gt_cam  # render's rule for rows
+    assert sequence_camera(seqs[1], tmp_path / "wrong.yaml") == read_camera_yaml(tmp_path / "wrong.yaml")[0]  # export's
 
 
 def test_captions_give_the_frame_metrics_against_the_ground_truth(scene, tmp_path):

@@ -73,9 +73,11 @@ def row_labels(paths: list[Path]) -> list[str]:
     return labels
 
 
-def sequence_camera(seq: Sequence, camera_path: Path | None) -> Camera | None:
-    """The sequence's own camera.yaml, else ``camera_path`` (if given), else None."""
-    if seq.camera is not None:
+def sequence_camera(seq: Sequence, camera_path: Path | None, own_first: bool = False) -> Camera | None:
+    """The camera a sequence is drawn in: ``camera_path`` (a camera.yaml the user gave), else the
+    sequence's own camera.yaml, else None. ``own_first``: the sequence's own camera wins and
+    ``camera_path`` only fills in for a sequence without one (render's rows: each in its own camera)."""
+    if seq.camera is not None and (own_first or camera_path is None):
         return seq.camera
     if camera_path is not None:
         return read_camera_yaml(camera_path, seq.image_size)[0]

@@ -173,7 +173,7 @@ def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
 
 def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> list[Camera | None]:
     """Each sequence's camera (its own, else ``opts.camera_path``); an error naming what ``needs`` one if it is missing."""
-    cameras = [sequence_camera(s, opts.camera_path) for s in seqs]
+    cameras = [sequence_camera(s, opts.camera_path, own_first=True) for s in seqs]
     if needs:
         for seq, cam in zip(seqs, cameras):
             if cam is None:
