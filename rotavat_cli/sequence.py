@@ -654,6 +654,17 @@ def _check_meta(meta: dict, source: Path) -> None:
             raise _fail(str(source), f"key '{key}' must be a {'name' if kind is str else 'number'}, got {value!r:.60}")
 
 
+def people_not_placed(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+    """(root_centred, behind) (P,) of a frame's people: :func:`rotavat_cli.camera.people_not_in_front`
+    on its meshes (else its joints), the root being joint 0 when it has joints, else the points' mean."""
+    verts, joints = frame.get("vertices"), frame.get("joints")
+    points = verts if verts is not None and verts.shape[1] else joints
+    if points is None or frame.n_people == 0:
+        return np.zeros(frame.n_people, bool), np.zeros(frame.n_people, bool)
+    roots = joints[:, 0] if joints is not None and joints.shape[1] else None
+    return people_not_in_front(points, roots)
+
+
 def can_align(frame: Frame) -> bool:
     """Whether ``rotavat align`` can place the frame's people: meshes, or joints with their mid-sole and
     crown pixels (joint-level alignment; rotavat_cli.alignment)."""
@@ -674,11 +685,9 @@ def summarize_sequence(seq: Sequence) -> dict:
         stated = frame.intrinsics.focals_px(frame.n_people) if frame.n_people else None
         if meta_focal is not None and stated is not None and not np.allclose(stated, meta_focal, rtol=1e-6):
             other_focal.append(frame.name)
-        points = frame.get("vertices") if frame.get("vertices") is not None else frame.get("joints")
-        if points is not None and frame.n_people:
-            is_centred, is_behind = people_not_in_front(points)
-            centred += int(is_centred.sum())
-            behind += int((is_behind & ~is_centred).sum())
+        is_centred, is_behind = people_not_placed(frame)
+        centred += int(is_centred.sum())
+        behind += int((is_behind & ~is_centred).sum())
         keys.update(frame.data.keys())
         if frame.get("vertices") is not None and frame.n_people:
             verts.add(int(frame.data["vertices"].shape[1]))

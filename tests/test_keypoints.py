@@ -4,8 +4,6 @@ different sizes; Multi-HMR's demo file names; a BEV file read as ROMP)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import _format_fixtures as F
 from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
@@ -14,7 +12,14 @@ import pytest
 from rotavat_cli.camera import ROOT_CENTRED_M, project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
-from rotavat_cli.formats._common import (feet_heads_from, people_frame, placement_warnings, unplaced_people)
+from rotavat_cli.formats._common import feet_heads_from, people_frame, placement_warnings
+from rotavat_cli.sequence import Frame, people_not_placed
+
+
+def unplaced_people(vertices, joints) -> np.ndarray:
+    """(P,) bool: the people a frame of these vertices and joints does not place in the camera."""
+    data = {k: v for k, v in (("vertices", vertices), ("joints", joints)) if v is not None}
+    return np.logical_or(*people_not_placed(Frame("f", data, "f")))
 from rotavat_cli.formats.keypoints import (LAYOUT_NAMES, LAYOUTS, PointRule, extrapolated, feet_heads_px,
                                            layout_by_count, mean_of, recipe_for)
 from rotavat_cli.landmarks import foot_head_points
@@ -300,3 +305,20 @@ def test_bedlam_without_a_model_finds_feet_and_heads_near_the_meshes(tmp_path, s
         stature = np.linalg.norm(sole_px - crown_px, axis=-1)
         assert np.all(np.linalg.norm(frame.data["feet_2d"] - sole_px, axis=-1) < 0.02 * stature)
         assert np.all(np.linalg.norm(frame.data["heads_2d"] - crown_px, axis=-1) < 0.05 * stature)
+
+
+def test_every_reader_reports_people_not_placed_in_the_camera():
+    """The check lives in ImportedSequence, not in the readers: any reader's root-centred people are reported."""
+    from rotavat_cli.formats._common import ImportedSequence
+
+    body = np.array([[0.0, 0.0, 0.0], [0.0, -0.9, 0.05], [0.0, 0.9, -0.05]])
+
+    def build(index, notes):  # a reader that knows nothing of the check: two people, one root-centred
+        return people_frame(f"{index:06d}", "toy", notes.warnings, joints=np.stack([body + [0, 0, 6.0], body]))
+
+    imported = ImportedSequence(("000000", "000001"), build, {"import": {"source_path": "/data/toy.pkl"}})
+    assert len(list(imported.frames)) == 2
+    assert imported.warnings == ["/data/toy.pkl: 2 of 4 people at the camera centre or (partly) behind the camera "
+                                 "(z <= 0): root-centred output (no translation) or another frame, not people placed in "
+                                 "the camera; calibrate and align cannot use them (root-aligned metrics such as MPJPE, "
+                                 "PVE and PA-MPJPE still apply)"]

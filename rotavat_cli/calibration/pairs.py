@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import people_not_in_front, project_cam_to_px
+from ..camera import project_cam_to_px
 from ..errors import InputError
 from ..landmarks import foot_head_points
-from ..sequence import Frame, Intrinsics, Sequence
+from ..sequence import Frame, Intrinsics, Sequence, people_not_placed
 
 __all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
 
@@ -31,7 +31,7 @@ class FootHeadPairs:
     tracked: bool  # every frame with people carries person_ids
     n_frames: int
     source: str  # "2d" (explicit points), "mesh" (projected landmarks) or "mixed"
-    not_in_front: int = 0  # meshes dropped: root-centred or behind the camera (camera.people_not_in_front)
+    not_in_front: int = 0  # meshes dropped: root-centred or behind the camera (sequence.people_not_placed)
 
 
 def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, str]:
@@ -67,7 +67,7 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
         tracked &= frame.n_people == 0 or frame.get("person_ids") is not None
         f, h, src = frame_foot_head_px(frame, seq.frame_intrinsics(frame))
         if src == "mesh":  # a mesh that is not where the camera saw it projects to meaningless pixels
-            off = np.logical_or(*people_not_in_front(frame.data["vertices"]))
+            off = np.logical_or(*people_not_placed(frame))
             f[off], h[off] = np.nan, np.nan
             not_in_front += int(off.sum())
         if len(f):

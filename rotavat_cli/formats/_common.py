@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import MAX_IMAGE_SIDE_PX, Camera, people_not_in_front, project_cam_to_px
+from ..camera import MAX_IMAGE_SIDE_PX, Camera, project_cam_to_px
 from ..errors import InputError
-from ..sequence import Frame, validate_frame
+from ..sequence import Frame, people_not_placed, validate_frame
 from .keypoints import feet_heads_px, recipe_for
 from .smpl import BodyModel
 
@@ -45,7 +45,6 @@ __all__ = [
     "project_px",
     "require_model",
     "single_file",
-    "unplaced_people",
 ]
 
 
@@ -101,19 +100,27 @@ class ImportedSequence:
     camera: Camera | None = None
     camera_fit: dict | None = None
     conclude: Callable[[list[FrameNotes]], Conclusion] | None = None
+    camera_from_frames: bool = False  # the conclusion holds the camera (SPEC): reading one needs every frame
 
     @property
     def n_frames(self) -> int:
         return len(self.names)
 
     def frame_at(self, index: int) -> tuple[Frame, FrameNotes]:
-        """Frame ``index`` (0-based, frame order) and what building it found."""
+        """Frame ``index`` (0-based, frame order) and what building it found, including how many of its
+        people are not placed in the camera (:func:`rotavat_cli.sequence.people_not_placed`), whatever the reader."""
         notes = FrameNotes()
-        return self.build(index, notes), notes
+        frame = self.build(index, notes)
+        notes.facts["unplaced"] = [int(np.logical_or(*people_not_placed(frame)).sum()), frame.n_people]
+        return frame, notes
 
     def concluded(self, notes: list[FrameNotes]) -> Conclusion:
-        """The frame-dependent part of the import from every frame's notes, in frame order."""
-        return self.conclude(notes) if self.conclude is not None else Conclusion()
+        """The frame-dependent part of the import from every frame's notes, in frame order: the
+        reader's own (``conclude``), and one warning for the people not placed in the camera."""
+        conclusion = self.conclude(notes) if self.conclude is not None else Conclusion()
+        source = self.meta.get("import", {}).get("source_path", "the import")
+        conclusion.warnings.extend(conclude_placement(notes, source))
+        return conclusion
 
     def apply(self, conclusion: Conclusion) -> None:
         """Complete ``meta``, ``warnings`` and the camera with a conclusion."""
@@ -237,7 +244,7 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
                  joints: np.ndarray | None = None, keypoints_2d: np.ndarray | None = None,
                  person_ids: np.ndarray | None = None, faces: np.ndarray | None = None,
                  n_verts: int | None = None, extra: Mapping[str, np.ndarray] | None = None,
-                 keypoints_layout: str | None = None, facts: dict[str, Any] | None = None) -> Frame:
+                 keypoints_layout: str | None = None) -> Frame:
     """A validated contract frame; people with non-finite vertices or joints are dropped (with a warning).
 
     keypoints_layout: the layout of ``keypoints_2d`` (:mod:`.keypoints`); when it has a recipe and
@@ -245,8 +252,6 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
     calibration and joint-level alignment work without a body model (meshes give their own
     landmarks, which take precedence: :func:`feet_heads_from`). A person missing a recipe point
     gets a NaN row (calibration drops the pair, align flags the person).
-    facts: the frame's ``FrameNotes.facts``; when given, the count of people not placed in the
-    camera (:func:`unplaced_people`) is recorded there for :func:`conclude_placement`.
     """
     arrays = {"vertices": vertices, "joints": joints, "keypoints_2d": keypoints_2d, "person_ids": person_ids}
     counts = {k: len(v) for k, v in arrays.items() if v is not None}
@@ -281,27 +286,12 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
         found = feet_heads_px(data["keypoints_2d"], keypoints_layout)
         if found is not None:
             data["feet_2d"], data["heads_2d"] = (points.astype(np.float32) for points in found[:2])
-    if facts is not None:
-        facts["unplaced"] = [int(unplaced_people(data.get("vertices"), data.get("joints")).sum()), int(keep.sum())]
     data.update(extra or {})
     validate_frame(data, str(source))
     return Frame(name, data, str(source))
 
 
 # ---- people not placed in the camera ---------------------------------------------------------
-def unplaced_people(vertices_cam: np.ndarray | None, joints_cam: np.ndarray | None) -> np.ndarray:
-    """(P,) bool: people root-centred or (partly) behind the camera (:func:`rotavat_cli.camera.people_not_in_front`,
-    the root being joint 0 when there are joints, else the vertices' mean).
-
-    vertices_cam: (P, V, 3) or None; joints_cam: (P, J, 3) or None; camera frame, metres.
-    """
-    points = vertices_cam if vertices_cam is not None and vertices_cam.shape[1] else joints_cam
-    if points is None:
-        return np.zeros(0, dtype=bool)
-    roots = joints_cam[:, 0] if joints_cam is not None and joints_cam.ndim == 3 and joints_cam.shape[1] else None
-    return np.logical_or(*people_not_in_front(points, roots))
-
-
 def placement_warnings(unplaced: int, people: int, source: Any) -> list[str]:
     """The warning for ``unplaced`` of ``people`` people not placed in the camera (none when 0)."""
     if unplaced == 0:
@@ -314,7 +304,7 @@ def placement_warnings(unplaced: int, people: int, source: Any) -> list[str]:
 
 
 def conclude_placement(notes: list[FrameNotes], source: Any) -> list[str]:
-    """Sum every frame's ``unplaced`` fact (:func:`people_frame` ``facts=``) into one warning."""
+    """Sum every frame's ``unplaced`` fact (:meth:`ImportedSequence.frame_at`) into one warning."""
     counts = [n.facts["unplaced"] for n in notes if n.facts.get("unplaced")]
     return placement_warnings(sum(c[0] for c in counts), sum(c[1] for c in counts), source)
 

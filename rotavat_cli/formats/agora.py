@@ -21,7 +21,7 @@ at 3840x2160), ``agora_evaluation/projection.py`` (``project2d``: ``smpl2opencv`
   which (formats/keypoints.py) and, without meshes, gives the feet and heads.
 - Placement: AGORA's evaluation aligns roots, so a prediction may be root-centred (``transl`` = 0,
   as its own sample predictions are): such people sit at the camera centre, half behind it; the
-  import says how many (``_common.unplaced_people``), and calibrate/align cannot use them.
+  import says how many (``sequence.people_not_placed``), and calibrate/align cannot use them.
 - No track ids: AGORA images are independent (person ids are per image).
 """
 
@@ -36,8 +36,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
-                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
+                      feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
 from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs
 
@@ -169,7 +169,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
         notes.facts["keypoints_2d_layout"] = kp_layout
         return people_frame(names[index], f"{src} [{image}]", notes.warnings, vertices=stacked["vertices"],
                             joints=stacked["joints"], keypoints_2d=kp, faces=model_faces(model, n_verts),
-                            n_verts=n_verts, extra=extra, keypoints_layout=kp_layout, facts=notes.facts)
+                            n_verts=n_verts, extra=extra, keypoints_layout=kp_layout)
 
     def conclude(notes: list[FrameNotes]) -> Conclusion:
         def first(key: str) -> object:
@@ -177,7 +177,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
 
         kp_layout = first("keypoints_2d_layout")
         return Conclusion({"joints_layout": first("joints_layout"), "keypoints_2d_layout": kp_layout,
-                           "feet_heads_from": feet_heads_from(kp_layout, True)}, conclude_placement(notes, src))
+                           "feet_heads_from": feet_heads_from(kp_layout, True)})
 
     meta = base_meta("agora", src, opts, image_size, next(iter(focals.values())) if constant_focal else None,
                      principal_point, focal_kind=CAMERA)

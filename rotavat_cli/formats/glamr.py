@@ -56,9 +56,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
-                      check_model_kind, conclude_placement, fail, feet_heads_from, frame_names, get, int64_ids,
-                      model_faces, no_model_warning, people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
+                      check_model_kind, fail, feet_heads_from, frame_names, get, int64_ids, model_faces,
+                      no_model_warning, people_frame)
 from .slahmr import pose_from_body, world_to_cam
 from .smpl import BodyModel, lbs
 
@@ -231,7 +231,7 @@ def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=verts, joints=joints,
                             keypoints_2d=keypoints, person_ids=np.array([p.pid for p in here], dtype=np.int64),
                             faces=faces, n_verts=None if model is None else model.n_verts,
-                            keypoints_layout=KEYPOINTS_LAYOUT if with_keypoints else None, facts=notes.facts)
+                            keypoints_layout=KEYPOINTS_LAYOUT if with_keypoints else None)
 
     focal = 0.5 * (K[0, 0] + K[1, 1])
     meta = base_meta("glamr", path, opts, image_size, focal, (float(K[0, 2]), float(K[1, 2])), focal_kind=ASSUMED,
@@ -249,10 +249,7 @@ def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
                        "SPIN's MPII pelvis there instead); focal = cam_K (GLAMR's HybrIK: 1000 px); frames named by "
                        "video frame index",
     })
-    def conclude(notes: list[FrameNotes]) -> Conclusion:
-        return Conclusion(warnings=conclude_placement(notes, path))
-
-    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
+    return ImportedSequence(tuple(names), build, meta, warnings)
 
 
 READERS = {"glamr": read_glamr}

@@ -38,9 +38,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, conclude_placement,
-                      fail, feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame,
-                      project_px)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
+                      feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame, project_px)
 from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24
 
@@ -154,13 +153,13 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                             joints=joints, keypoints_2d=kp,
                             faces=model_faces(model, verts.shape[1] if verts.shape[1] else None),
                             n_verts=verts.shape[1] if verts.shape[1] else None,
-                            keypoints_layout=None if kp is None else layout_by_count(kp.shape[1]), facts=notes.facts)
+                            keypoints_layout=None if kp is None else layout_by_count(kp.shape[1]))
 
     def conclude(notes: list[FrameNotes]) -> Conclusion:
         layout = next((n.facts["joints_layout"] for n in notes if n.facts.get("joints_layout")), None)
         warned = [] if layout is not None else [f"{src}: no 'j3d_smplx' in the files (and no matching --smpl-model): "
                                                  "vertices only, no joints (MPJPE unavailable)"]
-        return Conclusion({"joints_layout": layout}, warned + conclude_placement(notes, src))
+        return Conclusion({"joints_layout": layout}, warned)
 
     meta = base_meta("multihmr", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED)
     meta["import"].update({

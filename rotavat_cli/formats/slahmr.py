@@ -65,9 +65,8 @@ import numpy as np
 from .. import limits, safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
-                      conclude_placement, fail, feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys,
-                      people_frame)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
+                      feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys, people_frame)
 from .smpl import BodyModel, joints_to_smpl24, lbs
 
 __all__ = ["PHASES", "READERS", "find_results", "pose_from_body", "read_slahmr", "sniff", "world_to_cam"]
@@ -322,7 +321,7 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         extra = {} if focal_per_frame is None else {"focal_length": np.float64(focal_per_frame[index])}
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=verts_cam,
                             joints=joints_cam, person_ids=tracks.ids[keep], faces=faces, n_verts=model.n_verts,
-                            extra=extra, facts=notes.facts)
+                            extra=extra)
 
     meta = base_meta("slahmr", path, opts, image_size, None if focal_per_frame is not None else focal, principal_point,
                      focal_kind=ASSUMED, focal_rule=rule)
@@ -340,10 +339,7 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                        "frames named by image index in the shot (image names are not stored)",
     })
 
-    def conclude(notes: list[FrameNotes]) -> Conclusion:
-        return Conclusion(warnings=conclude_placement(notes, path))
-
-    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
+    return ImportedSequence(tuple(names), build, meta, warnings)
 
 
 READERS = {"slahmr": read_slahmr}

@@ -272,7 +272,7 @@ def _sequence(src: str | Path, fmt: str, source: ImporterSource, read_camera: bo
     if not read_camera:
         return seq
     camera, fit = source.imported.camera, source.imported.camera_fit
-    if source.imported.conclude is not None:
+    if source.imported.camera_from_frames:
         concluded = source.conclusion()
         if concluded.camera is not None:
             camera, fit = concluded.camera, concluded.camera_fit

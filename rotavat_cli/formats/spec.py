@@ -33,8 +33,7 @@ from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
-                      conclude_placement, fail, feet_heads_from, frame_names, get, model_faces, natural_key,
-                      people_frame)
+                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
 from .smpl import lbs
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
@@ -187,11 +186,11 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         notes.facts["ground_m"] = (-(feet_cam @ ups[index]))[np.isfinite(feet_cam).all(axis=1)].tolist()
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=people["joints"],
                             keypoints_2d=people.get("keypoints_2d"), faces=model_faces(model, n_verts),
-                            n_verts=n_verts, extra=extra, keypoints_layout="spin49", facts=notes.facts)
+                            n_verts=n_verts, extra=extra, keypoints_layout="spin49")
 
     def conclude(notes: list[FrameNotes]) -> Conclusion:
         ground = [h for n in notes for h in n.facts.get("ground_m", ())]
-        found: list[str] = conclude_placement(notes, src)
+        found: list[str] = []
         camera, fit = _camera(image_size, principal_point, focals, ups, ground, found, src)
         return Conclusion(warnings=found, camera=camera, camera_fit=fit)
 
@@ -206,7 +205,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         "conventions": "camera frame = OpenCV, metres: X_cam = Rx(pitch) Rz(roll) X + pred_cam_t; per-frame focal = "
                        "CamCalib f_pix; principal point = image centre",
     })
-    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
+    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude, camera_from_frames=True)
 
 
 def _camera(image_size: tuple[int, int], principal_point: tuple[float, float], focals: np.ndarray, ups: np.ndarray,
