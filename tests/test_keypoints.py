@@ -322,3 +322,11 @@ def test_every_reader_reports_people_not_placed_in_the_camera():
                                  "(z <= 0): root-centred output (no translation) or another frame, not people placed in "
                                  "the camera; calibrate and align cannot use them (root-aligned metrics such as MPJPE, "
                                  "PVE and PA-MPJPE still apply)"]
+
+
+def test_track_ids_beyond_int64_are_refused_not_wrapped():
+    joints = np.zeros((2, 3, 3)) + [0.0, 0.0, 5.0]
+    for ids in (np.array([1, 2**63], dtype=np.uint64), np.array([1.0, np.inf])):
+        with pytest.raises(InputError, match="does not fit in a 64-bit integer"):
+            people_frame("f", "src.npz", [], joints=joints, person_ids=ids)
+    assert people_frame("f", "src.npz", [], joints=joints, person_ids=np.array([3, 4], np.uint64)).person_ids.tolist() == [3, 4]

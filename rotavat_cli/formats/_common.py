@@ -264,6 +264,8 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
             keep &= np.isfinite(arrays[key]).reshape(n_people, -1).all(axis=1)
     if not keep.all():
         warnings.append(f"{source}: dropped {int((~keep).sum())} person(s) with non-finite vertices or joints")
+    if person_ids is not None:
+        check_int64_ids(np.asarray(person_ids), source)
     data: dict[str, np.ndarray] = {}
     for key, value in arrays.items():
         if value is None:
@@ -349,6 +351,16 @@ def int64_ids(ids: list[int], what: str, source: Any) -> np.ndarray:
     if bad:
         raise fail(source, f"{what} {bad[0]} does not fit in a 64-bit integer")
     return np.asarray(ids, dtype=np.int64)
+
+
+def check_int64_ids(ids: np.ndarray, source: Any) -> None:
+    """InputError when track ids (P,) do not fit a 64-bit signed integer (uint64 beyond 2^63 - 1, inf,
+    huge floats): ``astype(int64)`` would wrap them silently into other ids."""
+    if ids.size and ids.dtype.kind in "uf":
+        with np.errstate(invalid="ignore"):
+            bad = ids > _INT64.max if ids.dtype.kind == "u" else ~np.isfinite(ids) | (np.abs(ids) >= 2.0 ** 63)
+        if np.any(bad):
+            raise fail(source, f"person id {ids[np.argmax(bad)]} does not fit in a 64-bit integer")
 
 
 def check_frame_range(n_frames: int, n_rows: int, source: Any, key: str) -> int:
