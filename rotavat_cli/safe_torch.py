@@ -361,8 +361,9 @@ def _storage_from_pid(pid: tuple, legacy: bool, registry: dict[str, _Storage]) -
     return registry[key]
 
 
-def _read_record(archive: zipfile.ZipFile, name: str, declared: int | None = None) -> bytes:
-    """One zip record, its declared size checked (and equal to ``declared`` when given) before reading."""
+def _read_record(archive: zipfile.ZipFile, name: str, declared: int | None = None, at_most: int | None = None) -> bytes:
+    """One zip record, its declared size checked (and equal to ``declared`` when given, at most
+    ``at_most`` bytes for a small record) before reading."""
     try:
         info = archive.getinfo(name)
     except KeyError:
@@ -371,6 +372,8 @@ def _read_record(archive: zipfile.ZipFile, name: str, declared: int | None = Non
     if info.file_size > limit:
         raise _sp._Refused(f"record '{name}' holds {human_bytes(info.file_size)} (limit {human_bytes(limit)}: "
                            "limits.max_file_mb)")
+    if at_most is not None and info.file_size > at_most:
+        raise _sp._Refused(f"record '{name}' holds {info.file_size:,} bytes (at most {at_most} expected)")
     if declared is not None and info.file_size != declared:
         raise _sp._Refused(f"record '{name}' holds {info.file_size:,} bytes, its storage declares {declared:,}")
     if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
@@ -398,7 +401,8 @@ def _load_zip(data: bytes, budget: _sp._Budget, depth: int) -> Any:
     """A torch zip archive -> its object, storages read from the records as the pickle names them."""
     archive = zipfile.ZipFile(io.BytesIO(data))
     prefix = _archive_prefix(archive)
-    byteorder = archive.read(f"{prefix}/byteorder") if f"{prefix}/byteorder" in archive.namelist() else b"little"
+    order_record = f"{prefix}/byteorder"
+    byteorder = _read_record(archive, order_record, at_most=16) if order_record in archive.namelist() else b"little"
     if byteorder not in (b"little", b"big"):
         raise _sp._Refused(f"unknown byte order {byteorder[:16]!r}")
     registry: dict[str, _Storage] = {}

@@ -442,3 +442,13 @@ def test_torch_globals_map_only_to_inert_builders():
                    for module, name in safe_torch.TORCH_GLOBALS)
     with pytest.raises(InputError, match=r"refused to unpickle global 'torch\.load'"):
         safe_pickle.loads(b"\x80\x02ctorch\nload\n.", "x.pkl")
+
+
+def test_torch_byteorder_record_is_read_bounded(tmp_path):
+    """The byteorder record says 'little' or 'big': a large one is refused from its declared size, unread."""
+    import _fixtures_torch as T
+
+    path = tmp_path / "t.pt"
+    path.write_bytes(T.torch_zip_bytes({"x": T.tensor(np.arange(3.0))}, name="t", byteorder="little" * 100))
+    with pytest.raises(InputError, match=r"t.pt: torch archive: record 't/byteorder' holds 600 bytes \(at most 16"):
+        safe_pickle.load_file(path)
