@@ -3,12 +3,13 @@ application to frames and whole sequences (:mod:`.align`: re-expression into the
 which camera a sequence is aligned into (:mod:`.camera_choice`); its options (:mod:`.options`)."""
 
 from .align import (IMPLAUSIBLE_STATURE, PEOPLE_COLUMNS, AlignSummary, MeshIntrinsics, align_frame, align_sequence,
-                    aligned_meta, summarize_people_csv, track_statures)
+                    aligned_meta, frame_foot_head_cam, summarize_people_csv, track_statures)
 from .camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from .options import HEIGHT_FROM, AlignOptions
 from .transform import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, rotavat_transforms
 
 __all__ = ["HEIGHT_FROM", "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignOptions", "AlignSummary", "MeshIntrinsics",
-           "align_frame", "align_sequence", "aligned_meta", "summarize_people_csv", "track_statures", "FLAGS", "UPRIGHT",
+           "align_frame", "align_sequence", "aligned_meta", "frame_foot_head_cam", "summarize_people_csv",
+           "track_statures", "FLAGS", "UPRIGHT",
            "AlignTransform", "apply_transforms", "method_rays_cam", "rotavat_transforms", "CALIBRATED", "GIVEN",
            "AlignCamera", "camera_for_align"]

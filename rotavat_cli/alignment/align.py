@@ -32,7 +32,7 @@ from ..landmarks import foot_head_points
 from ..outputs import check_output_dir
 from ..parallel import cap_workers, ordered_map
 from ..plain import csv_cell
-from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
+from ..sequence import Frame, Intrinsics, Sequence, can_align, write_camera_yaml, write_frame, write_meta
 from .options import AlignOptions
 from .transform import (FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
                         rotavat_transforms, transformed_blocks)
@@ -105,14 +105,12 @@ def joints_foot_head_cam(joints_cam: np.ndarray, feet_px: np.ndarray, heads_px: 
 def frame_foot_head_cam(frame: Frame, mesh: MeshIntrinsics) -> tuple[np.ndarray, np.ndarray]:
     """Mid-sole and crown points (P, 3) in the method's camera frame: the mesh landmarks, or for a
     frame without meshes its joints with ``feet_2d``/``heads_2d`` (:func:`joints_foot_head_cam`)."""
-    verts = frame.get("vertices")
-    if verts is not None:
-        return foot_head_points(verts)
-    joints, feet_px, heads_px = frame.get("joints"), frame.get("feet_2d"), frame.get("heads_2d")
-    if joints is None or feet_px is None or heads_px is None:
+    if not can_align(frame):
         raise InputError(f"{frame.source}: align needs 'vertices' (meshes), or 'joints' with 'feet_2d' and "
                          "'heads_2d' (joint-level alignment), in every frame with people")
-    return joints_foot_head_cam(joints, feet_px, heads_px, mesh)
+    if frame.get("vertices") is not None:
+        return foot_head_points(frame.data["vertices"])
+    return joints_foot_head_cam(frame.data["joints"], frame.data["feet_2d"], frame.data["heads_2d"], mesh)
 
 
 def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: dict[int, float] | None,

@@ -17,7 +17,7 @@ import numpy as np
 from ..camera import MAX_IMAGE_SIDE_PX, Camera, project_cam_to_px
 from ..errors import InputError
 from ..sequence import Frame, people_not_placed, validate_frame
-from .keypoints import feet_heads_px, recipe_for
+from .keypoints import feet_heads_px, layout_key, recipe_for
 from .smpl import BodyModel
 
 __all__ = [
@@ -316,7 +316,7 @@ def feet_heads_from(keypoints_layout: str | None, has_vertices: bool) -> str | N
     if has_vertices:
         return "mesh landmarks (mid-sole, crown vertices)"
     recipe = recipe_for(keypoints_layout)
-    return None if recipe is None else f"keypoints_2d, {keypoints_layout.split(' ', 1)[0]}: {recipe.describes}"
+    return None if recipe is None else f"keypoints_2d, {layout_key(keypoints_layout)}: {recipe.describes}"
 
 
 def frame_names(sources: list[str], warnings: list[str]) -> list[str]:

@@ -314,27 +314,42 @@ def layout_by_count(n_keypoints: int) -> str | None:
     return _SMPL_FAMILY_BY_COUNT.get(int(n_keypoints))
 
 
+def layout_key(layout: str | None) -> str | None:
+    """A layout's name without its description: 'phalp44 (OpenPose-25 + 19 extra)' is 'phalp44'."""
+    return None if layout is None else str(layout).split(" ", 1)[0]
+
+
 def recipe_for(layout: str | None) -> KeypointRecipe | None:
-    """The recipe of a layout name (the text before the first space: 'phalp44 (OpenPose-25 + 19 extra)'
-    is 'phalp44'), or None for a layout without one."""
-    return None if layout is None else LAYOUTS.get(str(layout).split(" ", 1)[0])
+    """The recipe of a layout (:func:`layout_key`), or None for a layout without one."""
+    return LAYOUTS.get(layout_key(layout)) if layout is not None else None
 
 
-def _mean_points(keypoints: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
-    """(P, 2) mean of the chosen keypoints; NaN where any of them is missing."""
-    chosen = keypoints[:, list(indices)]  # (P, n, 2 or 3)
-    points = chosen[..., :2].astype(np.float64)
+def _mean_points(keypoints: np.ndarray, indices: tuple[int, ...], dims: int = 2) -> np.ndarray:
+    """(P, dims) mean of the chosen points (P, K, dims [+ confidence]); NaN where any of them is missing."""
+    chosen = keypoints[:, list(indices)]  # (P, n, dims or dims + 1)
+    points = chosen[..., :dims].astype(np.float64)
     missing = ~np.isfinite(points).all(axis=-1)
-    if chosen.shape[-1] > 2:
-        missing |= ~(chosen[..., 2] > 0)
+    if chosen.shape[-1] > dims:
+        missing |= ~(chosen[..., dims] > 0)
     points = points.mean(axis=1)
     points[missing.any(axis=1)] = np.nan
     return points
 
 
-def rule_px(keypoints_2d: np.ndarray, rule: PointRule) -> np.ndarray:
-    """(P, 2) pixels of ``rule`` from keypoints (P, K, 2|3); NaN for people missing any point it reads."""
-    return sum(weight * _mean_points(keypoints_2d, indices) for weight, indices in rule.terms)
+def rule_px(keypoints_2d: np.ndarray, rule: PointRule, dims: int = 2) -> np.ndarray:
+    """(P, dims) point of ``rule`` from keypoints (P, K, 2|3) in pixels (or joints (P, K, 3) in metres with
+    ``dims=3``: the same affine rule in 3D); NaN for people missing any point it reads."""
+    return sum(weight * _mean_points(keypoints_2d, indices, dims) for weight, indices in rule.terms)
+
+
+def feet_heads_cam(joints_cam: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Mid-sole and crown (P, 3) of joints (P, J, 3) by the layout's recipe applied in 3D; None for a
+    layout without a recipe (or fewer joints than the layout has)."""
+    recipe = recipe_for(layout)
+    joints = np.asarray(joints_cam, dtype=np.float64)
+    if recipe is None or joints.ndim != 3 or joints.shape[1] < recipe.n_keypoints:
+        return None
+    return rule_px(joints, recipe.sole, 3), rule_px(joints, recipe.crown, 3)
 
 
 def feet_heads_px(keypoints_2d: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray, str] | None:
@@ -347,5 +362,4 @@ def feet_heads_px(keypoints_2d: np.ndarray, layout: str | None) -> tuple[np.ndar
     keypoints = np.asarray(keypoints_2d)
     if recipe is None or keypoints.ndim != 3 or keypoints.shape[1] < recipe.n_keypoints or keypoints.shape[2] < 2:
         return None
-    name = str(layout).split(" ", 1)[0]
-    return rule_px(keypoints, recipe.sole), rule_px(keypoints, recipe.crown), f"{name}: {recipe.describes}"
+    return rule_px(keypoints, recipe.sole), rule_px(keypoints, recipe.crown), f"{layout_key(layout)}: {recipe.describes}"

@@ -28,7 +28,7 @@ from .raster import RENDERERS, Rasterizer, open_rasterizer
 from .rows import IMAGE_SUFFIXES, read_row, row_labels, select_frames, sequence_camera, sequence_layout
 from .sequences import (GHOSTS, SCALES, FigureOptions, FigureSummary, figure_steps, ground_truth_row, metrics_caption,
                         render_sequences)
-from .skeleton import BONE_FAMILIES, Shapes, joints_feet_heads, layout_bones, layout_name, point_shapes, skeleton_shapes
+from .skeleton import BONE_FAMILIES, Shapes, layout_bones, layout_name, point_shapes, skeleton_shapes
 from .tracks import Tracks, plot_tracks, sequence_tracks
 from .video import MP4_INSTALL, require_mp4, write_gif, write_mp4
 from .style import RenderStyle, parse_color, person_colors, shade_vertices, vertex_normals
@@ -100,7 +100,6 @@ __all__ = [
     "Shapes",
     "layout_name",
     "layout_bones",
-    "joints_feet_heads",
     "skeleton_shapes",
     "point_shapes",
     # animations and plots

@@ -32,12 +32,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..formats.keypoints import LAYOUT_NAMES, layout_by_count, recipe_for
+from ..formats.keypoints import LAYOUT_NAMES, layout_by_count, layout_key
 from ..formats.smpl import SMPL_PARENTS
 from ..landmarks import SMPL_JOINT_NAMES
 
 __all__ = ["Shapes", "BONE_FAMILIES", "layout_name", "layout_bones", "skeleton_shapes", "point_shapes",
-           "joints_feet_heads", "BONE_RADIUS_M", "JOINT_RADIUS_M", "POINT_RADIUS_M"]
+           "BONE_RADIUS_M", "JOINT_RADIUS_M", "POINT_RADIUS_M"]
 
 BONE_RADIUS_M = 0.02  # bone tubes: 4 cm across (a limb is ~10 cm: the tube reads as a line, not a body)
 JOINT_RADIUS_M = 0.035  # joint balls, and the points of a layout without bones
@@ -77,7 +77,7 @@ def layout_name(declared: str | None, n_joints: int) -> str | None:
     """The layout of ``joints``: meta.yaml's ``import.joints_layout`` (its first word: 'phalp44 (...)'
     is 'phalp44'), else SMPL's family by joint count (the contract's joints are in SMPL order), else None."""
     if declared:
-        name = str(declared).split(" ", 1)[0]
+        name = layout_key(declared)
         if name in LAYOUT_NAMES and len(LAYOUT_NAMES[name]) <= n_joints:
             return name
     return layout_by_count(n_joints)
@@ -86,26 +86,11 @@ def layout_name(declared: str | None, n_joints: int) -> str | None:
 @functools.lru_cache(maxsize=None)
 def layout_bones(layout: str | None) -> tuple[tuple[int, int], ...] | None:
     """(B,) joint-index pairs of a layout's bones (by joint names); None for a layout without bones."""
-    name = None if layout is None else str(layout).split(" ", 1)[0]
+    name = layout_key(layout)
     if name not in BONE_FAMILIES or name not in LAYOUT_NAMES:
         return None
     index = {joint: i for i, joint in enumerate(LAYOUT_NAMES[name])}
     return tuple((index[a], index[b]) for a, b in BONE_FAMILIES[name] if a in index and b in index)
-
-
-def joints_feet_heads(joints_cam: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """Mid-sole and crown (P, 3) of joints-only people by the layout's keypoint recipe
-    (rotavat_cli.formats.keypoints: the same affine rules as the 2D points, applied in 3D); None
-    for a layout without a recipe."""
-    recipe = recipe_for(layout)
-    joints = np.asarray(joints_cam, dtype=np.float64)
-    if recipe is None or joints.ndim != 3 or joints.shape[1] < recipe.n_keypoints:
-        return None
-
-    def point(rule) -> np.ndarray:
-        return sum(w * joints[:, list(idx)].mean(axis=1) for w, idx in rule.terms)
-
-    return point(recipe.sole), point(recipe.crown)
 
 
 @dataclass(frozen=True)

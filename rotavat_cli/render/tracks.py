@@ -3,9 +3,10 @@
 For each frame and person (``person_id`` = the track), in the row's camera (its world: ground at
 ``Y = 0``): the mid-sole's height above the ground (m, signed: below 0 = sunk), the lean of the
 mid-sole -> crown axis from the vertical (deg) and the stature (the mid-sole -> crown length, m).
-Mid-sole and crown are the mesh landmarks (:func:`rotavat_cli.landmarks.foot_head_points`, what
-``rotavat eval`` uses for ``foot_height``/``lean_deg``/``stature_err``), or for joints-only people
-the layout's keypoint recipe applied to the 3D joints (:func:`.skeleton.joints_feet_heads`). These
+Mid-sole and crown are those ``rotavat align`` uses (:func:`rotavat_cli.alignment.frame_foot_head_cam`:
+the mesh landmarks, or for joints-only people their ``feet_2d``/``heads_2d`` at the joints' depth),
+else for joints without those pixels the layout's keypoint recipe applied to the 3D joints
+(:func:`rotavat_cli.formats.keypoints.feet_heads_cam`). These
 are the quantities ``rotavat eval --per-person`` reports per matched pair, here for one sequence
 alone (no ground truth needed), so a foot that drifts into the ground or a body that tilts over a
 walk shows as a curve.
@@ -25,12 +26,12 @@ import numpy as np
 
 from ..atomic import atomic_open
 from ..camera import Camera
-from ..landmarks import foot_head_points
+from ..alignment import MeshIntrinsics, frame_foot_head_cam
+from ..formats.keypoints import feet_heads_cam
 from ..metrics import lean_deg, stature_m
-from ..sequence import Sequence
+from ..sequence import Frame, Sequence, can_align
 from .geometry import nice_length_m
 from .rows import sequence_layout
-from .skeleton import joints_feet_heads
 from .style import RGB, font, person_colors, rgb8
 
 __all__ = ["TRACK_SERIES", "Tracks", "sequence_tracks", "plot_tracks"]
@@ -56,18 +57,16 @@ class Tracks:
         return sorted({pid for series in self.values.values() for pid in series})
 
 
-def _feet_heads(frame, layout_of: Callable[[int], str | None]) -> tuple[np.ndarray, np.ndarray, str] | None:
+def _feet_heads(seq: Sequence, frame: Frame, camera: Camera) -> tuple[np.ndarray, np.ndarray, str] | None:
     """Mid-soles and crowns (P, 3) of a frame's people and where they came from; None without a way."""
-    verts, joints = frame.get("vertices"), frame.get("joints")
-    if verts is not None:
-        feet, heads = foot_head_points(verts)
-        return feet, heads, "mesh landmarks"
-    if joints is not None:
-        layout = layout_of(joints.shape[1])
-        got = joints_feet_heads(joints, layout)
-        if got is not None:
-            return got[0], got[1], f"joints ({layout} recipe)"
-    return None
+    if can_align(frame):
+        mesh = MeshIntrinsics.of_frame(frame, seq.frame_intrinsics(frame), camera)
+        feet, heads = frame_foot_head_cam(frame, mesh)
+        return feet, heads, "mesh landmarks" if frame.get("vertices") is not None else "feet_2d/heads_2d (as align)"
+    joints = frame.get("joints")
+    layout = None if joints is None else sequence_layout(seq, joints.shape[1])
+    got = None if joints is None else feet_heads_cam(joints, layout)
+    return None if got is None else (got[0], got[1], f"joints ({layout} recipe)")
 
 
 def sequence_tracks(seq: Sequence, camera: Camera, label: str, progress: Callable[[], None] | None = None) -> Tracks:
@@ -75,7 +74,7 @@ def sequence_tracks(seq: Sequence, camera: Camera, label: str, progress: Callabl
     tracks = Tracks(label, len(seq))
     for index, name in enumerate(seq.frame_names):
         frame = seq.read_frame(name)
-        got = _feet_heads(frame, lambda n: sequence_layout(seq, n)) if frame.n_people else None
+        got = _feet_heads(seq, frame, camera) if frame.n_people else None
         if got is not None:
             feet, heads, tracks.source = got
             values = {"foot_height_m": camera.height_above_ground(feet), "lean_deg": lean_deg(feet, heads, camera.up_cam),
