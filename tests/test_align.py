@@ -313,10 +313,10 @@ def test_a_frame_without_meshes_or_2d_points_is_refused(scene):
         align_frame(bare, open_sequence(scene / "gt").camera, intrinsics=seq.frame_intrinsics(frame))
 
 
-def test_track_plots_of_a_joint_level_aligned_sequence_report_align_statures(scene, tmp_path):
-    """A joints-only sequence's per-track plot measures mid-sole and crown by align's rule (feet_2d/heads_2d at the
-    joints' depth): within 4% of the statures align reports (the rule estimates depths from the joints again,
-    so it is not exact on its own output; with meshes the landmarks are)."""
+def test_track_plots_of_joints_only_people_measure_them_as_align_does(scene, tmp_path):
+    """A joints-only person's per-track stature is the one of align's mid-sole and crown (feet_2d/heads_2d at the
+    joints' depth: alignment.frame_foot_head_cam), not another estimate."""
+    from rotavat_cli.alignment import MeshIntrinsics, frame_foot_head_cam
     from rotavat_cli.render import sequence_tracks
 
     seq, cam = open_sequence(scene / "pred"), open_sequence(scene / "gt").camera
@@ -324,12 +324,9 @@ def test_track_plots_of_a_joint_level_aligned_sequence_report_align_statures(sce
         frame = seq.read_frame(name)
         write_frame(tmp_path / "joints", _joints_only(frame, seq.frame_intrinsics(frame)), "npz")
     (tmp_path / "joints" / "meta.yaml").write_text((scene / "pred" / "meta.yaml").read_text())
-    align_sequence(open_sequence(tmp_path / "joints"), cam, tmp_path / "aligned", AlignOptions(jobs=1))
-    aligned = open_sequence(tmp_path / "aligned")
-    tracks = sequence_tracks(aligned, aligned.camera, "aligned")
-    with open(tmp_path / "aligned" / "people.csv") as handle:
-        rows = list(csv.DictReader(handle))
-    for row in rows:
-        index = aligned.frame_names.index(row["frame"])
-        plotted = dict(tracks.values["stature_m"][int(row["person_id"])])[index]
-        assert plotted == pytest.approx(float(row["stature_m"]), rel=0.04)
+    joints = open_sequence(tmp_path / "joints")
+    tracks = sequence_tracks(joints, cam, "joints")
+    for index, frame in enumerate(joints.frames()):
+        feet, heads = frame_foot_head_cam(frame, MeshIntrinsics.of_frame(frame, joints.frame_intrinsics(frame), cam))
+        for pid, stature in zip(frame.person_ids, np.linalg.norm(heads - feet, axis=1)):
+            assert dict(tracks.values["stature_m"][int(pid)])[index] == pytest.approx(stature, rel=1e-9)
