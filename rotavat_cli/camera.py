@@ -49,6 +49,7 @@ __all__ = [
     "reexpress_cam",
     "camera_parameters",
     "people_not_in_front",
+    "world_to_cam",
     "ROOT_CENTRED_M",
     "check_camera_bounds",
     "MAX_IMAGE_SIDE_PX",
@@ -209,6 +210,12 @@ def people_not_in_front(points_cam: np.ndarray, roots_cam: np.ndarray | None = N
     return centred, behind
 
 
+def world_to_cam(points_world: np.ndarray, R_cam_from_world: np.ndarray, t_cam_from_world: np.ndarray) -> np.ndarray:
+    """World points (..., 3) into a camera: ``R_cam_from_world (3, 3) X + t_cam_from_world (3,)`` (metres)
+    (a moving camera's pose of one frame; :meth:`Camera.cam_from_world` is a static camera's)."""
+    return np.asarray(points_world, dtype=np.float64) @ np.asarray(R_cam_from_world).T + t_cam_from_world
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     """``array`` marked read-only (a cached value shared by every caller)."""
     array.flags.writeable = False
@@ -302,7 +309,7 @@ class Camera:
 
     def cam_from_world(self, points_world: np.ndarray) -> np.ndarray:
         """World points (..., 3) -> camera frame."""
-        return np.asarray(points_world, dtype=np.float64) @ self.R_cam_from_world.T + self.t_cam_from_world
+        return world_to_cam(points_world, self.R_cam_from_world, self.t_cam_from_world)
 
     def world_from_cam(self, points_cam: np.ndarray) -> np.ndarray:
         """Camera-frame points (..., 3) -> world frame."""

@@ -16,10 +16,12 @@ import pytest
 from conftest import invoke
 
 from rotavat_cli import safe_pickle
+from rotavat_cli.camera import world_to_cam
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence
 from rotavat_cli.formats import glamr as glamr_module
 from rotavat_cli.formats import slahmr as slahmr_module
+from rotavat_cli.formats.smpl import pose_from_body
 from rotavat_cli.sequence import open_sequence
 
 W, H = G.W, G.H
@@ -66,14 +68,14 @@ def _one_line_error(result) -> str:
 def test_world_to_cam_is_R_X_plus_t():
     R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 deg about z
     points = np.array([[[1.0, 2.0, 3.0]]])
-    assert slahmr_module.world_to_cam(points, R, np.array([0.5, 0.0, -1.0])).tolist() == [[[-1.5, 1.0, 2.0]]]
+    assert world_to_cam(points, R, np.array([0.5, 0.0, -1.0])).tolist() == [[[-1.5, 1.0, 2.0]]]
 
 
 def test_pose_from_body_puts_the_root_first_and_rests_the_rest():
-    pose = slahmr_module.pose_from_body(np.array([[0.1, 0.2, 0.3]]), np.arange(63.0)[None], 52)
+    pose = pose_from_body(np.array([[0.1, 0.2, 0.3]]), np.arange(63.0)[None], 52)
     assert pose.shape == (1, 52, 3) and pose[0, 0].tolist() == [0.1, 0.2, 0.3]
     assert pose[0, 21].tolist() == [60.0, 61.0, 62.0] and not pose[0, 22:].any()
-    assert slahmr_module.pose_from_body(np.zeros((0, 3)), np.zeros((0, 63)), 24).shape == (0, 24, 3)
+    assert pose_from_body(np.zeros((0, 3)), np.zeros((0, 63)), 24).shape == (0, 24, 3)
 
 
 # ---- SLAHMR --------------------------------------------------------------------------------------------

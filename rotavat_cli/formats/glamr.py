@@ -54,13 +54,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..camera import world_to_cam
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
                       check_model_kind, fail, feet_heads_from, frame_names, get, int64_ids, model_faces,
                       no_model_warning, people_frame)
-from .slahmr import pose_from_body, world_to_cam
-from .smpl import BodyModel, lbs
+from .smpl import BodyModel, lbs, pose_from_body
 
 __all__ = ["KEYPOINTS_LAYOUT", "READERS", "read_glamr", "sniff"]
 

@@ -42,7 +42,7 @@ from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
                       feet_heads_from, frame_names, get, model_faces, people_frame, require_model)
-from .smpl import joints_to_smpl24, lbs
+from .smpl import joints_to_smpl24, lbs, pose_from_body
 
 _RESULTS = "hmr4d_results.pt"
 _PARAMS = ("global_orient", "body_pose", "betas", "transl")
@@ -136,9 +136,8 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     names = frame_names([f"{i:06d}" for i in range(n_frames)], warnings)
 
     def build(index: int, notes: FrameNotes) -> Frame:
-        pose = np.zeros((1, model.n_joints, 3))
-        pose[0, 0] = params["global_orient"][index, :3]
-        pose[0, 1:22] = params["body_pose"][index, :63].reshape(21, 3)
+        pose = pose_from_body(params["global_orient"][index, None, :3], params["body_pose"][index, None, :63],
+                              model.n_joints)
         vertices, joints55 = lbs(model, params["betas"][index][None], pose, params["transl"][index, :3][None])
         extra = {} if constant else {"focal_length": np.float64(focal[index]),
                                      "principal_point": principal[index].astype(np.float64)}

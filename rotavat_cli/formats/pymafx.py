@@ -49,7 +49,7 @@ from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_frame_range, fail,
                       feet_heads_from, frame_names, get, model_faces, people_frame)
-from .smpl import BodyModel, joints_to_smpl24, posed_joints
+from .smpl import BodyModel, joints_to_smpl24, pose_from_body, posed_joints
 
 _KEYPOINTS_LAYOUT = "coco17 (openpifpaf detections: x, y, confidence)"
 _SPIN49_LAYOUT = "spin49 (OpenPose-25 + 24 SPIN joints)"
@@ -180,13 +180,6 @@ def _keypoints(entries: list, source: str) -> np.ndarray:
     return np.stack(arrays)
 
 
-def _smplx_pose(pose72: np.ndarray, model: BodyModel) -> np.ndarray:
-    """(P, 72) axis-angle of PyMAF-X's 24 joints -> (P, J, 3) for an SMPL-X model: its first 22, the rest zero."""
-    pose = np.zeros((len(pose72), model.n_joints, 3))
-    pose[:, :_SMPLX_BODY_JOINTS] = pose72.reshape(len(pose72), -1, 3)[:, :_SMPLX_BODY_JOINTS]
-    return pose
-
-
 def read_pymafx(src: Path, opts: ImportOptions) -> ImportedSequence:
     """PyMAF-X demo ``output.pkl`` -> contract frames (see the module docstring for the conventions)."""
     path = _results_file(src)
@@ -214,7 +207,8 @@ def read_pymafx(src: Path, opts: ImportOptions) -> ImportedSequence:
                          f"{meshes.shape[1]}")
     pose = betas = spin_joints = None
     if model is not None and model.kind == "smplx":
-        pose = _smplx_pose(_rows(data, "pose", path, n_rows, 2, (72,)), model)
+        pose72 = _rows(data, "pose", path, n_rows, 2, (72,))  # SMPL's 24 joints: SMPL-X takes the first 22
+        pose = pose_from_body(pose72[:, :3], pose72[:, 3:3 * _SMPLX_BODY_JOINTS], model.n_joints)
         betas = _rows(data, "betas", path, n_rows, 2, None)
         mesh_pelvis = np.einsum("v,pvc->pc", model.J_regressor[0], meshes)  # (N, 3), model frame
         gap = np.linalg.norm(posed_joints(model, betas, pose)[:, 0] - mesh_pelvis, axis=-1)

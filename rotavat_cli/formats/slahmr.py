@@ -63,13 +63,15 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits, safe_pickle
+from ..camera import world_to_cam
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
-                      feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys, people_frame)
-from .smpl import BodyModel, joints_to_smpl24, lbs
+                      feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys, people_frame,
+                      require_model)
+from .smpl import BodyModel, joints_to_smpl24, lbs, pose_from_body
 
-__all__ = ["PHASES", "READERS", "find_results", "pose_from_body", "read_slahmr", "sniff", "world_to_cam"]
+__all__ = ["PHASES", "READERS", "find_results", "read_slahmr", "sniff"]
 
 # Phase folders of a run, last optimisation stage first (run_opt order reversed; run_vis renders motion_chunks).
 PHASES = ("motion_chunks", "motion_fit", "smooth_fit", "smpl_fit", "root_fit")
@@ -81,22 +83,6 @@ _FOCAL_RTOL = 1e-4  # float32 storage of a focal of ~1000 px: equal to the defau
 
 
 # ---- pure helpers (shared with GLAMR, which also stores world bodies and world -> camera poses) ------
-def world_to_cam(points_world: np.ndarray, R_cam_from_world: np.ndarray, t_cam_from_world: np.ndarray) -> np.ndarray:
-    """World points (..., 3) into one camera: ``R_cam_from_world (3, 3) X + t_cam_from_world (3,)`` (metres)."""
-    return np.einsum("ij,...j->...i", R_cam_from_world, points_world) + t_cam_from_world
-
-
-def pose_from_body(root_orient: np.ndarray, body_pose: np.ndarray, n_joints: int) -> np.ndarray:
-    """Axis-angle pose (P, n_joints, 3) for a body model: root (P, 3), then the body joints (P, 3 K)
-    in order, every further joint (hands) at rest."""
-    n_people = root_orient.shape[0]
-    body = body_pose.reshape(n_people, body_pose.shape[-1] // 3, 3)
-    pose = np.zeros((n_people, n_joints, 3))
-    pose[:, 0] = root_orient
-    pose[:, 1:1 + body.shape[1]] = body[:, :n_joints - 1]
-    return pose
-
-
 # ---- locating the results ------------------------------------------------------------------------
 def _iteration(path: Path) -> int:
     """The optimisation step in '<seq>_<step>_world_results.npz' (-1 when the name has none)."""
@@ -217,16 +203,11 @@ def _per_frame(arr: np.ndarray, name: str, source: Path, n_frames: int, trailing
 
 def _check_model(model: BodyModel | None, source: Path, warnings: list[str]) -> BodyModel:
     """SMPL-H (exact) or SMPL (approximation, with a warning); anything else refused."""
-    if model is None:
-        raise fail(source, "SLAHMR stores SMPL-H parameters only (no joints, no 2D keypoints): pass --smpl-model "
-                           "with the SMPL-H model it ran with (e.g. body_models/smplh/neutral/model.npz)")
-    if model.kind == "smpl":
+    if model is not None and model.kind == "smpl":  # SMPL-H's body without hands: accepted, said
         warnings.append(f"SLAHMR fits SMPL-H; --smpl-model {model.name} is SMPL: posed with its first "
                         f"{min(16, model.shapedirs.shape[2])} betas and hand joints at rest (an approximation)")
-    elif model.kind != "smplh":
-        raise fail(source, f"SLAHMR uses SMPL-H; --smpl-model {model.name} has {model.n_joints} joints "
-                           "(need SMPL-H, 52, or SMPL, 24, as an approximation)")
-    return model
+        return model
+    return require_model(model, source, "SLAHMR", "smplh")
 
 
 def _focal(intrins: np.ndarray, cam_f: np.ndarray | None, image_size: tuple[int, int], source: Path,

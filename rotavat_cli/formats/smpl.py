@@ -45,6 +45,7 @@ __all__ = [
     "BodyModel",
     "load_body_model",
     "pose_to_matrices",
+    "pose_from_body",
     "lbs",
     "posed_joints",
     "SMPLX_TO_SMPL24",
@@ -179,6 +180,17 @@ def pose_to_matrices(pose: np.ndarray, n_joints: int) -> np.ndarray:
 # transient memory of lbs per posed vertex: the (4, 4) blend of joint transforms, float64
 _LBS_BYTES_PER_VERTEX = 16 * 8
 _LBS_CHUNK_BYTES = 64 << 20  # people are posed in chunks whose transforms take at most this
+
+
+def pose_from_body(root_orient: np.ndarray, body_pose: np.ndarray, n_joints: int) -> np.ndarray:
+    """Axis-angle pose (P, n_joints, 3) for a body model: root (P, 3), then the body joints (P, 3 K)
+    in order (K beyond ``n_joints - 1`` ignored), every further joint (hands, face) at rest."""
+    n_people = root_orient.shape[0]
+    body = body_pose.reshape(n_people, body_pose.shape[-1] // 3, 3)
+    pose = np.zeros((n_people, n_joints, 3))
+    pose[:, 0] = root_orient
+    pose[:, 1:1 + body.shape[1]] = body[:, :n_joints - 1]
+    return pose
 
 
 def check_posed_size(model: BodyModel, n_people: int) -> None:

@@ -42,9 +42,9 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, image_size_from_header, model_faces, no_model_warning, npz_has_keys,
-                      padded_square, people_frame, single_file)
+from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
+                      feet_heads_from, frame_names, get, image_size_from_header, model_faces, no_model_warning,
+                      npz_has_keys, padded_square, people_frame, single_file)
 from .bev import _infer_image_size
 from .smpl import lbs, posed_joints
 
@@ -148,10 +148,8 @@ def read_trace(src: Path, opts: ImportOptions) -> ImportedSequence:
 
     model = opts.body_model
     thetas = betas = None
-    if model is None:
+    if check_model_kind(model, path, "TRACE", "smpl") is None:
         warnings.append(no_model_warning("TRACE"))
-    elif model.kind != "smpl":
-        raise fail(path, f"TRACE uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
     else:
         thetas = _rows(outputs, "smpl_thetas", path, n_rows, 2, (72,))
         betas = _rows(outputs, "smpl_betas", path, n_rows, 2, None)

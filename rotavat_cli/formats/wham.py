@@ -37,8 +37,8 @@ import numpy as np
 from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
-                      feet_heads_from, frame_names, get, int64_ids, model_faces, need_image_size, people_frame)
+from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
+                      fail, feet_heads_from, frame_names, get, int64_ids, model_faces, need_image_size, people_frame)
 from .smpl import BodyModel, lbs
 
 __all__ = ["sniff", "read_wham", "READERS"]
@@ -114,8 +114,7 @@ def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
     if not isinstance(data, Mapping) or not data:
         raise fail(src, "not a WHAM output (expected a non-empty dict of tracks)")
     model = opts.body_model
-    if model is not None and model.kind != "smpl":
-        raise fail(src, f"WHAM uses SMPL; --smpl-model {model.name} has {model.n_joints} joints (need 24)")
+    check_model_kind(model, src, "WHAM", "smpl")
     tracks: dict[int, dict[str, np.ndarray]] = {}
     for key, track in data.items():
         tid = _track_id(key, src)
