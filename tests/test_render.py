@@ -629,9 +629,9 @@ def test_captions_give_the_frame_metrics_against_the_ground_truth(scene, tmp_pat
     assert f"W-MPJPE {expected['w_mpjpe']:.0f} mm" in caption and "(4/4 matched)" in caption
     assert f"lean {expected['lean_deg']:.1f}°" in caption and f"foot height {expected['foot_height']:.0f} mm" in caption
     assert expected["w_mpjpe"] > 100  # a raw prediction: the number says something
-    assert ground_truth_row("auto", ["pred", "gt"], []) == 1 and ground_truth_row("auto", ["a", "b"], []) is None
+    assert ground_truth_row("auto", ["pred", "gt"]) == 1 and ground_truth_row("auto", ["a", "b"]) is None
     with pytest.raises(RotavatError, match="names no row"):
-        ground_truth_row("truth", ["pred", "gt"], [])
+        ground_truth_row("truth", ["pred", "gt"])
 
 
 def test_cli_ghost_needs_a_ground_truth_row(runner, scene, tmp_path):

@@ -523,7 +523,6 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
 
 
 _PER_PERSON_COLUMNS = ("pred", "frame", "pred_index", "gt_index", "person_id", "protocol", *PERSON_METRICS)
-PER_PERSON_HEADER = ",".join(_PER_PERSON_COLUMNS)  # the first line of every per-person CSV rotavat writes
 # How every per-person CSV rotavat ever wrote starts (the overwrite check's signature: older files lack "protocol").
 PER_PERSON_SIGNATURE = ",".join(_PER_PERSON_COLUMNS[:5])
 

@@ -187,7 +187,6 @@ def _new_windows(metric: str, before: Mapping[str, np.ndarray], after: Mapping[s
 class _Track:
     """One track's running sums, counts, its first and last ``_KEEP`` frames, and (optionally) every frame."""
 
-    n: int = 0
     sums: dict[str, float] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     head: dict[str, np.ndarray] = field(default_factory=dict)
@@ -245,7 +244,7 @@ class TrackSeries:
             values = _new_windows(metric, track.tail, new, self.contact_m, self.accel_hips)
             track.sums[metric] = track.sums.get(metric, 0.0) + float(values.sum())
             track.counts[metric] = track.counts.get(metric, 0) + int(values.size)
-        _append_frames(track, new, len(new["pred"]), self.keep_all)
+        _append_frames(track, new, self.keep_all)
 
     def merge(self, later: "TrackSeries") -> "TrackSeries":
         """These tracks followed by ``later``'s (the next frame range of the same sequences): a new series."""
@@ -271,7 +270,6 @@ class TrackSeries:
                 track.head = {k: np.concatenate([track.head[k], v])[:_KEEP] if track.head else v[:_KEEP]
                               for k, v in second.head.items()}
             track.tail = {k: np.concatenate([track.tail[k], v])[-_KEEP:] for k, v in second.tail.items()}
-            track.n += second.n
             track.frames = track.frames + second.frames
         return out
 
@@ -287,20 +285,18 @@ class TrackSeries:
         return {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]} if blocks else {}
 
 
-def _append_frames(track: _Track, new: dict[str, np.ndarray], n_new: int, keep_all: bool) -> None:
-    """Update a track's head (first frames), tail (last frames), count and kept frames with ``new``."""
+def _append_frames(track: _Track, new: dict[str, np.ndarray], keep_all: bool) -> None:
+    """Update a track's head (first frames), tail (last frames) and kept frames with ``new``."""
     head_n = len(track.head["pred"]) if track.head else 0
     if head_n < _KEEP:
         track.head = {k: (np.concatenate([track.head[k], v]) if track.head else v)[:_KEEP].copy()
                       for k, v in new.items()}
     track.tail = {k: (np.concatenate([track.tail[k], v]) if track.tail else v)[-_KEEP:].copy()
                   for k, v in new.items()}
-    track.n += n_new
     if keep_all:
         track.frames.append(new)
 
 
 def _copy(track: _Track) -> _Track:
     """A shallow copy whose dicts and lists can be changed without touching ``track``."""
-    return _Track(track.n, dict(track.sums), dict(track.counts), dict(track.head), dict(track.tail),
-                  list(track.frames))
+    return _Track(dict(track.sums), dict(track.counts), dict(track.head), dict(track.tail), list(track.frames))

@@ -65,7 +65,6 @@ class PanelView:
     image_rect: tuple[float, float, float, float] | None = None  # front: x0, y0, x1, y1 of the whole image in the panel
     focal_px: float | None = None  # front: the panel's focal (px per metre at 1 m depth)
     extent: OrthoExtent | None = None  # orthographic views: the window
-    basis_world: np.ndarray | None = None  # orthographic views: (3, 3) rows panel right, up, depth (world)
 
 
 def panel_px_per_m(view: PanelView, depth_m: np.ndarray) -> np.ndarray:

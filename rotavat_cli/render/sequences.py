@@ -123,13 +123,13 @@ class FigureSummary:
         return dataclasses.replace(self, out=str(out), files=files)
 
 
-def ground_truth_row(spec: str, labels: list[str], seqs: list[Sequence]) -> int | None:
+def ground_truth_row(spec: str, labels: list[str]) -> int | None:
     """Index of the ground-truth row: ``none``; ``auto`` = the one row whose folder is named ``gt``
     (else none); a row's label; or its 1-based number. InputError for a name that is no row.
 
-    >>> ground_truth_row("auto", ["pred", "pred_aligned", "gt"], [])
+    >>> ground_truth_row("auto", ["pred", "pred_aligned", "gt"])
     2
-    >>> ground_truth_row("1", ["a", "b"], []), ground_truth_row("none", ["gt"], [])
+    >>> ground_truth_row("1", ["a", "b"]), ground_truth_row("none", ["gt"])
     (0, None)
     """
     if spec == "none":
@@ -244,7 +244,7 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     cameras = _cameras(seqs, opts, " and ".join(needs))
     labels = row_labels([Path(s.label) for s in seqs])
     names = frame_names(seqs[0], opts.frames, opts.every)
-    gt = ground_truth_row(opts.gt, labels, seqs)
+    gt = ground_truth_row(opts.gt, labels)
     if opts.ghost == "gt" and gt is None:
         raise InputError("--ghost gt needs a ground-truth row: name it with --gt ROW (its label or number), "
                          "or give a sequence folder named gt")

@@ -195,7 +195,7 @@ def ortho_view(kind: str, camera: Camera, extent: OrthoExtent, size: tuple[int, 
     clip_from_world = clip_from_world_ortho(basis, extent, size)
     light_world = unit(-basis[2] + _LIGHT_RAISE * basis[1])
     return PanelView(kind, size, clip_from_world @ world_from_cam_h(camera), camera.R_cam_from_world @ light_world,
-                     clip_from_world, extent.px_per_m, extent=extent, basis_world=basis)
+                     clip_from_world, extent.px_per_m, extent=extent)
 
 
 def _side_basis(camera: Camera) -> np.ndarray:
