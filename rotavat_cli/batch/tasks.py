@@ -85,6 +85,17 @@ def _camera_summary(chosen: AlignCamera) -> dict:
     return summary
 
 
+def _import_into(src: str, out: str, fmt: str, imp: dict, result: dict, what: str) -> None:
+    """Convert a tool's output into a sequence folder of the batch's output (--from, --gt-from); its
+    warnings (prefixed by ``what``) and time go into ``result``."""
+    from ..formats import import_sequence
+
+    start = time.perf_counter()
+    summary = import_sequence(src, out, fmt, image_size=imp["image_size"], smpl_model=imp["smpl_model"], overwrite=True)
+    result["warnings"] += [f"{what}{w}" for w in summary.get("warnings", [])]
+    result["seconds"]["import"] = result["seconds"].get("import", 0.0) + time.perf_counter() - start
+
+
 def task_prepare(job: dict, plan: dict) -> dict:
     """Clear the previous run's marker and staging, import (--from), calibrate on the whole sequence, plan chunks."""
     _apply_limits(plan)
@@ -97,23 +108,11 @@ def task_prepare(job: dict, plan: dict) -> dict:
                               "camera_yaml": None}
     imp = plan["import"]
     if imp["format"]:
-        from ..formats import import_sequence
-
-        start = time.perf_counter()
-        summary = import_sequence(job["source"], job["seq"], imp["format"], image_size=imp["image_size"],
-                                  smpl_model=imp["smpl_model"], overwrite=True)
-        result["warnings"] += [str(w) for w in summary.get("warnings", [])]
-        result["seconds"]["import"] = time.perf_counter() - start
+        _import_into(job["source"], job["seq"], imp["format"], imp, result, "")
     if imp.get("gt_format") and job["gt"]:  # --gt-from: the ground truth in its dataset's own format
-        from ..formats import import_sequence
-
-        start = time.perf_counter()
         if not Path(job["gt_source"]).exists():
             raise InputError(f"{job['gt_source']}: no {imp['gt_format']} ground truth for this sequence (--gt-from)")
-        summary = import_sequence(job["gt_source"], job["gt"], imp["gt_format"], image_size=imp["image_size"],
-                                  smpl_model=imp["smpl_model"], overwrite=True)
-        result["warnings"] += [f"ground truth: {w}" for w in summary.get("warnings", [])]
-        result["seconds"]["import"] = result["seconds"].get("import", 0.0) + time.perf_counter() - start
+        _import_into(job["gt_source"], job["gt"], imp["gt_format"], imp, result, "ground truth: ")
     seq_dir = Path(job["seq"])
     seq = open_sequence(seq_dir)
     result["frames"] = len(seq)
