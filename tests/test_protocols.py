@@ -464,3 +464,17 @@ def test_a_newly_registered_person_metric_is_reported_under_the_paper_protocol(t
     monkeypatch.setattr(E, "PERSON_METRICS", tuple(n for f in families for n in f.names))
     result = run(tmp_path, {"000000": frame(body()[None])}, {"000000": frame(body((0.0, 0.0, 5.1))[None])})
     assert result.metrics["toy_mm"] == 7.0 and result.units["toy_mm"] == "mm"
+
+
+def test_benchmark_protocols_refuse_joints_in_another_order(tmp_path):
+    """An import's own layout (PHALP's OpenPose order) is not SMPL's: scoring its 'first 24 joints' would be wrong."""
+    gt = {"000000": frame(body()[None])}
+    pred_dir = write_seq(tmp_path / "pred", {"000000": frame(body((0.0, 0.0, 5.1))[None])})
+    meta = (pred_dir / "meta.yaml").read_text()
+    (pred_dir / "meta.yaml").write_text(meta + "import: {joints_layout: phalp44 (OpenPose-25 + 19 extra)}\n")
+    gt_seq = open_sequence(write_seq(tmp_path / "gt", gt))
+    with pytest.raises(InputError, match="scores SMPL's joints by index, but its joints are in the layout phalp44"):
+        evaluate(open_sequence(pred_dir), gt_seq, EvalOptions(protocol="bedlam"))
+    assert evaluate(open_sequence(pred_dir), gt_seq, EvalOptions(protocol="paper")).matched == 1  # paper: joint 0 only
+    (pred_dir / "meta.yaml").write_text(meta + "import: {joints_layout: smpl24}\n")
+    assert evaluate(open_sequence(pred_dir), gt_seq, EvalOptions(protocol="bedlam")).matched == 1

@@ -43,8 +43,8 @@ from ..landmarks import SMPL_JOINT_NAMES, foot_head_points
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
 from .matching import match_agora, match_by_ids, match_hungarian
-from .protocols import (CONTACT_M, FOOT_JOINTS, GVHMR_FOOT_VERTICES, GVHMR_FPS, PROTOCOL_NAMES, SMPL_VERTICES, Protocol,
-                        aggregate, protocol, root_points)
+from .protocols import (CONTACT_M, FOOT_JOINTS, GVHMR_FOOT_VERTICES, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES,
+                        Protocol, aggregate, protocol, root_points)
 from .temporal import TrackSeries
 
 __all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PROTOCOL_NAMES", "PersonMetric", "EvalOptions", "EvalResult",
@@ -175,6 +175,23 @@ class _Pairs:
                      for a in (self.pred_joints, self.gt_joints, self.pred_verts, self.gt_verts))
 
 
+def _check_joint_order(seq: Sequence, proto: Protocol) -> None:
+    """InputError when a protocol that scores SMPL's joints by index (the first N, or the hips as root)
+    meets a sequence whose meta.yaml says its joints are in another order (an import's own layout)."""
+    block = seq.meta.get("import")
+    layout = block.get("joints_layout") if isinstance(block, dict) else None
+    if layout is None or (proto.first_joints is None and proto.root != "hips"):
+        return
+    from ..formats.keypoints import LAYOUT_NAMES, layout_key  # the layouts' joint names (imported when needed)
+
+    names = LAYOUT_NAMES.get(layout_key(layout))
+    n = proto.first_joints or max(HIP_JOINTS) + 1
+    if names is not None and tuple(names[:n]) != tuple(SMPL_JOINT_NAMES[:n]):
+        raise InputError(f"{seq.label}: --protocol {proto.name} scores SMPL's joints by index, but its joints are "
+                         f"in the layout {layout_key(layout)} (meta.yaml import.joints_layout): import it with "
+                         "--smpl-model to get SMPL-24 joints")
+
+
 def _check_joints(frame: Frame, opts: EvalOptions) -> None:
     """InputError unless the frame's joints hold every joint the options ask for (``--joints``, or the
     protocol's first N joints, or the hips its root needs)."""
@@ -183,7 +200,7 @@ def _check_joints(frame: Frame, opts: EvalOptions) -> None:
         return
     n_joints = joints.shape[1]
     proto = protocol(opts.protocol)
-    needed = max(proto.first_joints or 1, 3 if proto.root == "hips" else 1)
+    needed = max(proto.first_joints or 1, max(HIP_JOINTS) + 1 if proto.root == "hips" else 1)
     if n_joints < needed:
         raise InputError(f"{frame.source}: --protocol {proto.name} scores the first {needed} joints (SMPL order) "
                          f"but the frame has {n_joints}")
@@ -392,6 +409,8 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
     proto = protocol(opts.protocol)
     pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
     _check_frame_names(pred_seq, gt_seq, pred_names, gt_names)
+    for seq in (pred_seq, gt_seq):
+        _check_joint_order(seq, proto)
     fps = gt_seq.meta.get("fps")
     result = EvalResult(pred_seq.label, gt_seq.label, protocol=proto.name, tracks=_track_series(proto),
                         fps=float(fps) if fps else None)
