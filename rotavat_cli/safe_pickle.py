@@ -405,6 +405,8 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
         super().load_build()
         if isinstance(self.stack[-1], _JoblibArrayWrapper):
             self.stack[-1] = self._read_joblib_array(self.stack[-1])
+        if isinstance(self.stack[-1], np.ndarray) and _invalid_text(self.stack[-1]):
+            raise _Refused("an array holds invalid text (a code point beyond U+10FFFF)")
 
     dispatch[pickle.BUILD[0]] = load_build
 
@@ -768,13 +770,18 @@ def _read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle:
     return array.reshape(shape)
 
 
+def _invalid_text(array: np.ndarray) -> bool:
+    """Whether a unicode array holds a code point beyond U+10FFFF (numpy reads those into broken strs:
+    SystemError once the text is used), wherever the array was read from (npy, pickle)."""
+    if array.dtype.kind != "U" or not array.size:
+        return False
+    return int(np.frombuffer(array.tobytes(), array.dtype.str[0] + "u4").max()) > sys.maxunicode
+
+
 def _check_text(array: np.ndarray, what: str) -> np.ndarray:
-    """``array`` unless it is a unicode array holding a code point beyond U+10FFFF (numpy reads those
-    into broken strs: SystemError once the text is used)."""
-    if array.dtype.kind == "U" and array.size:
-        codes = np.frombuffer(array.tobytes(), array.dtype.str[0] + "u4")
-        if int(codes.max()) > sys.maxunicode:
-            raise InputError(f"{what} holds invalid text (a code point beyond U+10FFFF)")
+    """``array`` unless it holds invalid text (:func:`_invalid_text`): InputError naming ``what``."""
+    if _invalid_text(array):
+        raise InputError(f"{what} holds invalid text (a code point beyond U+10FFFF)")
     return array
 
 

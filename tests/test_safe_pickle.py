@@ -452,3 +452,15 @@ def test_torch_byteorder_record_is_read_bounded(tmp_path):
     path.write_bytes(T.torch_zip_bytes({"x": T.tensor(np.arange(3.0))}, name="t", byteorder="little" * 100))
     with pytest.raises(InputError, match=r"t.pt: torch archive: record 't/byteorder' holds 600 bytes \(at most 16"):
         safe_pickle.load_file(path)
+
+
+def test_pickled_text_arrays_with_impossible_code_points_are_refused():
+    """numpy rebuilds a unicode array from raw bytes: a code point beyond U+10FFFF is refused when read."""
+    good = np.array(["img_001.jpg", "img_002.jpg"])
+    blob = pickle.dumps({"img_path": good}, protocol=2)
+    raw = good.tobytes()
+    bad = raw[:4] + (0x110000).to_bytes(4, "little") + raw[8:]
+    assert raw in blob
+    with pytest.raises(InputError, match=r"x.pkl: an array holds invalid text"):
+        safe_pickle.loads(blob.replace(raw, bad), "x.pkl")
+    assert safe_pickle.loads(blob, "x.pkl")["img_path"].tolist() == good.tolist()
