@@ -151,9 +151,10 @@ def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
 
 
 def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderStyle, mesh: _Mesh | None = None,
-                 labels: bool = True) -> np.ndarray:
+                 labels: bool = True, ghost_mesh: _Mesh | None = None) -> np.ndarray:
     """One panel: the view's background, the shaded people, the ghost, the view's annotations and
-    the person ids -> (H, W, 3) uint8. ``mesh``: the row's mesh when already flattened (a mesh row)."""
+    the person ids -> (H, W, 3) uint8. ``mesh`` / ``ghost_mesh``: the row's / its ghost's mesh when
+    already flattened (mesh rows: the same in every view)."""
     from PIL import Image
 
     spec = REGISTRY[view.kind]
@@ -165,7 +166,8 @@ def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderSt
     alpha = layer[..., 3:4]
     out = base * (1.0 - alpha) + layer[..., :3] * alpha
     if row.ghost is not None and spec.shows_ghost:
-        out = _ghost_over(out, _mesh_layer(_row_mesh(row.ghost, style, view), view, rasterize), style)
+        ghost = ghost_mesh if ghost_mesh is not None and row.ghost.kind == "mesh" else _row_mesh(row.ghost, style, view)
+        out = _ghost_over(out, _mesh_layer(ghost, view, rasterize), style)
     img = Image.fromarray(np.round(255.0 * np.clip(out, 0.0, 1.0)).astype(np.uint8))
     spec.over(img, view, row, style)
     if labels:
@@ -192,6 +194,15 @@ def render_grid(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int, i
     face = font(LABEL_PX * 6 // 10)
     small = font(LABEL_PX * 5 // 10)
     ink = rgb8(style.text)
+    flattened: dict[int, _Mesh] = {}  # mesh rows, flattened once (a ghost is drawn over every other row)
+
+    def flat(row: RowFrame | None) -> _Mesh | None:
+        if row is None or row.kind != "mesh":
+            return None
+        if id(row) not in flattened:
+            flattened[id(row)] = _row_mesh(row, style)
+        return flattened[id(row)]
+
     for j, spec in enumerate(specs):
         draw.text((W * j + W / 2, LABEL_PX / 2), spec.title, fill=ink, font=face, anchor="mm")
     if title:
@@ -203,8 +214,8 @@ def render_grid(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int, i
         if row.caption:
             x = 6 + draw.textlength(row.label, font=face) + 14
             draw.text((x, top + LABEL_PX / 2), row.caption, fill=ink, font=small, anchor="lm")
-        mesh = _row_mesh(row, style) if row.kind == "mesh" else None
+        mesh, ghost = flat(row), flat(row.ghost)
         for j, spec in enumerate(specs):
-            panel = render_panel(row, spec.panel(row, size, per_row[i]), rasterize, style, mesh, labels)
+            panel = render_panel(row, spec.panel(row, size, per_row[i]), rasterize, style, mesh, labels, ghost)
             fig.paste(Image.fromarray(panel), (W * j, top + LABEL_PX))
     return np.asarray(fig)
