@@ -22,6 +22,8 @@ BENCHMARKS = {
     "bench_render.py": ([], ["--repeats", "1"]),
     "bench_batch.py": ([], ["--quick"]),
     "bench_focal.py": ([], ["--quick"]),
+    "bench_onedepth.py": ([], ["--quick"]),
+    "bench_stature.py": ([], ["--quick"]),
 }
 
 

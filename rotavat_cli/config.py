@@ -71,10 +71,11 @@ _NAME_OR_NUMBER = {"synth.hps_focal"}
 _RANGES: dict[str, tuple[float | None, float | None]] = {
     "align.jobs": (0, None), "batch.jobs": (0, None), "batch.chunk_frames": (1, None),
     "synth.frames": (1, None), "synth.people": (0, None), "synth.noise_px": (0, None), "synth.outliers": (0, 1),
-    "synth.depth_sd": (0, None), "synth.lean": (0, 1),
+    "synth.depth_sd": (0, None), "synth.lean": (0, 1), "synth.camera_height_range_m": (1e-3, 1e5),
+    "synth.pitch_range_deg": (-89, 89),
     "calibrate.person_height_m": (0.5, 3.0), "calibrate.person_height_sd_m": (0, 1.0),
     "calibrate.camera_height_m": (0.01, 1e5), "calibrate.box_depth_m": (-1.0, 2.0), "calibrate.focal_px": (1e-3, 1e7),
-    "calibrate.fov_prior_deg": (0.1, 179.9),
+    "calibrate.fov_prior_deg": (0.1, 179.9), "calibrate.pitch_deg": (-89.9, 89.9),
     "eval.threshold_px": (1e-9, None), "eval.iou_threshold": (0, 1),
     "render.fps": (0.01, 1000), "render.margin": (0, 10), "render.every": (1, None),
     "limits.max_file_mb": (1, None), "limits.max_array_mb": (1, None), "limits.max_pickle_items": (1, None),
@@ -86,7 +87,8 @@ _RANGES: dict[str, tuple[float | None, float | None]] = {
     "align.stature_range_m": (0, 10),
 }
 _ORDERED = {"align.stature_range_m": "<", "calibrate.grid.focal_range_h": "<=",  # [low, high] pairs
-            "calibrate.grid.pitch_range_deg": "<=", "calibrate.grid.height_range_m": "<="}
+            "calibrate.grid.pitch_range_deg": "<=", "calibrate.grid.height_range_m": "<=",
+            "synth.camera_height_range_m": "<=", "synth.pitch_range_deg": "<="}
 _MAX_LIST = 64  # longest list a config key takes (lists are [W, H], ranges, grid steps, colours ...)
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 40
@@ -98,18 +100,20 @@ def _choices() -> dict[str, tuple[str, ...]]:
     from .alignment.options import HEIGHT_FROM
     from .alignment.transform import UPRIGHT
     from .batch.plan import EXECUTORS
-    from .calibration import METHODS, POINTS, RESIDUALS
+    from .calibration import FOCAL_PRIORS, METHODS, POINTS, RESIDUALS
     from .metrics import ENGINES
     from .metrics.evaluate import MATCHES, PROTOCOL_NAMES
     from .render import RENDERERS
     from .render.sequences import GHOSTS, SCALES
     from .render.views import FITS
+    from .synth.layouts import LAYOUTS
 
     return {"calibrate.method": METHODS, "calibrate.residual": RESIDUALS, "calibrate.points": POINTS,
+            "calibrate.focal_prior": FOCAL_PRIORS,
             "align.upright": UPRIGHT, "align.height_from": HEIGHT_FROM, "eval.match": MATCHES, "eval.engine": ENGINES,
             "eval.protocol": PROTOCOL_NAMES,
             "render.renderer": RENDERERS, "render.fit": FITS, "render.scale": SCALES, "render.ghost": GHOSTS,
-            "batch.executor": EXECUTORS}
+            "batch.executor": EXECUTORS, "synth.layout": LAYOUTS}
 
 
 def _check_type(default: Any, value: Any, key: str, source: str) -> Any:

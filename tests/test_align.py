@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import re
 import sys
 from pathlib import Path
@@ -12,8 +13,8 @@ import pytest
 from conftest import invoke, tree_hash
 
 from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence, aligned_meta
-from rotavat_cli.camera import Camera
-from rotavat_cli.sequence import Frame, open_sequence, write_frame
+from rotavat_cli.camera import Camera, camera_parameters
+from rotavat_cli.sequence import Frame, open_sequence, read_camera_yaml, write_frame
 
 
 @pytest.fixture(scope="module")
@@ -330,3 +331,94 @@ def test_track_plots_of_joints_only_people_measure_them_as_align_does(scene, tmp
         feet, heads = frame_foot_head_cam(frame, MeshIntrinsics.of_frame(frame, joints.frame_intrinsics(frame), cam))
         for pid, stature in zip(frame.person_ids, np.linalg.norm(heads - feet, axis=1)):
             assert dict(tracks.values["stature_m"][int(pid)])[index] == pytest.approx(stature, rel=1e-9)
+
+
+# ---- the camera gate ------------------------------------------------------------------------------
+def _copy_sequence(src: Path, dst: Path, frames: int = 2) -> Path:
+    """The first ``frames`` frames of ``src`` and its meta.yaml in a folder of their own (no camera.yaml)."""
+    dst.mkdir(parents=True)
+    for name in open_sequence(src).frame_names[:frames]:
+        (dst / f"{name}.npz").write_bytes((src / f"{name}.npz").read_bytes())
+    (dst / "meta.yaml").write_text((src / "meta.yaml").read_text())
+    return dst
+
+
+def test_align_refuses_an_implausible_camera_and_its_advice_runs_as_written(scene, tmp_path, runner):
+    """One line: the camera, its findings, and what to give; each suggested command then runs as written."""
+    import shlex
+
+    from _camera_gate import FINDINGS, assert_doc_link_exists, assert_named_flags_exist, error_line, implausible
+
+    seq = _copy_sequence(scene / "pred", tmp_path / "pred")
+    true_yaml = scene / "gt" / "camera.yaml"
+    implausible(true_yaml, seq / "camera.yaml")  # as calibrate writes a camera it found implausible
+    result = invoke(runner, "align", seq)
+    assert result.exit_code == 2
+    message = error_line(result.stderr)
+    assert message.startswith(f"{seq / 'camera.yaml'}: implausible camera ({FINDINGS[0]}; {FINDINGS[1]}); give what you know:")
+    assert f"rotavat calibrate {seq} --focal PX --camera-height M [--pitch DEG] (then rotavat align {seq})" in message
+    assert f"rotavat align {seq} --camera FILE (a camera.yaml you wrote: docs/conventions.md#camerayaml)" in message
+    assert message.endswith(f"rotavat align {seq} --accept-camera to use it anyway")
+    assert_named_flags_exist(message)
+    assert_doc_link_exists(message)
+    assert not (tmp_path / "pred_aligned").exists()  # refused before anything was written
+
+    accept = shlex.split(re.search(r"rotavat (align \S+ --accept-camera)", message).group(1))
+    result = invoke(runner, *accept)
+    assert result.exit_code == 0, result.stderr
+    assert "implausible camera" in result.stderr and FINDINGS[0] in result.stderr and "--accept-camera" in result.stderr
+    fit = read_camera_yaml(tmp_path / "pred_aligned" / "camera.yaml")[1]
+    assert fit["implausible"] == list(FINDINGS) and fit["accepted"] is True  # the consent travels with the output
+
+    given = shlex.split(re.search(r"rotavat (align \S+ --camera FILE)", message).group(1).replace("FILE", str(true_yaml)))
+    result = invoke(runner, *given)
+    assert result.exit_code == 0 and "implausible" not in result.stderr, result.stderr
+
+    cam = camera_parameters(open_sequence(scene / "gt").camera)
+    known = {"PX": f"{cam['focal_px']:.1f}", "M": f"{cam['height_m']:.3f}", "DEG": f"{cam['pitch_deg']:.2f}"}
+    calibrate = re.search(r"rotavat (calibrate \S+ --focal PX --camera-height M \[--pitch DEG\])", message).group(1)
+    result = invoke(runner, *(known.get(a, a) for a in shlex.split(calibrate.replace("[", "").replace("]", ""))))
+    assert result.exit_code == 0, result.stderr
+    assert not read_camera_yaml(seq / "camera.yaml")[1].get("implausible")
+    result = invoke(runner, *shlex.split(re.search(r"\(then rotavat (align \S+)\)", message).group(1)))
+    assert result.exit_code == 0 and "implausible" not in result.stderr, result.stderr
+
+
+def test_align_names_the_camera_it_calibrated_itself(scene, tmp_path, runner, monkeypatch):
+    from dataclasses import replace
+
+    import rotavat_cli.cli.align as align_cli
+    from _camera_gate import FINDINGS, error_line
+
+    calibrate = align_cli.run_calibration
+
+    def implausible_calibration(*args, **kwargs):
+        calib = calibrate(*args, **kwargs)
+        return replace(calib, result=replace(calib.result, implausible=FINDINGS))
+
+    monkeypatch.setattr(align_cli, "run_calibration", implausible_calibration)
+    seq = _copy_sequence(scene / "pred", tmp_path / "pred")
+    result = invoke(runner, "align", seq, "--out", tmp_path / "out", "-q")
+    assert result.exit_code == 2
+    assert error_line(result.stderr).startswith(f"the camera calibrated from {seq}: implausible camera ({FINDINGS[0]};")
+    assert f"rotavat align {seq} --out {tmp_path / 'out'} --accept-camera" in result.stderr
+    result = invoke(runner, "align", seq, "--out", tmp_path / "out", "--accept-camera", "--json")
+    assert result.exit_code == 0 and json.loads(result.stdout)["camera_implausible"] == list(FINDINGS)
+
+
+@pytest.mark.parametrize("fit", [None, {"method": "refine", "implausible": []}, {"implausible": None, "warnings": ["x"]}])
+def test_a_camera_without_findings_is_used_silently(scene, tmp_path, runner, fit):
+    from _camera_gate import write_camera
+
+    camera = write_camera(scene / "gt" / "camera.yaml", tmp_path / "camera.yaml", fit)
+    result = invoke(runner, "align", scene / "pred", "--camera", camera, "--out", tmp_path / "out")
+    assert result.exit_code == 0 and "implausible" not in result.stderr + result.stdout, result.stderr
+
+
+def test_the_gate_passes_a_camera_accepted_earlier_with_a_warning(scene, tmp_path, runner):
+    from _camera_gate import FINDINGS, implausible
+
+    camera = implausible(scene / "gt" / "camera.yaml", tmp_path / "camera.yaml", accepted=True)
+    result = invoke(runner, "align", scene / "pred", "--camera", camera, "--out", tmp_path / "out")
+    assert result.exit_code == 0, result.stderr
+    assert "accepted earlier" in result.stderr and FINDINGS[1][:20] in result.stderr

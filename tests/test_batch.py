@@ -13,6 +13,7 @@ from pathlib import Path
 import _format_fixtures as F
 import numpy as np
 import pytest
+import yaml
 from conftest import invoke, tree_hash
 
 from rotavat_cli.alignment import AlignOptions, align_sequence
@@ -201,7 +202,8 @@ def test_partial_outputs_never_look_complete(data, tmp_path, runner):
 def test_a_failing_sequence_is_reported_and_the_others_finish(data, tmp_path, runner):
     """Process pool of 2: a truncated frame fails its sequence only; exit 1, reason on one line."""
     broken = data / "pred" / "a" / "s2" / "000001.npz"
-    broken.write_bytes(broken.read_bytes()[:100])
+    original = broken.read_bytes()
+    broken.write_bytes(original[:100])
     out = tmp_path / "out"
     result = batch(runner, data / "pred", out, "--gt-root", data / "gt", "--jobs", "2", "--chunk-frames", "2", *FAST)
     assert result.exit_code == 1
@@ -216,7 +218,7 @@ def test_a_failing_sequence_is_reported_and_the_others_finish(data, tmp_path, ru
     assert "## Failed" in (out / "batch_report.md").read_text()
     assert {w["peak_rss_mb"] > 0 for w in report["worker_stats"]} == {True}
 
-    shutil.copy(data / "gt" / "a" / "s2" / "000001.npz", broken)  # fixed: only the failed one runs again
+    broken.write_bytes(original)  # fixed: only the failed one runs again
     again = invoke(runner, "batch", data / "pred", "--out", out, "--gt-root", data / "gt", "--jobs", "1", *FAST, "--json")
     assert again.exit_code == 0 and json.loads(again.stdout)["counts"]["done"] == 1
 
@@ -387,3 +389,89 @@ def test_dataset_aggregate_follows_the_eval_protocol():
     assert (agg["metrics"]["precision"], agg["metrics"]["recall"], agg["metrics"]["f1"]) == (precision, recall, f1)
     assert agg["metrics"]["mpjpe"] == 65.0 and agg["metrics"]["nmje"] == round(65.0 / f1, 1)
     assert "pve" not in agg["metrics"] and "nmve" not in agg["metrics"]  # AGORA's MVE needs its vertex subset
+
+
+# ---- the camera gate ------------------------------------------------------------------------------
+def _implausible_calibration_of(rel: str, monkeypatch) -> None:
+    """Calibrating ``rel`` (in this process: --jobs 1) finds the camera implausible; the others as they are."""
+    from dataclasses import replace
+
+    import rotavat_cli.calibration as calibration
+    from _camera_gate import FINDINGS
+
+    real = calibration.calibrate_sequence
+
+    def calibrate_sequence(seq, options):
+        calib = real(seq, options)
+        if seq.path.as_posix().endswith(rel):
+            return replace(calib, result=replace(calib.result, implausible=FINDINGS))
+        return calib
+
+    monkeypatch.setattr(calibration, "calibrate_sequence", calibrate_sequence)
+
+
+def test_an_implausible_camera_fails_its_sequence_only_until_accepted(data, tmp_path, runner, monkeypatch):
+    from _camera_gate import FINDINGS, assert_doc_link_exists, assert_named_flags_exist
+
+    _implausible_calibration_of("a/s2", monkeypatch)
+    out, args = tmp_path / "out", ["--jobs", "1", "--steps", "calibrate,align"]
+    result = batch(runner, data / "pred", out, *args)
+    assert result.exit_code == 1
+    (line,) = [line for line in result.stderr.splitlines() if "a/s2 failed:" in line]  # one line, printed as it happens
+    assert f"prepare: the camera calibrated from {data / 'pred' / 'a' / 's2'} ({out / 'a' / 's2' / 'camera.yaml'}): " \
+           f"implausible camera ({FINDINGS[0]}; {FINDINGS[1]}); give what you know: rerun rotavat batch {data / 'pred'} " \
+           f"--out {out}" in line
+    assert "--focal PX --camera-height M [--pitch DEG]" in line and "--camera FILE" in line and "--accept-camera" in line
+    report = json.loads((out / "batch_report.json").read_text())
+    rows = {r["sequence"]: r for r in report["rows"]}
+    assert [rows[rel]["status"] for rel in RELS] == ["done", "failed", "done"]
+    assert_named_flags_exist(rows["a/s2"]["reason"])
+    assert_doc_link_exists(rows["a/s2"]["reason"])
+    assert rows["a/s2"]["camera"]["implausible"] == list(FINDINGS) and rows["a/s1"]["camera"]["implausible"] == []
+    assert not (out / "a" / "s2" / "aligned").exists() and (out / "a" / "s2" / "camera.yaml").exists()
+    md = (out / "batch_report.md").read_text()
+    assert "## Camera checks and warnings\n\n" in md  # the other sequences' warnings may come first
+    assert f"\n- `a/s2`: implausible camera ({FINDINGS[0]}; {FINDINGS[1]}), refused" in md
+
+    result = batch(runner, data / "pred", out, *args, "--accept-camera", "--json")  # the refusal's last advice
+    assert result.exit_code == 0, result.stderr
+    counts = json.loads(result.stdout)["counts"]
+    assert (counts["done"], counts["skipped"], counts["failed"]) == (1, 2, 0)
+    fit = read_camera_yaml(out / "a" / "s2" / "aligned" / "camera.yaml")[1]
+    assert fit["implausible"] == list(FINDINGS) and fit["accepted"] is True
+    row = {r["sequence"]: r for r in json.loads((out / "batch_report.json").read_text())["rows"]}["a/s2"]
+    assert row["status"] == "done" and row["camera"]["accepted"] is True
+    assert "), used (--accept-camera)" in (out / "batch_report.md").read_text()
+
+
+def test_known_camera_values_reach_every_sequence_s_calibration(data, tmp_path, runner):
+    result = batch(runner, data / "pred", tmp_path / "out", "--jobs", "1", "--steps", "calibrate",
+                   "--focal", "900", "--camera-height", "6.5", "--pitch", "20")
+    assert result.exit_code == 0, result.stderr
+    for rel in RELS:
+        data_yaml = yaml.safe_load((tmp_path / "out" / rel / "camera.yaml").read_text())
+        assert (data_yaml["focal_px"], data_yaml["height_m"]) == (pytest.approx(900.0), pytest.approx(6.5))
+        assert data_yaml["pitch_deg"] == pytest.approx(20.0, abs=1e-6)
+        assert data_yaml["fit"]["fixed"]["focal_px"] == "given"
+
+
+def test_a_camera_file_replaces_every_sequence_s_calibration(data, tmp_path, runner):
+    from _camera_gate import FINDINGS, implausible
+
+    given = data / "gt" / "a" / "s1" / "camera.yaml"
+    result = batch(runner, data / "pred", tmp_path / "out", "--jobs", "1", "--steps", "calibrate,align", "--camera", given)
+    assert result.exit_code == 0, result.stderr
+    camera = read_camera_yaml(given)[0]
+    for rel in RELS:
+        assert read_camera_yaml(tmp_path / "out" / rel / "camera.yaml")[0] == camera  # copied, not fitted
+        assert open_sequence(tmp_path / "out" / rel / "aligned").camera == camera
+    rows = json.loads((tmp_path / "out" / "batch_report.json").read_text())["rows"]
+    assert {(r["camera"]["origin"], r["camera"]["file"]) for r in rows} == {("given", str(given.resolve()))}
+
+    both = batch(runner, data / "pred", tmp_path / "x", "--camera", given, "--focal", "900")
+    assert both.exit_code == 2 and "not both" in both.stderr
+    bad = implausible(given, tmp_path / "bad.yaml")
+    result = batch(runner, data / "pred", tmp_path / "out2", "--jobs", "1", "--steps", "align", "--camera", bad, "--json")
+    assert result.exit_code == 1
+    failed = json.loads(result.stdout)["failed"]
+    assert len(failed) == 3 and all(f"{bad.resolve()}: implausible camera ({FINDINGS[0]}" in f["reason"] for f in failed)

@@ -3,6 +3,8 @@ into contract sequences the other commands accept, and hostile / corrupt inputs 
 
 from __future__ import annotations
 
+import csv
+
 import hashlib
 import json
 import pickle
@@ -564,6 +566,13 @@ def test_from_converts_on_the_fly_for_calibrate_align_eval(tmp_path, model, mode
     assert invoke(runner, "eval", src, "--from", "nope", "--gt", imported).exit_code == 2
 
 
+def _accept(fmt: str) -> list[str]:
+    """``--accept-camera`` for the fixtures whose 2D points are drawn through their tool's own focal rule
+    (4D-Humans 5000/256 x 640 = 12,500 px, PyMAF-X 5,000 px, on a 640-px image): the camera those pixels
+    imply is no real lens, so calibrate flags it, and these tests of the chain's plumbing accept it."""
+    return ["--accept-camera"] if fmt in ("4dhumans", "pymafx") else []
+
+
 @pytest.mark.parametrize("fmt", ALL)
 def test_every_format_goes_through_calibrate_align_eval_render(fmt, tmp_path, model, camera, model_path, runner):
     """Each imported format is accepted by the whole chain; aligned feet end up on the calibrated ground."""
@@ -574,12 +583,19 @@ def test_every_format_goes_through_calibrate_align_eval_render(fmt, tmp_path, mo
     cam_yaml, aligned = tmp_path / "camera.yaml", tmp_path / "aligned"
     result = invoke(runner, "calibrate", seq, "--out", cam_yaml, "--quiet")
     assert result.exit_code == 0, result.output
-    result = invoke(runner, "align", "--in", seq, "--camera", cam_yaml, "--out", aligned, "--quiet")
+    result = invoke(runner, "align", "--in", seq, "--camera", cam_yaml, "--out", aligned, "--quiet", *_accept(fmt))
     assert result.exit_code == 0, result.output
     est, _ = read_camera_yaml(cam_yaml)
+    with open(aligned / "people.csv") as rows:  # people align left unchanged (e.g. foot_above_horizon) say why there
+        flagged = {(r["frame"], int(r["person_id"])) for r in csv.DictReader(rows) if r["flag"] and
+                   r["flag"] != "implausible_stature"}
+    seated_people = 0
     for frame in open_sequence(aligned).frames():
         feet, _ = foot_head_points(frame.data["vertices"])
-        np.testing.assert_allclose(est.height_above_ground(feet), 0.0, atol=1e-4)  # float32 storage
+        seated = np.array([(frame.name, int(i)) not in flagged for i in frame.person_ids], bool).reshape(-1)
+        seated_people += int(seated.sum())
+        np.testing.assert_allclose(est.height_above_ground(feet[seated]), 0.0, atol=1e-4)  # float32 storage
+    assert seated_people >= 10
     result = invoke(runner, "eval", seq, aligned, "--gt", seq, "--out", tmp_path / "m", "--quiet")
     assert result.exit_code == 0, result.output
     before, after = json.loads((tmp_path / "m" / "metrics.json").read_text())["predictions"]
@@ -587,7 +603,7 @@ def test_every_format_goes_through_calibrate_align_eval_render(fmt, tmp_path, mo
     assert people >= 15 and before["matched"] == after["matched"] == people and before["metrics"]["w_mpjpe"] < 1e-3
     assert after["metrics"]["pa_mpjpe"] < 1.0  # RotAvat moves bodies rigidly (plus one scale)
     result = invoke(runner, "render", seq, aligned, "--camera", cam_yaml, "--renderer", "fallback", "--size", "160", "120",
-                    "--out", tmp_path / "render", "--no-gif", "--no-glb")
+                    "--out", tmp_path / "render", "--no-gif", "--no-glb", *_accept(fmt))
     assert result.exit_code == 0, result.output
     assert len(list((tmp_path / "render").glob("*.png"))) == 1
 
@@ -659,7 +675,7 @@ def test_from_gives_what_import_then_run_gives(fmt, tmp_path, model, camera, mod
     _ok(invoke(runner, "calibrate", src, *opts, "--out", cams[1], "--quiet"))
     assert cams[0].read_bytes() == cams[1].read_bytes()
 
-    camera_given = ["--camera", cams[0], "-q"]
+    camera_given = ["--camera", cams[0], "-q", *_accept(fmt)]
     _ok(invoke(runner, "align", "--in", imported, *camera_given, "--out", tmp_path / "al_imported", "--jobs", 1))
     _ok(invoke(runner, "align", "--in", src, *opts, *camera_given, "--out", tmp_path / "al_from", "--jobs", 2))
     aligned = _files_under(tmp_path / "al_imported")

@@ -7,6 +7,8 @@ exists for imports, reprojects onto its own image, and gives people of plausible
 
 from __future__ import annotations
 
+import json
+
 from pathlib import Path
 
 import _format_fixtures as F
@@ -126,8 +128,9 @@ def test_keypoint_rules_on_real_smpl_people():
 @needs_gait
 def test_fourdhumans_walker_without_a_model(tmp_path, runner):
     """Joints only: every frame gets feet_2d/heads_2d from OpenPose toes/heels and LSP's top of head; the
-    2D keypoints are the 3D joints seen through PHALP's focal; calibrate gets past the missing points and
-    refuses for a real reason (one walker at one depth)."""
+    2D keypoints are the 3D joints seen through PHALP's focal; calibrate gets past the missing points and,
+    the walker standing at one depth, answers the focal from the lens prior (never PHALP's 37,500 px) and
+    says so; align then seats the walker at a plausible stature."""
     summary = import_sequence(GAIT, tmp_path / "out", "4dhumans")
     seq = open_sequence(tmp_path / "out")
     assert summary["frames"] == summary["people"] == 67 and seq.intrinsics.image_size == (1920, 1080)
@@ -143,5 +146,12 @@ def test_fourdhumans_walker_without_a_model(tmp_path, runner):
         joints = frame.data["joints"]
         statures.append(np.linalg.norm(joints[:, 38] - joints[:, 19:25].mean(axis=1), axis=-1))
     assert 1.5 < np.mean(statures) < 2.0  # m, LSP top of head to the OpenPose feet (1.55 m)
-    result = invoke(runner, "calibrate", tmp_path / "out")
-    assert result.exit_code == 2 and "one depth" in result.output and "needs 'feet_2d'" not in result.output
+    result = invoke(runner, "calibrate", tmp_path / "out", "--json")
+    assert result.exit_code == 0, result.stderr
+    fit = json.loads(result.stdout)["fit"]
+    assert fit["determined_by"]["focal_px"] == "prior" and fit["implausible"] == []
+    assert 0.4 * 1920 < json.loads(result.stdout)["focal_px"] < 1.3 * 2203  # a lens, not PHALP's 37,500 px
+    assert any("one depth" in w for w in fit["warnings"])
+    result = invoke(runner, "align", tmp_path / "out", "--out", tmp_path / "aligned", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert 1.5 < json.loads(result.stdout)["median_stature_m"] < 1.9

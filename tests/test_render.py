@@ -745,3 +745,61 @@ def test_scale_row_gives_each_row_its_window(scene, tmp_path):
     figure = render_sequences(seqs, tmp_path / "fig", FigureOptions(views=("side",), renderer="fallback", size=SIZE,
                                                                     camera_path=scene / "gt" / "camera.yaml"))
     assert figure.rows == ["pred", "gt"]
+
+
+# ---- the camera gate ------------------------------------------------------------------------------
+def _gt_with_camera(scene: Path, dst: Path, **extra) -> Path:
+    """A copy of the ground truth (frame 0) whose camera.yaml lists implausible findings (plus ``extra`` fit keys)."""
+    from _camera_gate import implausible
+
+    dst.mkdir(parents=True)
+    (dst / "000000.npz").write_bytes((scene / "gt" / "000000.npz").read_bytes())
+    (dst / "meta.yaml").write_text((scene / "gt" / "meta.yaml").read_text())
+    implausible(scene / "gt" / "camera.yaml", dst / "camera.yaml", **extra)
+    return dst
+
+
+FAST_RENDER = ("--views", "side", "--renderer", "fallback", "--size", "160", "90")
+
+
+def test_render_refuses_a_row_with_an_implausible_camera_unless_accepted(runner, scene, tmp_path):
+    from _camera_gate import FINDINGS, assert_doc_link_exists, assert_named_flags_exist, error_line
+
+    seq = _gt_with_camera(scene, tmp_path / "truth")
+    result = invoke(runner, "render", seq, *FAST_RENDER, "--out", tmp_path / "fig")
+    assert result.exit_code == 2
+    message = error_line(result.stderr)
+    assert message.startswith(f"{seq / 'camera.yaml'}: implausible camera ({FINDINGS[0]}; {FINDINGS[1]}); give what you know: "
+                              f"rotavat calibrate {seq} --focal PX --camera-height M [--pitch DEG] (it rewrites")
+    assert message.endswith("add --accept-camera to the render command to use it anyway")
+    assert_named_flags_exist(message)
+    assert_doc_link_exists(message)
+    assert not (tmp_path / "fig").exists()
+    summary = _json(invoke(runner, "render", seq, *FAST_RENDER, "--out", tmp_path / "fig", "--accept-camera", "--json"))
+    assert summary["warnings"] == [f"{seq / 'camera.yaml'}: implausible camera ({FINDINGS[0]}; {FINDINGS[1]}), used anyway "
+                                   "(--accept-camera)"]
+    accepted = _gt_with_camera(scene, tmp_path / "accepted", accepted=True)  # as align writes it under --accept-camera
+    result = invoke(runner, "render", accepted, *FAST_RENDER, "--out", tmp_path / "fig2")
+    assert result.exit_code == 0 and "accepted earlier with --accept-camera" in result.stderr, result.stderr
+
+
+def test_render_gates_the_camera_given_for_rows_without_one(runner, scene, tmp_path):
+    from _camera_gate import FINDINGS, error_line, implausible, write_camera
+
+    bad = implausible(scene / "gt" / "camera.yaml", tmp_path / "bad.yaml")
+    result = invoke(runner, "render", scene / "pred", scene / "gt", "--camera", bad, *FAST_RENDER, "--out", tmp_path / "fig")
+    assert result.exit_code == 2
+    message = error_line(result.stderr)
+    assert message.startswith(f"{bad} (--camera, for {scene / 'pred'}): implausible camera ({FINDINGS[0]};")
+    assert "render --camera FILE (a camera.yaml you wrote: docs/conventions.md#camerayaml)" in message
+    plain = write_camera(scene / "gt" / "camera.yaml", tmp_path / "plain.yaml", {"implausible": []})
+    result = invoke(runner, "render", scene / "pred", scene / "gt", "--camera", plain, *FAST_RENDER, "--out", tmp_path / "fig")
+    assert result.exit_code == 0 and "implausible" not in result.stderr, result.stderr
+
+
+def test_an_aligned_output_with_an_implausible_camera_is_sent_back_to_align():
+    from rotavat_cli.alignment import check_fit, render_remedies
+
+    with pytest.raises(RotavatError, match=r"rotavat align INPUT --out out/pred_aligned, INPUT being the sequence"):
+        check_fit("out/pred_aligned/camera.yaml", {"implausible": ["pitch undetermined"]}, False,
+                  render_remedies("out/pred_aligned", own=True, aligned=True))

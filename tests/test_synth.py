@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -135,3 +136,105 @@ def test_make_sample_rebuilds_the_committed_sample_byte_for_byte(tmp_path, runne
     assert made == sorted(p.relative_to(committed) for p in committed.rglob("*") if p.is_file())
     for rel in made:
         assert (tmp_path / "scene" / rel).read_bytes() == (committed / rel).read_bytes(), rel
+
+
+# ---- layouts: one-depth scenes (walk, row) and the camera's height/pitch ranges ----------------------
+HANDHELD = {"camera_height_range_m": (1.2, 2.0), "pitch_range_deg": (-5.0, 15.0)}
+
+
+def _gt_feet_heads(opts: SynthOptions):
+    """The true camera and, over every frame, the gt's feet (N, 3) world frame and foot/crown pixels (N, 2)."""
+    camera, _, frames = synth_frames(opts)
+    feet, feet_px, heads_px = [], [], []
+    for gt, _ in frames:
+        f, _ = foot_head_points(gt.data["vertices"].astype(np.float64))
+        feet.append(camera.world_from_cam(f))
+        feet_px.append(gt.data["feet_2d"])
+        heads_px.append(gt.data["heads_2d"])
+    return camera, np.concatenate(feet), np.concatenate(feet_px), np.concatenate(heads_px)
+
+
+def _assert_in_view(camera, *points_px):
+    W, H = camera.image_size
+    for px in points_px:
+        assert np.all((px[:, 0] >= 0) & (px[:, 0] <= W) & (px[:, 1] >= 0) & (px[:, 1] <= H))
+
+
+@pytest.mark.parametrize("camera_kind", ["surveillance", "handheld"])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_row_stands_at_one_depth_in_view(seed, camera_kind):
+    from rotavat_cli.synth.layouts import view_axes_world
+
+    opts = SynthOptions(seed=seed, frames=2, people=8, layout="row", image_size=(1920, 1080),
+                        **(HANDHELD if camera_kind == "handheld" else {}))
+    camera, feet, feet_px, heads_px = _gt_feet_heads(opts)
+    along, across = view_axes_world(camera)
+    assert np.ptp(feet @ along) < 0.3  # one depth (jitter of a few cm)
+    side = np.sort(feet[:8] @ across)
+    np.testing.assert_allclose(np.diff(side), 0.6, atol=0.25)  # side by side, ~0.6 m apart
+    np.testing.assert_allclose(feet[:8], feet[8:], atol=1e-9)  # standing still
+    _assert_in_view(camera, feet_px, heads_px)
+    size_h = np.median(np.linalg.norm(heads_px - feet_px, axis=-1)) / camera.image_size[1]
+    if camera_kind == "handheld":  # a surveillance camera high up sees people smaller than that wherever they stand
+        assert 0.25 <= size_h <= 0.75
+    hfov = np.degrees(camera.horizontal_fov_rad)
+    assert 45.0 <= hfov <= 100.0
+    assert 1.2 <= camera.height_m <= 2.0 if camera_kind == "handheld" else 2.5 <= camera.height_m <= 15.0
+
+
+@pytest.mark.parametrize("camera_kind", ["surveillance", "handheld"])
+@pytest.mark.parametrize("seed", [3, 4])
+def test_walk_crosses_the_view_at_one_image_row(seed, camera_kind):
+    kind = HANDHELD if camera_kind == "handheld" else {}
+    opts = SynthOptions(seed=seed, frames=24, people=1, layout="walk", image_size=(1920, 1080), roll_deg=0.0, **kind)
+    camera, feet, feet_px, heads_px = _gt_feet_heads(opts)
+    person_px = np.median(np.linalg.norm(heads_px - feet_px, axis=-1))
+    assert np.ptp(feet_px[:, 1]) < 0.05 * person_px  # roll 0: every foot on one image row
+    assert np.ptp(feet_px[:, 0]) > 2 * person_px  # walking across the view
+    _assert_in_view(camera, feet_px, heads_px)
+    # with a roll, the track is still at one depth: its feet on a line parallel to the horizon
+    from rotavat_cli.synth.layouts import view_axes_world
+
+    camera, feet, feet_px, heads_px = _gt_feet_heads(dataclasses.replace(opts, roll_deg=None))
+    assert abs(np.degrees(camera.roll_rad)) > 0.1
+    along, _ = view_axes_world(camera)
+    assert np.ptp(feet @ along) < 0.05
+    _assert_in_view(camera, feet_px, heads_px)
+
+
+@pytest.mark.parametrize("layout", ["walk", "row"])
+def test_layouts_are_deterministic_and_keep_the_rest(tmp_path, runner, layout):
+    args = ["--seed", "5", "--frames", "2", "--people", "3", "--layout", layout, "--camera-height-range", "1.2", "2",
+            "--pitch-range", "-5", "15", "-q"]
+    for name in ("a", "b"):
+        assert invoke(runner, "synth", tmp_path / name, *args).exit_code == 0
+    assert tree_hash(tmp_path / "a") == tree_hash(tmp_path / "b")
+    # the layout and camera ranges are recorded; the prediction is the usual one (CLIFF's focal, leaning)
+    params = (tmp_path / "a" / "synth.yaml").read_text()
+    assert f"layout: {layout}" in params and "camera_height_range_m: [1.2, 2.0]" in params
+    assert "pitch_range_deg: [-5.0, 15.0]" in params
+    pred = open_sequence(tmp_path / "a" / "pred")
+    assert pred.meta["focal_rule"] == "cliff" and len(pred) == 2
+    assert 1.2 <= open_sequence(tmp_path / "a" / "gt").camera.height_m <= 2.0
+
+
+def test_crowd_is_the_default_and_unchanged():
+    assert SynthOptions().layout == "crowd"
+    opts = SynthOptions(seed=2, frames=2, people=4)
+    camera, _, frames = synth_frames(opts)
+    explicit = SynthOptions(seed=2, frames=2, people=4, layout="crowd", camera_height_range_m=(2.5, 15.0),
+                            pitch_range_deg=(10.0, 60.0))
+    camera2, _, frames2 = synth_frames(explicit)
+    assert camera == camera2
+    for (gt, _), (gt2, _) in zip(frames, frames2):
+        np.testing.assert_array_equal(gt.data["vertices"], gt2.data["vertices"])
+
+
+@pytest.mark.parametrize("args,where", [(["--layout", "circle"], "layout"),
+                                        (["--pitch-range", "30", "10"], "pitch"),
+                                        (["--camera-height-range", "0", "2"], "camera"),
+                                        (["--pitch-range", "-95", "10"], "pitch")])
+def test_bad_layout_options_exit_2(tmp_path, runner, args, where):
+    result = invoke(runner, "synth", tmp_path / "s", *args)
+    assert result.exit_code == 2 and where in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists()

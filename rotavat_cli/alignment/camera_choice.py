@@ -4,6 +4,9 @@
    just estimated (calibrate-then-align, as ``rotavat calibrate`` then ``align --camera``);
 2. else the sequence's own: its ``camera.yaml``, or the camera its format carried (SPEC);
 3. else the people's: calibrated from the sequence now.
+
+Whichever it is then passes the camera gate (:mod:`.camera_gate`: an implausible calibration is
+refused unless the user accepts it).
 """
 
 from __future__ import annotations

@@ -70,6 +70,9 @@ class _Driver:
         frames = value.get("frame_passes" if stage == "prepare" else "frames", 0) if isinstance(value, dict) else 0
         if frames and stage != "finish":
             self.emit("frames", {"done": frames})
+        if stage == "prepare" and value.get("refused"):  # the camera gate refused its camera: nothing else runs
+            return self.fail(rel, f"{stage}: {value['refused']}", camera=value.get("camera"), warnings=value["warnings"],
+                             frames=value.get("frames"))
         if stage == "prepare":
             self.prepared(rel, value)
         elif stage == "finish":
@@ -119,10 +122,12 @@ class _Driver:
         state = {k: st.get(k) for k in ("frames", "camera", "camera_file", "warnings", "align", "seconds")}
         self.push(rel, "finish", task_finish, self.jobs[rel], self.plan, {**state, "eval_parts": parts})
 
-    def fail(self, rel: str, reason: str) -> None:
+    def fail(self, rel: str, reason: str, **known: Any) -> None:
+        """Report ``rel`` failed; ``known``: what its tasks had found (frames, camera, warnings) for the report."""
         job = self.jobs[rel]
         self.rows[rel] = {"sequence": rel, "status": "failed", "reason": reason, "source": job["source"], "out": job["out"],
-                          "gt": job["gt"], "frames": self.state[rel].get("frames"), "people": None}
+                          "gt": job["gt"], "frames": self.state[rel].get("frames"), "people": None,
+                          **{k: v for k, v in known.items() if v is not None}}
         self.emit("sequence", self.rows[rel])
 
     def note_worker(self, payload: dict) -> None:

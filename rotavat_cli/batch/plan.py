@@ -9,11 +9,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..camera import camera_from_yaml_dict
 from ..config import default_config
 from ..errors import InputError, input_errors
 from ..metrics.evaluate import MATCHES
 from ..plain import to_plain
 from ..render import FigureOptions
+from ..sequence import read_yaml
 from .discover import discover_sequences, fingerprint, frames_hint
 
 __all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "BatchOptions", "parse_steps",
@@ -42,6 +44,8 @@ class BatchOptions:
     scheduler: str | None = None  # dask: address of an existing scheduler; None = a LocalCluster
     chunk_frames: int = 100
     force: bool = False
+    camera: Path | None = None  # --camera: a camera.yaml for every sequence (the calibrate step copies it, fits none)
+    accept_camera: bool = False  # --accept-camera: use cameras whose calibration is implausible (with a warning)
     config: dict = field(default_factory=default_config)
 
     @classmethod
@@ -70,11 +74,16 @@ def _digest(value: Any) -> str:
 
 
 def _step_digests(plan: dict) -> dict[str, str]:
-    """Per step, a digest of every option its outputs depend on (a changed option redoes the sequence)."""
+    """Per step, a digest of every option its outputs depend on (a changed option redoes the sequence).
+
+    ``--camera FILE`` counts by its content; ``--accept-camera`` does not (it changes whether a sequence
+    runs, not its outputs: a sequence refused without it has no marker and runs again).
+    """
     cfg, imp = plan["config"], plan["import"]
     align = {k: v for k, v in cfg["align"].items() if k != "jobs"}  # how many processes does not change the result
-    return {"calibrate": _digest([cfg["calibrate"], imp]), "align": _digest([cfg["calibrate"], align, imp]),
-            "eval": _digest([cfg["eval"], imp, plan["gt_root"]]), "render": _digest([cfg["render"], imp])}
+    camera = [plan["camera"]["yaml"]] if plan.get("camera") else []  # absent: the digests of earlier versions
+    return {"calibrate": _digest([cfg["calibrate"], imp, *camera]), "align": _digest([cfg["calibrate"], align, imp, *camera]),
+            "eval": _digest([cfg["eval"], imp, plan["gt_root"]]), "render": _digest([cfg["render"], imp, *camera])}
 
 
 def completed_marker(job: dict, plan: dict) -> dict | None:
@@ -133,8 +142,16 @@ def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[
     if not found:
         what = f"{options.fmt} outputs" if options.fmt else "sequences (folders of *.npz frames or of OBJ frame folders)"
         raise InputError(f"{root}: no {what} found")
+    camera = None
+    if options.camera is not None:  # read once here: a missing or unreadable file is a usage error (exit 2)
+        path = Path(options.camera).resolve()
+        camera = {"path": str(path), "yaml": read_yaml(path)}
+        if "image_size" in camera["yaml"]:  # else each sequence's image size completes it (checked per sequence)
+            with input_errors(f"{options.camera} (--camera)"):
+                camera_from_yaml_dict(camera["yaml"])
     plan = {"steps": list(steps), "config": options.config, "chunk_frames": options.chunk_frames,
-            "gt_root": str(gt_root) if gt_root else None,
+            "gt_root": str(gt_root) if gt_root else None, "root": str(root), "out": str(out),
+            "camera": camera, "accept_camera": bool(options.accept_camera),
             "import": {"format": options.fmt, "gt_format": options.gt_fmt,
                        "image_size": list(options.image_size) if options.image_size else None,
                        "smpl_model": str(Path(options.smpl_model).resolve()) if options.smpl_model else None}}

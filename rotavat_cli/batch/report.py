@@ -13,7 +13,8 @@ import numpy as np
 from ..atomic import atomic_write_text
 from ..plain import to_plain
 
-__all__ = ["REPORT_JSON", "REPORT_MD", "BatchReport", "aggregate_rows", "markdown_batch_report", "write_batch_report"]
+__all__ = ["REPORT_JSON", "REPORT_MD", "BatchReport", "aggregate_rows", "camera_checks", "markdown_batch_report",
+           "write_batch_report"]
 
 REPORT_JSON, REPORT_MD = "batch_report.json", "batch_report.md"
 
@@ -107,7 +108,8 @@ def aggregate_rows(rows: list[dict]) -> dict:
                              "camera": cameras}
     cams = [(r["sequence"], r["camera"], r.get("people") or 0) for r in ok if r.get("camera")]
     out["cameras"] = {
-        "per_sequence": [{"sequence": s, **{k: c.get(k) for k in ("origin", "focal_px", "pitch_deg", "roll_deg", "height_m", "rmse_px")}}
+        "per_sequence": [{"sequence": s, **{k: c.get(k) for k in ("origin", "focal_px", "pitch_deg", "roll_deg", "height_m", "rmse_px",
+                                                                   "implausible")}}
                          for s, c, _ in cams],
         **{k: _stats([_num(c.get(k)) for _, c, _ in cams], [p for _, _, p in cams]) for k in ("focal_px", "pitch_deg", "roll_deg", "height_m")},
     }
@@ -178,9 +180,40 @@ def markdown_batch_report(report: BatchReport) -> str:
         lines.append(f"| `{r['sequence']}` | {r['status']} | {r.get('frames') or '–'} | {r.get('people') or '–'} | "
                      f"{_cell(cam.get('focal_px'), 0)} | {_cell(cam.get('pitch_deg'))} | {_cell(cam.get('height_m'), 2)} | "
                      f"{pair('w_mpjpe')} | {pair('pa_mpjpe')} | {_cell(f1, 3)} | {_cell(secs)} |")
+    checks = camera_checks(report.rows)
+    if checks:
+        lines += ["", "## Camera checks and warnings", ""] + checks
     if report.failed:
         lines += ["", "## Failed", ""] + [f"- `{r['sequence']}`: {r['reason']}" for r in report.failed]
     return "\n".join(lines) + "\n"
+
+
+def camera_checks(rows: list[dict]) -> list[str]:
+    """Markdown bullets, one per sequence with an implausible camera or warnings: the findings, what became of
+    the camera (used under --accept-camera, refused, or not used), then each warning (calibration, import, render).
+
+    >>> camera_checks([{"sequence": "a", "status": "done", "camera": {"implausible": ["height 0.1 m"], "accepted": True},
+    ...                 "warnings": ["few pairs"]}, {"sequence": "b", "status": "done", "camera": {}, "warnings": []}])
+    ['- `a`: implausible camera (height 0.1 m), used (--accept-camera)', '  - few pairs']
+    """
+    lines = []
+    for r in rows:
+        cam, warnings = r.get("camera") or {}, r.get("warnings") or []
+        found = cam.get("implausible") or []
+        if not found and not warnings:
+            continue
+        if found:
+            if cam.get("accepted"):
+                fate = "used (--accept-camera)"
+            elif r["status"] == "failed" and "implausible camera" in (r.get("reason") or ""):
+                fate = "refused (see Failed)"
+            else:
+                fate = "not used by align or render"
+            lines.append(f"- `{r['sequence']}`: implausible camera ({'; '.join(found)}), {fate}")
+        else:
+            lines.append(f"- `{r['sequence']}`: warnings")
+        lines += [f"  - {w}" for w in warnings]
+    return lines
 
 
 def write_batch_report(out: str | Path, report: BatchReport) -> tuple[Path, Path]:

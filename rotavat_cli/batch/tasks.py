@@ -23,7 +23,9 @@ from typing import Any
 
 from .. import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
-from ..alignment.camera_choice import CALIBRATED, AlignCamera, camera_for_align
+from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
+from ..alignment.camera_gate import (ImplausibleCameraError, batch_remedies, check_align_camera, implausible_findings,
+                                     is_accepted)
 from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
 from ..errors import InputError, RotavatError, TaskError, input_errors
 from ..limits import Limits
@@ -79,10 +81,24 @@ def _chunks(n: int, size: int) -> list[tuple[int, int]]:
 
 
 def _camera_summary(chosen: AlignCamera) -> dict:
-    """Camera parameters in report units, with a few fit figures when estimated."""
+    """Camera parameters in report units, with a few fit figures when estimated, and the gate's view of it:
+    ``implausible`` (its calibration's findings; [] = plausible) and ``accepted`` (used under --accept-camera)."""
     summary = {"origin": chosen.origin, "file": chosen.source, **camera_parameters(chosen.camera)}
     summary.update({k: chosen.fit[k] for k in ("method", "focal_policy", "pairs", "inliers", "rmse_px") if k in chosen.fit})
+    summary.update(implausible=list(implausible_findings(chosen.fit)), accepted=is_accepted(chosen.fit))
     return summary
+
+
+def _given_camera(plan: dict, seq: Sequence) -> AlignCamera | None:
+    """The camera.yaml given for every sequence (``batch --camera FILE``), read for this sequence's image size."""
+    given = plan.get("camera")
+    if not given:
+        return None
+    data = given["yaml"]
+    with input_errors(given["path"]):
+        camera = camera_from_yaml_dict(data, seq.image_size)
+    fit = data.get("fit") if isinstance(data.get("fit"), dict) else {}
+    return AlignCamera(camera, dict(fit), GIVEN, given["path"])
 
 
 def _import_into(src: str, out: str, fmt: str, imp: dict, result: dict, what: str) -> None:
@@ -130,14 +146,29 @@ def task_prepare(job: dict, plan: dict) -> dict:
 
     # The calibrate step's camera is the one given to align (as `calibrate` then `align --camera`);
     # align takes it, else the sequence's own, else calibrates. Without align, the sequence's own
-    # camera (if any) is still reported and places the render rows.
-    chosen = calibrate(seq) if "calibrate" in steps else None
+    # camera (if any) is still reported and places the render rows. `batch --camera FILE` is that
+    # camera for every sequence: the calibrate step copies it instead of fitting one.
+    chosen = _given_camera(plan, seq)
+    if chosen is not None and "calibrate" in steps:
+        write_camera_yaml(out / "camera.yaml", chosen.camera, chosen.fit or None)
+    elif "calibrate" in steps:
+        chosen = calibrate(seq)
     if "align" in steps or (chosen is None and seq.camera is not None):
         chosen = camera_for_align(seq, chosen, calibrate)
+    if chosen is not None and chosen.origin == GIVEN:  # a camera.yaml's own calibration warnings
+        result["warnings"] += [f"{chosen.source}: {w}" for w in (chosen.fit.get("warnings") or [])]
+    if chosen is not None and ("align" in steps or "render" in steps):  # the gate, before align and render use it
+        try:  # accepted: the row's camera says so (implausible, accepted), as its aligned camera.yaml does
+            chosen, _ = check_align_camera(chosen, job["source"], plan.get("accept_camera", False),
+                                           batch_remedies(plan["root"], plan["out"]))
+        except ImplausibleCameraError as exc:  # a failed sequence (the driver reports it), not a failed task
+            result["refused"] = one_line(str(exc))
     if chosen is not None:  # handed to the align chunks as plain data: read or computed once
         result["camera_file"] = chosen.source
         result["camera_yaml"] = camera_to_yaml_dict(chosen.camera, chosen.fit or None)
         result["camera"] = _camera_summary(chosen)
+    if result.get("refused"):
+        return result
     size = int(plan["chunk_frames"])
     if "align" in steps:  # track statures need the whole sequence: one chunk
         result["align_chunks"] = [(0, len(seq))] if plan["config"]["align"]["height_from"] == "track" else _chunks(len(seq), size)
@@ -251,10 +282,12 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         with input_errors():
             figure = FigureOptions.from_config(plan["config"]["render"], Path(camera) if camera else None)
         # the last row is the ground truth (its folder is rarely named gt): each row in its own camera
-        figure = replace(figure, gt=str(len(paths)) if job["gt"] else "none")
+        figure = replace(figure, gt=str(len(paths)) if job["gt"] else "none", accept_camera=plan.get("accept_camera", False))
         with staged_directory(out / "render", "render") as staging:
             summary = render_sequences([open_sequence(p) for p in paths], staging, figure)
         row["render"] = {"renderer": summary.renderer, "files": [Path(f).name for f in summary.files]}
+        # the camera align used passed the gate in prepare (the row's camera says implausible/accepted); others' are new
+        row["warnings"] = [*row["warnings"], *(w for w in summary.warnings if camera is None or str(camera) not in w)]
         seconds["render"] = time.perf_counter() - start
     row["seconds"] = {**seconds, "total": sum(seconds.values())}
     marker = {"version": MARKER_VERSION, "rotavat": __version__, "steps": list(steps),

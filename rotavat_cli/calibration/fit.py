@@ -29,7 +29,7 @@ Examples
 >>> feet_px = np.array([[100.0, 300.0], [320.0, 400.0], [500.0, 350.0], [250.0, 460.0], [600.0, 420.0]])
 >>> heads_px = cam.project(cam.backproject_px_to_ground(feet_px) + 1.7 * cam.up_cam)
 >>> res = fit_camera(feet_px, heads_px, (640, 480), CalibrateOptions(focal_px=500.0))
->>> round(float(np.rad2deg(res.camera.pitch_rad)), 4), round(res.camera.height_m, 4), res.inliers
+>>> round(float(np.rad2deg(res.camera.pitch_rad)), 2), round(res.camera.height_m, 2), res.inliers
 (30.0, 5.0, 5)
 >>> fit_camera(feet_px, heads_px, (640, 480), focal_px=500.0).camera == res.camera  # options as keywords
 True
@@ -48,11 +48,12 @@ from ..camera import Camera, camera_parameters, horizon_v_px
 from ..errors import DegenerateSceneError
 from .grid import paper_grid_search
 from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
-from .objective import MIN_NOISE_PX, Problem, make_problem, profiled
+from .objective import MIN_NOISE_PX, BodyAxes, Problem, design_effect, make_problem, profiled
 from .options import CalibrateOptions
 from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, SLOT_LABELS, describe,
                      param_bounds, param_vector, to_internal)
-from .refine import refine_fit
+from .plausibility import implausible_findings
+from .refine import fit_with_rejection, refine_fit
 from .uncertainty import Systematics, covariances, fit_warnings, std_and_corr
 
 __all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "fit_per_frame"]
@@ -61,6 +62,8 @@ __all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "f
 # did not move: the pairs did not constrain the refinement.
 _UNMOVED_TOL = 1e-4
 _BOUND_TOL = 1e-3  # a refined parameter this close to its search bound (internal units) "ran to the end"
+_REWEIGHT_ROUNDS = 2  # rejection rounds of the refits with the design effect and with the bodies' axis
+_SLOT_NAMES = {FOCAL: "focal_px", PITCH: "pitch_deg", ROLL: "roll_deg", HEIGHT: "height_m", DISTORTION: "distortion"}
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,11 @@ class CalibrationResult:
     notes: tuple[str, ...] = ()  # what rotavat decided on its own (e.g. box-derived points detected)
     person_height_estimated: bool = False  # the mean stature was estimated (camera height given), not assumed
     person_height_std_m: float = math.nan  # its std when estimated
+    determined_by: dict[str, str] = field(default_factory=dict)  # parameter -> "people", "prior", "people+prior", ...
+    implausible: tuple[str, ...] = ()  # plausibility findings (:mod:`.plausibility`); empty: plausible
+    design_effect: float = 1.0  # how many tracked pairs one independent pair is worth (objective.design_effect)
+    body_axes: int = 0  # standing people whose own vertical axis entered the fit (0: not used)
+    focal_prior: str = "none"  # the focal's prior: "lens", "fov" (the user's) or "none"
 
     @property
     def horizon_v_px(self) -> float:
@@ -107,6 +115,11 @@ class CalibrationResult:
             "std": {**{k: _plain(self.std.get(k, math.nan)) for k in MODEL_NAMES if k in PARAM_NAMES or k in self.std},
                     **({"person_height_m": _plain(self.person_height_std_m)} if self.person_height_estimated else {})},
             "fixed": dict(self.fixed),
+            "determined_by": dict(self.determined_by),
+            "implausible": list(self.implausible),
+            "focal_prior": self.focal_prior,
+            "design_effect": float(self.design_effect),
+            "body_axes": int(self.body_axes),
             "person_height": "estimated" if self.person_height_estimated else "assumed",
             "corr_focal_pitch": _plain(self.corr_focal_pitch),
             "horizon_v_px": _plain(self.horizon_v_px),
@@ -138,21 +151,28 @@ class PerFrameSummary:
 # ---- public API -----------------------------------------------------------------------------------
 def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
                options: CalibrateOptions | None = None, *, frame_index: np.ndarray | None = None,
-               track_id: np.ndarray | None = None, workers: int | None = None, **changes) -> CalibrationResult:
+               track_id: np.ndarray | None = None, body: BodyAxes | None = None, workers: int | None = None,
+               **changes) -> CalibrationResult:
     """Estimate the static camera from foot/head pixel pairs pooled over all frames.
 
     feet_px, heads_px: (N, 2) px, mid-sole and crown; image_size: (W, H) px.
     options: :class:`CalibrateOptions` (default: the defaults), with ``changes`` (any of its
     fields as keywords, e.g. ``focal_px=900.0``) applied on top.
-    frame_index, track_id: (N,) int, optional (frame count; clusters for the uncertainty; a track's
-    stature is its own). workers: grid threads (None = auto).
-    A refinement that ends where it started (the pairs did not move it) falls back to the paper
-    grid's best cell, with a warning. With ``camera_height_m`` the fit is the same (the model sees
-    stature and height only through their ratio) and the scale moves to the people's mean stature,
-    which is estimated (``person_height_m`` with ``person_height_std_m``).
-    Raises ValueError for malformed input and DegenerateSceneError when the pairs cannot
-    determine a camera (fewer than 3 usable pairs, people at one depth, a parameter running to its
-    search bound, or no candidate camera is valid).
+    frame_index, track_id: (N,) int, optional (frame count and time order; clusters for the
+    uncertainty; a track's stature is its own). body: standing bodies' own vertical
+    (:class:`~.objective.BodyAxes`), used where the pairs leave the pitch undetermined.
+    workers: grid threads (None = auto).
+
+    ``refine`` (default) is a maximum a posteriori estimate: the pairs, weighted by what they carry
+    (tracked pairs by their design effect), plus the priors of :mod:`.priors`; it answers whenever
+    one pair is usable, and ``determined_by`` / ``implausible`` say what the answer rests on and
+    whether it is a camera at all (:mod:`.plausibility`). With ``camera_height_m`` the scale moves
+    to the people's mean stature, which is estimated (``person_height_m`` with
+    ``person_height_std_m``). Without priors (``method="grid"``, or ``focal_prior="none"`` with the
+    focal free) the people must determine the camera alone: a refinement that ends where it
+    started falls back to the paper grid's best cell, with a warning, and a parameter running to its
+    search bound is refused.
+    Raises ValueError for malformed input and DegenerateSceneError when no camera can be given.
     """
     options = _with_changes(options, changes)
     method = options.method
@@ -162,25 +182,47 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
         idx = np.flatnonzero(inp.usable)
         n_frames = 1 if inp.frames is None else len(np.unique(inp.frames[inp.usable]))
         prob = make_problem(inp.feet[idx], inp.heads[idx], inp.pp, options.person_height_m,
-                            options.person_height_sd_m, options.noise_px, inp.residual, inp.size, inp.fov_prior,
+                            options.person_height_sd_m, options.noise_px, inp.residual, inp.size, inp.priors,
                             None if inp.tracks is None or method == "grid" else inp.tracks[idx])
         extra: list[str] = []
+        focal_log_sd = 0.0
+        if _focal_from_prior(inp, options, method):  # the people at one depth say nothing first-order of f
+            options = options.replace(focal_px=float(np.exp(inp.priors.mean[FOCAL])))
+            focal_log_sd = float(inp.priors.sd[FOCAL])
         if method == "refine":
             free = free_slots(options, method)
             box = options.box_depth_m if points == "boxes" else 0.0
             params, mask_u, scale, start = refine_fit(prob, inp.feet[idx], inp.heads[idx], inp.pp, inp.size,
-                                                      options.focal_px, free, box, options.grid, options.max_rounds)
-            if _unmoved(params, start, free):
-                method = "grid"
-                extra = [f"the refinement ended where it started (pitch {math.degrees(params[PITCH]):.5f} deg, "
-                         f"height {params[HEIGHT]:.5f} m): the pairs do not constrain it; falling back to the paper "
-                         "grid's best cell"]
+                                                      options.focal_px, free, box, _seed_grid(options),
+                                                      options.max_rounds)
+            if not _priors_cover(inp, free):  # the people alone: no answer is better than a confident wrong one
+                if _unmoved(params, start, free):
+                    method = "grid"
+                    extra = [f"the refinement ended where it started (pitch {math.degrees(params[PITCH]):.5f} deg, "
+                             f"height {params[HEIGHT]:.5f} m): the pairs do not constrain it; falling back to the "
+                             "paper grid's best cell"]
+                else:
+                    _refuse_bounds(params, free, inp.size[1])
             else:
-                _refuse_bounds(params, free, inp.size[1])
+                frames_u = None if inp.frames is None else inp.frames[idx]
+                prob, params, mask_u, scale = _weigh_correlated_pairs(prob, params, free, mask_u, scale, frames_u)
+                if body is not None and options.body_axes and free[PITCH]:
+                    prob, params, mask_u, scale = _with_bodies(prob, params, free, mask_u, scale, body, options,
+                                                               None if inp.tracks is None else inp.tracks[idx])
         if method == "grid":
             params, mask_u, free, scale, prob = _grid_fit(inp, idx, options, workers, prob)
         return _result(inp, idx, options, method, points, notes, extra, prob, params, free, mask_u, scale,
-                       n_frames)
+                       n_frames, focal_log_sd)
+
+
+def _focal_from_prior(inp: PairsInput, options: CalibrateOptions, method: str) -> bool:
+    """True when the focal is held at its prior's median: an estimated focal with a prior, and people at one
+    depth. They constrain it only through second-order effects (how a person's image tilts and shrinks
+    across the view), which pixel noise biases by far more than the prior's spread (synthetic walkers:
+    -45% for a camera 25 deg down, +20% for a level one): the honest answer is the prior's, with its
+    spread carried into the other parameters."""
+    return (method == "refine" and options.focal_px is None and inp.one_depth and inp.priors is not None
+            and bool(np.isfinite(inp.priors.sd[FOCAL])))
 
 
 def calibrate(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
@@ -261,6 +303,48 @@ def _refuse_bounds(params: np.ndarray, free: np.ndarray, image_height_px: float)
                                    "at different depths")
 
 
+def _seed_grid(options: CalibrateOptions):
+    """The refinement's seeding grid: the configured one, with a given pitch as its only pitch."""
+    if options.pitch_deg is None:
+        return options.grid
+    steps = options.grid.steps
+    return replace(options.grid, pitch_range_deg=(options.pitch_deg, options.pitch_deg), steps=(steps[0], 1, steps[2]))
+
+
+def _priors_cover(inp: PairsInput, free: np.ndarray) -> bool:
+    """True when every free camera parameter has a prior (the MAP answers whatever the pairs are)."""
+    if inp.priors is None:
+        return False
+    camera = param_vector(focal=True, pitch=True, roll=True, height=True, dtype=bool)
+    return bool(np.all(np.isfinite(inp.priors.sd[free & camera])))
+
+
+def _weigh_correlated_pairs(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
+                            frames: np.ndarray | None) -> tuple[Problem, np.ndarray, np.ndarray, float]:
+    """Refit with each tracked pair weighted by its design effect (:func:`.objective.design_effect`),
+    measured on the inliers of a first fit; unchanged when the pairs are independent."""
+    inliers = np.flatnonzero(mask)
+    deff = design_effect(prob.subset(inliers), params, scale, None if frames is None else frames[inliers])
+    if deff <= 1.0:
+        return prob, params, mask, scale
+    prob = replace(prob, deff=np.where(prob.track >= 0, deff, 1.0))
+    return (prob, *fit_with_rejection(prob, params, free, mask, _REWEIGHT_ROUNDS))
+
+
+def _with_bodies(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
+                 body: BodyAxes, options: CalibrateOptions, tracks: np.ndarray | None
+                 ) -> tuple[Problem, np.ndarray, np.ndarray, float]:
+    """Refit with the standing bodies' own vertical when the pairs (with the priors) leave the pitch's
+    std above ``options.body_engage_pitch_sd_deg``; unchanged otherwise."""
+    inl = prob.subset(np.flatnonzero(mask))
+    clusters = None if tracks is None else tracks[mask]
+    _, cov, _, _ = covariances(inl, params, free, scale, clusters, Systematics(0.0, 0.0, 0.0, 0.0), False)
+    if not math.degrees(math.sqrt(max(cov[PITCH, PITCH], 0.0))) > options.body_engage_pitch_sd_deg:
+        return prob, params, mask, scale
+    prob = replace(prob, body=replace(body, sd_rad=math.radians(options.body_axis_sd_deg)))
+    return (prob, *fit_with_rejection(prob, params, free, mask, _REWEIGHT_ROUNDS))
+
+
 def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, workers: int | None, prob: Problem
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Problem]:
     """The paper's grid on the usable pairs ``idx``: (params (6,), all-inlier mask, free (6,), scale,
@@ -282,7 +366,7 @@ def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, worke
                                    "the config sets the ranges)")
     # Unweighted residuals for the paper's uncertainty: equal weights, scale from the residual sum.
     flat = replace(prob, sd_along=np.ones(len(feet)), sd_across=1.0, track=np.full(len(feet), -1), n_tracks=0,
-                   fov_prior=None)
+                   priors=None, deff=None, body=None)
     dof_total = max(1, len(feet) * flat.dof - int(free.sum()))
     scale = max(math.sqrt(fit.cost / dof_total), MIN_NOISE_PX)
     return params, np.ones(len(feet), bool), free, scale, flat
@@ -290,10 +374,14 @@ def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, worke
 
 def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method: str, points: str, notes: list[str],
             extra: list[str], prob: Problem, params: np.ndarray, free: np.ndarray, mask_u: np.ndarray, scale: float,
-            n_frames: int) -> CalibrationResult:
-    """The camera of a fit ``params (6,)`` with its uncertainty, rmse, warnings and what was fixed."""
+            n_frames: int, focal_log_sd: float = 0.0) -> CalibrationResult:
+    """The camera of a fit ``params (6,)`` with its uncertainty, rmse, what determined it, warnings,
+    plausibility findings and what was fixed. ``focal_log_sd``: the focal was held at its prior's median
+    (people at one depth) with this sd of its log, which the other parameters' std carry."""
     if options.focal_px is not None:
         params[FOCAL] = options.focal_px  # exactly as given (no log/exp round trip)
+    if options.pitch_deg is not None and method == "refine":
+        params[PITCH] = math.radians(options.pitch_deg)
     camera = Camera(inp.size, params[FOCAL], tuple(inp.pp), params[PITCH], params[ROLL], params[HEIGHT])
     inlier_mask = np.zeros(len(inp.feet), bool)
     inlier_mask[idx[mask_u]] = True
@@ -301,34 +389,49 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
     inl = prob.subset(np.flatnonzero(mask_u))
     pp_sd = (0.02 * max(inp.size) if options.principal_point is None else 0.0) \
         if options.principal_point_sd_px is None else options.principal_point_sd_px
-    stature_mean_sd = 0.0 if options.camera_height_m is not None else options.person_height_mean_sd_m
+    height_known = options.camera_height_m is not None
+    stature_mean_sd = 0.0 if height_known else options.person_height_mean_sd_m
     assumed = Systematics(pp_sd, 0.0 if options.distortion else options.distortion_sd, stature_mean_sd,
-                          options.box_depth_sd_m if points == "boxes" else 0.0)
-    cov, cov_stat, cov_warns = covariances(inl, params, free, scale,
-                                           None if clusters is None else clusters[idx[mask_u]], assumed,
-                                           method == "refine")
+                          options.box_depth_sd_m if points == "boxes" else 0.0, focal_log_sd)
+    cov, cov_stat, cov_warns, by_slot = covariances(inl, params, free, scale,
+                                                    None if clusters is None else clusters[idx[mask_u]], assumed,
+                                                    method == "refine" and not focal_log_sd)
     std, corr = std_and_corr(params, cov, free)
     std_stat, _ = std_and_corr(params, cov_stat, free)
     (eu, ev), _, _ = profiled(inl, params[None], scale)
     sq = inp.residual.squared_px((eu[0], ev[0]))
     rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
-    warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), inp.n_usable, len(inp.feet))
-    if method == "refine" and inp.tracks is None and n_frames > 1:
-        warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
-                     "is too small when people persist (give the person ids)")
     fixed = {name: reason for name, reason, free_ in (
-        ("focal_px", "given", free[FOCAL]), ("roll_deg", "0 (not estimated)", free[ROLL]),
+        ("focal_px", "given", free[FOCAL]), ("pitch_deg", "given", free[PITCH] or method == "grid"),
+        ("roll_deg", "0 (not estimated)", free[ROLL]),
         ("distortion", "none", free[DISTORTION] or not options.distortion)) if not free_}
+    determined = {_SLOT_NAMES[slot]: label for slot, label in by_slot.items() if slot in _SLOT_NAMES}
+    if focal_log_sd:  # held at the lens prior's median: its sd is the prior's
+        fixed.pop("focal_px", None)
+        std = {**std, "focal_px": camera.focal_px * focal_log_sd}
+        std_stat = {**std_stat, "focal_px": camera.focal_px * focal_log_sd}
+        determined = {"focal_px": "prior", **determined}
     stature, stature_sd = options.person_height_m, math.nan
-    if options.camera_height_m is not None:  # the same fit at the known scale: the stature carries it
+    if height_known:  # the same fit at the known scale: the stature carries it
         ratio = options.camera_height_m / camera.height_m
         stature, stature_sd = stature * ratio, stature * ratio * std["height_m"] / camera.height_m
         camera = camera.replace(height_m=options.camera_height_m)
         std = {**std, "height_m": math.nan}
         std_stat = {**std_stat, "height_m": math.nan}
         fixed["height_m"] = "given"
+        determined["person_height_m"] = determined.pop("height_m", "people")
+    focal_prior = "none" if inp.priors is None or not (free[FOCAL] or focal_log_sd) else inp.priors.focal_kind
+    implausible = implausible_findings(camera, std, focal_estimated=bool(free[FOCAL] or focal_log_sd),
+                                       height_estimated=not height_known,
+                                       mean_stature_m=stature if height_known else None)
+    warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), inp.n_usable, len(inp.feet),
+                                             determined, inp.one_depth)
+    if method == "refine" and inp.tracks is None and n_frames > 1:
+        warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
+                     "is too small when people persist (give the person ids)")
     return CalibrationResult(camera, method, stature, len(inp.feet), int(mask_u.sum()), n_frames, rmse,
                              std, corr, inlier_mask, tuple(warns), inp.residual.name, std_stat, points,
                              float(params[DISTORTION]) if options.distortion else math.nan,
-                             float(params[BOX_DEPTH]), fixed, tuple(notes), options.camera_height_m is not None,
-                             stature_sd)
+                             float(params[BOX_DEPTH]), fixed, tuple(notes), height_known, stature_sd,
+                             determined, implausible, 1.0 if inl.deff is None else float(np.max(inl.deff)),
+                             0 if prob.body is None else prob.body.people, focal_prior)

@@ -317,8 +317,10 @@ def order_invariant_subset(feet: np.ndarray, heads: np.ndarray, m: int) -> np.nd
     return np.sort(order[np.linspace(0, len(order) - 1, m).round().astype(int)])
 
 
-def seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list[tuple[int, int, int]]:
-    """Start cells (F, P, C indices) of a robust grid: the best, other minima along the valley, f x 0.5 and x 2.
+def seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4,
+               extra_focals: tuple[float, ...] = ()) -> list[tuple[int, int, int]]:
+    """Start cells (F, P, C indices) of a robust grid: the best, other minima along the valley, f x 0.5 and x 2,
+    then the best cell at each of ``extra_focals`` (px; e.g. the lens prior's median).
 
     The profile runs over the focal axis, or over the pitch axis when the focal is fixed.
     """
@@ -337,8 +339,14 @@ def seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list
             i = int(np.argmin(np.abs(focal - focal[i0] * factor)))
             if i not in picks:
                 picks.append(i)
+    picks = picks[:max_seeds]
+    if ax == 0:
+        for value in extra_focals:
+            i = int(np.argmin(np.abs(np.log(focal / value))))
+            if i not in picks:
+                picks.append(i)
     cells = []
-    for i in picks[:max_seeds]:
+    for i in picks:
         rest = np.unravel_index(best_at[i], moved.shape[1:])
         cell = [int(v) for v in rest]
         cell.insert(ax, int(i))
@@ -347,13 +355,14 @@ def seed_cells(costs: np.ndarray, focal: np.ndarray, max_seeds: int = 4) -> list
 
 
 def seed_params(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_height_px: float, focal_px: float | None,
-                grid: GridSpec, person_height_m: float, residual: str, box_depth_m: float
-                ) -> tuple[np.ndarray, list[np.ndarray]]:
+                grid: GridSpec, person_height_m: float, residual: str, box_depth_m: float,
+                extra_focals: tuple[float, ...] = ()) -> tuple[np.ndarray, list[np.ndarray]]:
     """The refinement's starts: (indices of the subsample they were found on, (6,) params per seed).
 
     A robust grid (log-spaced focal and height values over ``grid``'s ranges, roll 0, the given
     focal when fixed) on at most 600 pairs chosen independently of their order; the seeds are its
-    best cells along the focal/pitch valley (:func:`seed_cells`), pitch kept below 89 deg.
+    best cells along the focal/pitch valley (:func:`seed_cells`, with the best cell at each of
+    ``extra_focals`` px), pitch kept below 89 deg.
     """
     sub_idx = order_invariant_subset(feet, heads, _SEED_PAIRS)
     lo, hi = (v * image_height_px for v in grid.focal_range_h)
@@ -362,5 +371,5 @@ def seed_params(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_heigh
     costs = robust_grid_costs(feet[sub_idx], heads[sub_idx], pp, focal, pitch, height, person_height_m, residual,
                               _SEED_TRUNCATE)
     seeds = [param_vector(focal=focal[i], pitch=min(pitch[j], _SEED_MAX_PITCH), roll=0.0, height=height[c],
-                          box_depth=box_depth_m) for i, j, c in seed_cells(costs, focal)]
+                          box_depth=box_depth_m) for i, j, c in seed_cells(costs, focal, extra_focals=extra_focals)]
     return sub_idx, seeds

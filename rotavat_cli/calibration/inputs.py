@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import DegenerateSceneError
 from .options import CalibrateOptions
 from .params import param_vector
+from .priors import Priors, default_priors
 from .residuals import ResidualKind, residual_kind
 
 __all__ = ["BOX_COLUMN_TOL_PX", "BOX_RESIDUAL", "PairsInput", "check_inputs", "free_slots", "at_one_depth",
@@ -47,9 +48,10 @@ class PairsInput:
     frames: np.ndarray | None  # (N,) int64
     tracks: np.ndarray | None  # (N,) int64
     pp: np.ndarray  # (2,) px: the given principal point, or the image centre
-    fov_prior: tuple[float, float] | None  # (mean, sd) deg
+    priors: Priors | None  # the refinement's priors on the camera (None: the people alone, the grid)
     residual: ResidualKind  # as used: the head row for boxes
     points: str  # "landmarks" | "boxes" (auto resolved)
+    one_depth: bool = False  # the usable pairs stand at about one depth (no perspective of their own)
 
     @property
     def n_usable(self) -> int:
@@ -60,8 +62,18 @@ class PairsInput:
 def free_slots(options: CalibrateOptions, method: str) -> np.ndarray:
     """(6,) bool: the slots ``method`` estimates under ``options`` (the grid: focal unless given, pitch, height)."""
     refine = method == "refine"
-    return param_vector(focal=options.focal_px is None, pitch=True, roll=refine and options.estimate_roll, height=True,
-                        distortion=refine and options.distortion, box_depth=False, dtype=bool)
+    return param_vector(focal=options.focal_px is None, pitch=options.pitch_deg is None or not refine,
+                        roll=refine and options.estimate_roll, height=True, distortion=refine and options.distortion,
+                        box_depth=False, dtype=bool)
+
+
+def fit_priors(options: CalibrateOptions, image_size: tuple[int, int]) -> Priors | None:
+    """The refinement's priors on the camera (:mod:`.priors`); None for the paper grid."""
+    if options.method != "refine":
+        return None
+    fov = None if options.fov_prior_deg is None else (options.fov_prior_deg, options.fov_prior_sd_deg)
+    return default_priors(image_size, focal_prior=options.focal_prior, fov_prior_deg=fov,
+                          camera_height_m=options.camera_height_m, person_height_m=options.person_height_m)
 
 
 def check_inputs(feet_px, heads_px, image_size, options: CalibrateOptions, points: str, frame_index,
@@ -69,7 +81,10 @@ def check_inputs(feet_px, heads_px, image_size, options: CalibrateOptions, point
     """The pairs as a :class:`PairsInput`, or ValueError (malformed) / DegenerateSceneError (no camera possible).
 
     feet_px, heads_px: (N, 2) px; image_size: (W, H) px; points: the point model, auto resolved;
-    frame_index, track_id: (N,) int or None.
+    frame_index, track_id: (N,) int or None. With the priors on every free camera parameter (the
+    refinement's default) one usable pair is enough: the priors answer what the pairs cannot, and
+    the result says so; the people alone (the grid, ``focal_prior="none"``) need 3 pairs at 3
+    places and some depth.
     """
     residual = residual_kind(BOX_RESIDUAL if points == "boxes" else options.residual)
     size = _check_image_size(image_size)
@@ -80,23 +95,39 @@ def check_inputs(feet_px, heads_px, image_size, options: CalibrateOptions, point
         else np.asarray(options.principal_point, float)
     if not (0 <= pp[0] <= size[0] and 0 <= pp[1] <= size[1]):
         raise ValueError(f"principal_point ({pp[0]:g}, {pp[1]:g}) must lie inside the {size[0]}x{size[1]} image")
-    fov = None if options.fov_prior_deg is None else (options.fov_prior_deg, options.fov_prior_sd_deg)
+    priors = fit_priors(options, size)
     n_usable = int(usable.sum())
-    n_free = int(free_slots(options, options.method).sum())
+    free = free_slots(options, options.method)
+    one_depth = at_one_depth(feet[usable], heads[usable])
+    if n_usable == 0:
+        raise DegenerateSceneError(f"no usable foot-head pair (of {len(feet)}): no one stands with the head above "
+                                   "the foot")
+    if priors is None or not np.isfinite(priors.sd[free[: len(priors.sd)] & _CAMERA_SLOTS]).all():
+        _people_alone(feet[usable], heads[usable], n_usable, one_depth, residual, int(free.sum()))
+    return PairsInput(size, feet, heads, usable, frames, tracks, pp, priors, residual, points, one_depth)
+
+
+# The camera's slots the priors can cover (focal, pitch, roll, height).
+_CAMERA_SLOTS = param_vector(focal=True, pitch=True, roll=True, height=True, dtype=bool)
+
+
+def _people_alone(feet: np.ndarray, heads: np.ndarray, n_usable: int, one_depth: bool, residual: ResidualKind,
+                  n_free: int) -> None:
+    """DegenerateSceneError when the usable pairs (N, 2) cannot determine a camera without priors."""
     if n_usable < 3:
-        raise DegenerateSceneError(f"only {n_usable} usable foot-head pairs (need >= 3)")
-    n_places = len(np.unique(np.round(feet[usable] * 2.0), axis=0))
+        raise DegenerateSceneError(f"only {n_usable} usable foot-head pair{'s' * (n_usable != 1)} (need >= 3 "
+                                   "without the lens prior)")
+    n_places = len(np.unique(np.round(feet * 2.0), axis=0))
     if n_places < 3:
         raise DegenerateSceneError(f"the {n_usable} usable pairs stand at only {n_places} distinct foot positions "
-                                   "(need >= 3)")
-    if at_one_depth(feet[usable], heads[usable]):
+                                   "(need >= 3 without the lens prior)")
+    if one_depth:
         raise DegenerateSceneError(f"all {n_usable} usable pairs stand at about one depth (their feet lie along one "
-                                   "image row): the people cannot determine the camera; use frames where people "
-                                   "stand nearer and farther")
+                                   "image row): without the lens prior the people cannot determine the camera; give "
+                                   "--focal, or use the lens prior (--focal-prior lens)")
     if n_usable * residual.dof < n_free:
         raise DegenerateSceneError(f"{n_usable} usable pairs with {residual.name} residuals cannot determine "
                                    f"{n_free} parameters; fix the focal length or add pairs")
-    return PairsInput(size, feet, heads, usable, frames, tracks, pp, fov, residual, points)
 
 
 def _check_image_size(image_size) -> tuple[int, int]:

@@ -25,9 +25,10 @@ import numpy as np
 
 from ..errors import InputError
 from .grid import GridSpec
+from .priors import FOCAL_PRIORS
 from .residuals import residual_kind
 
-__all__ = ["METHODS", "POINTS", "CalibrateOptions"]
+__all__ = ["METHODS", "POINTS", "FOCAL_PRIORS", "CalibrateOptions"]
 
 METHODS = ("grid", "refine")
 POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
@@ -40,10 +41,13 @@ _NUMBERS = {
     "focal_px": (lambda x: x > 0, "a positive number of pixels"),
     "camera_height_m": (lambda x: x > 0, "a positive number of metres"),
     "fov_prior_deg": (lambda x: 0 < x < 180, "in (0, 180) with a positive sd"),
+    "pitch_deg": (lambda x: -90 < x < 90, "in (-90, 90) degrees"),
+    "body_axis_sd_deg": (lambda x: 0 < x < 90, "in (0, 90) degrees"),
+    "body_engage_pitch_sd_deg": (lambda x: x >= 0, ">= 0 degrees"),
     "box_depth_m": (lambda x: True, "finite"),
     "box_depth_sd_m": (lambda x: x >= 0, ">= 0"),
 }
-_OPTIONAL = {"focal_px", "camera_height_m", "principal_point_sd_px", "fov_prior_deg"}  # None: not given
+_OPTIONAL = {"focal_px", "camera_height_m", "principal_point_sd_px", "fov_prior_deg", "pitch_deg"}  # None: not given
 
 
 @dataclass(frozen=True)
@@ -66,8 +70,13 @@ class CalibrateOptions:
     estimate_focal: bool = False  # sequences: estimate f even when the sequence's focal is the camera's own
     focal_px: float | None = None  # fix the focal length (px); None: estimated
     camera_height_m: float | None = None  # known camera height (m): fixes the scale, the mean stature is estimated
-    principal_point: tuple[float, float] | None = None  # (cx, cy) px; None = image centre
-    fov_prior_deg: float | None = None  # mean of a weak prior on the vertical field of view (refine, f estimated)
+    pitch_deg: float | None = None  # fix the pitch (deg, + = looking down); None: estimated
+    principal_point: tuple[float, float] | None = None  # (cx, cy) px; None = the sequence's, else the image centre
+    focal_prior: str = "lens"  # refine: lens (the prior of real lenses, priors.py) | none (the people alone)
+    fov_prior_deg: float | None = None  # mean of your own prior on the vertical field of view (replaces the lens prior)
+    standing_only: bool = True  # sequences: leave out people whose joints say they sit, kneel or bend
+    body_axes: bool = True  # refine: standing bodies' own vertical where the pairs leave the pitch undetermined
+    tracks: tuple[int, ...] | None = None  # sequences: calibrate from these person_ids only (None: everyone)
     per_frame: bool = False  # sequences: also calibrate every frame alone and report the spread
     grid: GridSpec = GridSpec()  # the paper's search grid (calibrate.grid)
     # ---- not in the config ----
@@ -83,6 +92,11 @@ class CalibrateOptions:
     person_height_mean_sd_m: float = field(default=0.04, metadata=_NOT_IN_CONFIG)
     box_depth_sd_m: float = field(default=0.10, metadata=_NOT_IN_CONFIG)
     max_rounds: int = field(default=6, metadata=_NOT_IN_CONFIG)  # rejection rounds of the full refinement
+    # Standing bodies' axes (docs/calibration.md, "What the bodies know"): how far an HPS body's axis
+    # may be from the true vertical, and the pitch std of the pairs (with the priors) above which
+    # they are added: the pairs leave the pitch undetermined (plausibility.MAX_ANGLE_SD_DEG).
+    body_axis_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
+    body_engage_pitch_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
 
     def __post_init__(self) -> None:
         """Normalise numbers to float, flags to bool, the principal point to a tuple; ValueError for a bad option."""
@@ -91,6 +105,8 @@ class CalibrateOptions:
         residual_kind(self.residual)  # ValueError listing the registered kinds
         if self.points not in POINTS:
             raise ValueError(f"points must be one of {POINTS}, got {self.points!r}")
+        if self.focal_prior not in FOCAL_PRIORS:
+            raise ValueError(f"focal_prior must be one of {FOCAL_PRIORS}, got {self.focal_prior!r}")
         if self.method == "grid" and (self.distortion or self.points == "boxes"):
             raise ValueError("distortion and points='boxes' need method 'refine' (the grid is the paper's model)")
         if not isinstance(self.grid, GridSpec):
@@ -113,11 +129,17 @@ class CalibrateOptions:
             if pp.shape != (2,) or not np.all(np.isfinite(pp)):
                 raise ValueError(f"principal_point must be (cx, cy) in pixels, got {self.principal_point!r}")
             object.__setattr__(self, "principal_point", (float(pp[0]), float(pp[1])))
+        if self.tracks is not None:
+            ids = np.asarray(self.tracks)
+            if ids.ndim != 1 or len(ids) == 0 or not (np.issubdtype(ids.dtype, np.integer) or ids.dtype == object
+                                                      and all(isinstance(i, (int, np.integer)) for i in ids)):
+                raise ValueError(f"tracks must be a non-empty list of person ids (integers), got {self.tracks!r}")
+            object.__setattr__(self, "tracks", tuple(sorted({int(i) for i in ids})))
         rounds = self.max_rounds
         if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
             raise ValueError(f"max_rounds must be a positive integer, got {self.max_rounds!r}")
         object.__setattr__(self, "max_rounds", int(self.max_rounds))
-        for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame"):
+        for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes"):
             object.__setattr__(self, name, bool(getattr(self, name)))
 
     def replace(self, **changes) -> CalibrateOptions:

@@ -4,18 +4,25 @@
 projections of the mesh landmarks (:mod:`rotavat_cli.landmarks`) through the intrinsics the HPS
 method used (the frame's ``focal_length``/``K``, one per person or one per frame, or meta.yaml's):
 the pixels the method drew, whatever the camera's real focal.
+
+Where the frame has 3D people, each pair also carries the person's own sole->crown axis in the
+method's camera frame (the mesh landmarks, or align's rule for joints:
+:func:`rotavat_cli.alignment.align.frame_foot_head_cam`), which calibration may use as evidence of
+the vertical.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..alignment.align import MeshIntrinsics, frame_foot_head_cam
 from ..camera import project_cam_to_px
 from ..errors import InputError
 from ..landmarks import foot_head_points
-from ..sequence import Frame, Intrinsics, Sequence, people_not_placed
+from ..posture import postures
+from ..sequence import Frame, Intrinsics, Sequence, can_align, people_not_placed
 
 __all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
 
@@ -32,6 +39,15 @@ class FootHeadPairs:
     n_frames: int
     source: str  # "2d" (explicit points), "mesh" (projected landmarks) or "mixed"
     not_in_front: int = 0  # meshes dropped: root-centred or behind the camera (sequence.people_not_placed)
+    axes_cam: np.ndarray | None = None  # (N, 3) unit sole->crown axis in the method's camera frame; NaN: no 3D person
+    postures: np.ndarray | None = None  # (N,) posture of the person (rotavat_cli.posture.POSTURES); "unknown": no joints
+
+    def subset(self, keep: np.ndarray) -> "FootHeadPairs":
+        """The pairs selected by ``keep`` ((N,) bool or indices)."""
+        return replace(self, feet_px=self.feet_px[keep], heads_px=self.heads_px[keep],
+                       frame_index=self.frame_index[keep], person_ids=self.person_ids[keep],
+                       axes_cam=None if self.axes_cam is None else self.axes_cam[keep],
+                       postures=None if self.postures is None else self.postures[keep])
 
 
 def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, str]:
@@ -59,17 +75,21 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     Meshes that are root-centred or behind the camera (never placed in the camera frame) give no
     pair; ``not_in_front`` counts them, so a refusal can say why.
     """
-    feet, heads, index, ids, sources = [], [], [], [], set()
+    feet, heads, index, ids, axes, poses, sources = [], [], [], [], [], [], set()
+    layout = joints_layout(seq)
     tracked = True
     not_in_front = 0
     for i, frame in enumerate(seq.frames()):
         seq.require_static_frame(frame)
         tracked &= frame.n_people == 0 or frame.get("person_ids") is not None
-        f, h, src = frame_foot_head_px(frame, seq.frame_intrinsics(frame))
+        intrinsics = seq.frame_intrinsics(frame)
+        f, h, src = frame_foot_head_px(frame, intrinsics)
         if src == "mesh":  # a mesh that is not where the camera saw it projects to meaningless pixels
             off = np.logical_or(*people_not_placed(frame))
             f[off], h[off] = np.nan, np.nan
             not_in_front += int(off.sum())
+        axes.append(_body_axes_cam(frame, intrinsics, f, h))
+        poses.append(_postures(frame, layout))
         if len(f):
             sources.add(src)
         feet.append(f)
@@ -82,4 +102,40 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
     return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
                          np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source,
-                         not_in_front)
+                         not_in_front, np.concatenate(axes)[keep] if axes else np.zeros((0, 3)),
+                         np.concatenate(poses)[keep] if poses else np.zeros(0, "<U8"))
+
+
+def joints_layout(seq: Sequence) -> str | None:
+    """The layout of the sequence's 3D joints: meta.yaml's ``import.joints_layout`` (None: SMPL's by count)."""
+    block = (seq.meta or {}).get("import")
+    layout = block.get("joints_layout") if isinstance(block, dict) else None
+    return layout if isinstance(layout, str) else None
+
+
+def _postures(frame: Frame, layout: str | None) -> np.ndarray:
+    """(P,) posture of each person from the frame's 3D joints (:func:`rotavat_cli.posture.postures`);
+    "unknown" without joints or for a layout without the legs' and shoulders' joints."""
+    joints = frame.get("joints")
+    names = None if joints is None or frame.n_people == 0 else postures(joints, layout)
+    return np.full(frame.n_people, "unknown", "<U8") if names is None else np.asarray(names, "<U8")
+
+
+def _body_axes_cam(frame: Frame, intrinsics: Intrinsics, feet_px: np.ndarray, heads_px: np.ndarray) -> np.ndarray:
+    """(P, 3) unit sole->crown axis of each person in the method's camera frame (NaN without 3D people):
+    the mesh landmarks, or for joints-only frames align's rule from the joints and the pixels."""
+    out = np.full((frame.n_people, 3), np.nan)
+    if frame.n_people == 0 or not can_align(frame) or intrinsics.principal_point is None:
+        return out
+    focals = intrinsics.focals_px(frame.n_people)
+    if focals is None:
+        return out
+    if frame.get("vertices") is None and not (np.isfinite(feet_px).all() and np.isfinite(heads_px).all()):
+        frame = frame.replace(feet_2d=np.where(np.isfinite(feet_px), feet_px, 0.0),
+                              heads_2d=np.where(np.isfinite(heads_px), heads_px, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sole, crown = frame_foot_head_cam(frame, MeshIntrinsics(np.asarray(focals, np.float64),
+                                                                tuple(intrinsics.principal_point)))
+        axis = crown - sole
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    return np.where(np.isfinite(axis).all(axis=-1, keepdims=True), axis, np.nan)

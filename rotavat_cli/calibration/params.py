@@ -64,9 +64,9 @@ def describe(params: np.ndarray) -> tuple[str, ...]:
 
 
 def to_internal(params: np.ndarray) -> np.ndarray:
-    """``(6,)`` params -> the refined form: log focal, pitch, roll, log height, distortion, box depth."""
+    """``(..., 6)`` params -> the refined form: log focal, pitch, roll, log height, distortion, box depth."""
     internal = np.array(params, dtype=np.float64)
-    internal[_LOG_SLOTS] = np.log(internal[_LOG_SLOTS])
+    internal[..., _LOG_SLOTS] = np.log(internal[..., _LOG_SLOTS])
     return internal
 
 

@@ -15,12 +15,13 @@ import numpy as np
 
 from ..errors import DegenerateSceneError
 from .grid import GridSpec, seed_params
-from .objective import Problem, pair_chi2, residual_and_jacobian, robust_scale
-from .params import from_internal, param_bounds, to_internal
+from .objective import Problem, body_rows, pair_chi2, prior_rows, residual_and_jacobian, robust_scale
+from .params import FOCAL, from_internal, param_bounds, to_internal
 
-__all__ = ["robust_least_squares", "fit_with_rejection", "refine_fit"]
+__all__ = ["robust_least_squares", "min_pairs", "fit_with_rejection", "refine_fit"]
 
 _SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
+_CAMERA = np.array([True, True, True, True, False, False])  # focal, pitch, roll, height (params slots)
 _FULL_START_WIDEN = 4.0  # the full fit starts from the pairs within 4x the 99% chi-square of the best start
 
 
@@ -46,12 +47,19 @@ def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, s
     return from_internal(sol.x[None], params0, free)[0]
 
 
+def min_pairs(prob: Problem, free: np.ndarray) -> int:
+    """Fewest pairs a fit keeps: 1 when the priors cover every free camera parameter, else 3 (and enough
+    residual components for the free parameters)."""
+    if prob.priors is not None and np.all(np.isfinite(prob.priors.sd[free & _CAMERA])):
+        return 1
+    return max(3, math.ceil(int(free.sum()) / prob.dof))
+
+
 def fit_with_rejection(prob: Problem, params0: np.ndarray, free: np.ndarray, mask0: np.ndarray,
                        max_rounds: int) -> tuple[np.ndarray, np.ndarray, float]:
     """Alternate robust fits and chi-square rejection from params0 (6,) on pairs mask0 (N,);
     returns (params (6,), inlier mask (N,), scale)."""
-    n_free = int(free.sum())
-    need = max(3, math.ceil(n_free / prob.dof))
+    need = min_pairs(prob, free)
     params, mask = params0, mask0.copy()
     scale = robust_scale(pair_chi2(prob, params)[mask], prob)
     scale = robust_scale(pair_chi2(prob, params, scale)[mask], prob)
@@ -80,34 +88,44 @@ def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarra
     feet, heads: (N, 2) px, the pairs of ``prob``; free: (6,) bool slots to refine. Returns
     (params (6,), inlier mask (N,), scale, the seed (6,) the best start came from).
     """
+    priors = prob.priors
+    prior_focal = () if priors is None or not free[FOCAL] or not np.isfinite(priors.sd[FOCAL]) \
+        else (float(np.exp(priors.mean[FOCAL])),)
     sub_idx, seeds = seed_params(feet, heads, pp, image_size[1], focal_px, grid, prob.person_height_m,
-                                 prob.residual.name, box_depth_m)
+                                 prob.residual.name, box_depth_m, prior_focal)
     sub = prob.subset(sub_idx)
+    need = min_pairs(prob, free)
     best = None
     for seed in seeds:
         chi2 = pair_chi2(sub, seed)
         mask0 = np.isfinite(chi2)
-        if mask0.sum() < 3:
+        if mask0.sum() < need:
             continue
         params, mask, scale = fit_with_rejection(sub, seed, free, mask0, max_rounds=_SEED_ROUNDS)
-        best = _better(sub, best, (params, mask, scale, seed))
+        best = _better(sub, free, best, (params, mask, scale, seed))
     if best is None:
         raise DegenerateSceneError("no camera explains the pairs: every start put the feet above the horizon "
                                    "or the heads behind the camera (are these pixels of this image?)")
     start = best[0]
     chi2 = pair_chi2(prob, start, best[2])
     mask0 = chi2 <= prob.residual.chi2_99 * best[2] ** 2 * _FULL_START_WIDEN
-    if mask0.sum() < 3:
+    if mask0.sum() < max(need, 3):
         mask0 = np.isfinite(chi2)
     params, mask, scale = fit_with_rejection(prob, start, free, mask0, max_rounds)
     return params, mask, scale, best[3]
 
 
-def _better(prob: Problem, a, b):
-    """The better of two (params, mask, scale, seed) fits by a common truncated chi-square cost."""
+def _better(prob: Problem, free: np.ndarray, a, b):
+    """The better of two (params, mask, scale, seed) fits by a common cost: the truncated chi-square of
+    the pairs plus the priors' and the bodies' rows (which decide between starts the pairs cannot tell apart)."""
     if a is None:
         return b
-    ref = min(a[2], b[2])
+    ref = max(a[2], b[2])
     thr = prob.residual.chi2_99
-    cost = [np.minimum(pair_chi2(prob, fit[0], ref) / ref**2, thr).sum() for fit in (a, b)]
-    return b if cost[1] < cost[0] else a
+
+    def cost(fit) -> float:
+        params = fit[0][None]
+        extra = np.concatenate([prior_rows(prob, params, free), body_rows(prob, params, free)], axis=1)
+        return float(np.minimum(pair_chi2(prob, fit[0], ref) / ref**2, thr).sum() + np.sum(extra**2))
+
+    return b if cost(b) < cost(a) else a

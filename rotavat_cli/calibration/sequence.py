@@ -10,19 +10,26 @@ people unless it is known:
 - otherwise estimated ("estimated"). A focal an HPS method assumed is never taken for the
   camera's: it is only the focal the meshes were made with (reported as ``mesh_focal_px``).
 
-A sequence whose focal is the camera's own also lends its principal point, unless one is given.
+The principal point is the one given, else the sequence's declared one (what the HPS tool projected
+with; a note says so when it is off the image centre), else the image centre. ``tracks`` keeps the
+pairs of those person ids only (one person of known stature: ``person_height_m`` and a small
+``person_height_sd_m``). Standing bodies' own vertical (:class:`~.objective.BodyAxes`) goes to the
+fit, which uses it where the pairs leave the pitch undetermined.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import DegenerateSceneError, InputError
 from ..focal import CAMERA
+from ..posture import summarize_postures
 from ..sequence import Sequence
 from .fit import CalibrationResult, fit_camera, fit_per_frame
+from .objective import BodyAxes
 from .options import CalibrateOptions
 from .pairs import FootHeadPairs, gather_pairs
 
@@ -80,6 +87,14 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
                         f"section), got {type(options).__name__}")
     image_size = seq.require_image_size()
     pairs = gather_pairs(seq)
+    notes: list[str] = []
+    if options.tracks is not None:
+        pairs = _chosen_tracks(seq, pairs, options.tracks)
+    if options.standing_only:
+        pairs, note = _standing(seq, pairs)
+        notes += [note] if note else []
+    pairs, note = still_people_as_one(pairs)
+    notes += [note] if note else []
     mesh_focal = declared_focal(seq)
     mesh_kind = seq.focal_kind if mesh_focal is not None else None
     if options.focal_px is not None:
@@ -89,13 +104,17 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
     else:
         focal, policy = None, "estimated"
     pp = options.principal_point
-    if pp is None and seq.intrinsics.principal_point is not None and mesh_kind == CAMERA:
-        pp = seq.intrinsics.principal_point
+    declared_pp = seq.intrinsics.principal_point
+    if pp is None and declared_pp is not None and (options.method != "grid" or mesh_kind == CAMERA):
+        pp = tuple(float(v) for v in declared_pp)
+        if math.dist(pp, (image_size[0] / 2.0, image_size[1] / 2.0)) > _PP_NOTE_PX:
+            notes.append(f"principal point ({pp[0]:g}, {pp[1]:g}) from the sequence (what its HPS tool projected "
+                         "with), not the image centre (--principal-point CX CY to override)")
     tracks = pairs.person_ids if pairs.tracked else None
     try:
         fit_options = replace(options, focal_px=focal, principal_point=pp)
         result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, fit_options, frame_index=pairs.frame_index,
-                            track_id=tracks)
+                            track_id=tracks, body=body_axes(pairs))
         per_frame = None
         if options.per_frame:
             spread = fit_per_frame(pairs.feet_px, pairs.heads_px, image_size, pairs.frame_index, fit_options,
@@ -109,5 +128,113 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
     except ValueError as exc:
         raise InputError(f"{seq.path}: {exc}") from None
     if "focal_px" in result.fixed:
-        result = replace(result, fixed={**result.fixed, "focal_px": policy})
+        result = replace(result, fixed={**result.fixed, "focal_px": policy},
+                         determined_by={**result.determined_by, "focal_px": policy})
+    if notes:
+        result = replace(result, notes=tuple(notes) + result.notes)
     return SequenceCalibration(result, pairs, policy, per_frame, mesh_focal, mesh_kind)
+
+
+_PP_NOTE_PX = 0.5  # a declared principal point this far from the image centre is named in a note
+_MAX_IDS_SHOWN = 12
+
+
+def _standing(seq: Sequence, pairs: FootHeadPairs) -> tuple[FootHeadPairs, str | None]:
+    """The pairs of people who stand (or whose posture is unknown: no joints), and a note counting the others.
+
+    DegenerateSceneError when no one stands: sitting people are not 1.70 m verticals on the ground."""
+    if pairs.postures is None:
+        return pairs, None
+    away = ~np.isin(pairs.postures, ("standing", "unknown"))
+    if not away.any():
+        return pairs, None
+    if pairs.tracked:  # one posture per person: the commonest of their frames left out
+        away_ids, inverse = np.unique(pairs.person_ids[away], return_inverse=True)
+        names = pairs.postures[away]
+        what = summarize_postures([max(set(names[inverse == k].tolist()), key=names[inverse == k].tolist().count)
+                                   for k in range(len(away_ids))])
+        people = len(away_ids)
+    else:
+        people, what = int(away.sum()), summarize_postures(pairs.postures[away].tolist())
+    if away.all():
+        raise DegenerateSceneError(f"{seq.label}: no one stands ({what}, by their joints' knee and hip angles): "
+                                   "sitting or kneeling people are not verticals of known height; give the camera "
+                                   "(rotavat align SEQ --camera FILE, docs/conventions.md#camerayaml), or "
+                                   "--all-people to calibrate from them anyway")
+    who = "person who does not stand" if people == 1 else "people who do not stand"
+    note = (f"left out {people} {who} ({what}; {int(away.sum())} of {len(away)} pairs, by their joints' knee and "
+            "hip angles; --all-people keeps them)")
+    return pairs.subset(~away), note
+
+
+_STILL_SPREAD = 0.10  # a track whose feet all lie within this fraction of its pixel height of their median stands still
+
+
+def still_people_as_one(pairs: FootHeadPairs) -> tuple[FootHeadPairs, str | None]:
+    """Each tracked person who stands still (feet within a tenth of their pixel height of their median
+    in every frame) as one pair: the median foot and head, and a note counting them.
+
+    A still person's frames repeat one observation; their pixel noise is not perspective. Fitted
+    frame by frame, the noise of the foot pixels, carried through the ground's perspective, reads as
+    evidence of pitch and height (synthetic: a person still at 5 m, pitch 25 deg: fitted at -7 +- 6
+    deg); as one pair, the pitch is what the pair and the priors allow.
+    """
+    if not pairs.tracked or len(pairs.feet_px) == 0:
+        return pairs, None
+    ids, inverse = np.unique(pairs.person_ids, return_inverse=True)
+    median_feet = np.stack([np.median(pairs.feet_px[inverse == k], axis=0) for k in range(len(ids))])
+    length = np.linalg.norm(pairs.feet_px - pairs.heads_px, axis=1)
+    spread = np.linalg.norm(pairs.feet_px - median_feet[inverse], axis=1) / np.maximum(length, 1e-9)
+    still = np.bincount(inverse, spread > _STILL_SPREAD, len(ids)) == 0
+    still &= np.bincount(inverse, minlength=len(ids)) > 1
+    if not still.any():
+        return pairs, None
+    keep = ~still[inverse]
+    first = np.array([np.flatnonzero(inverse == k)[0] for k in np.flatnonzero(still)])
+    merged = pairs.subset(first)
+    for k, row in zip(np.flatnonzero(still), range(len(first))):
+        sel = inverse == k
+        merged.feet_px[row], merged.heads_px[row] = np.median(pairs.feet_px[sel], 0), np.median(pairs.heads_px[sel], 0)
+        if merged.axes_cam is not None:
+            merged.axes_cam[row] = np.median(pairs.axes_cam[sel], axis=0)
+    out = pairs.subset(keep)
+    out = replace(out, **{name: np.concatenate([getattr(out, name), getattr(merged, name)])
+                          for name in ("feet_px", "heads_px", "frame_index", "person_ids")},
+                  axes_cam=None if out.axes_cam is None else np.concatenate([out.axes_cam, merged.axes_cam]),
+                  postures=None if out.postures is None else np.concatenate([out.postures, merged.postures]))
+    people = int(still.sum())
+    return out, (f"{people} {'person stands' if people == 1 else 'people stand'} still: "
+                 f"{'their' if people > 1 else 'its'} {int((~keep).sum())} pairs count as {people} (the median foot "
+                 "and head), not one per frame")
+
+
+def _chosen_tracks(seq: Sequence, pairs: FootHeadPairs, ids: tuple[int, ...]) -> FootHeadPairs:
+    """The pairs of the person ids ``ids``; InputError naming the ids the sequence has when one is missing."""
+    if not pairs.tracked:
+        raise InputError(f"{seq.path}: --track needs person_ids in every frame with people; this sequence has none")
+    present = np.unique(pairs.person_ids)
+    missing = sorted(set(ids) - set(present.tolist()))
+    if missing:
+        shown = ", ".join(str(i) for i in present[:_MAX_IDS_SHOWN]) + (" ..." if len(present) > _MAX_IDS_SHOWN else "")
+        raise InputError(f"{seq.path}: no person_id {', '.join(map(str, missing))} with foot-head pairs (ids: {shown})")
+    return pairs.subset(np.isin(pairs.person_ids, ids))
+
+
+def body_axes(pairs: FootHeadPairs) -> BodyAxes | None:
+    """The standing people's own vertical (a robust mean of their sole->crown axes in the camera frame:
+    each person's median over their frames, then the median over people), or None without 3D people.
+
+    The sd is the fit's (``CalibrateOptions.body_axis_sd_deg``); it is set there."""
+    if pairs.axes_cam is None:
+        return None
+    ok = np.isfinite(pairs.axes_cam).all(axis=1)
+    if not ok.any():
+        return None
+    axes, ids = pairs.axes_cam[ok], pairs.person_ids[ok] if pairs.tracked else np.arange(int(ok.sum()))
+    labels, inverse = np.unique(ids, return_inverse=True)
+    per_person = np.stack([np.median(axes[inverse == k], axis=0) for k in range(len(labels))])
+    up = np.median(per_person, axis=0)
+    norm = float(np.linalg.norm(up))
+    if not norm > 0:
+        return None
+    return BodyAxes(up / norm, math.radians(10.0), len(labels))

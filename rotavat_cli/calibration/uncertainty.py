@@ -45,6 +45,7 @@ class Systematics:
     distortion: float  # radial displacement at the image corner / half-diagonal
     stature_mean_m: float  # population mean stature
     box_depth_m: float  # box depth (box-derived points)
+    focal_log: float = 0.0  # sd of log f when the focal is held at its prior's median (people at one depth)
 
 
 def _statistical_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float,
@@ -109,13 +110,13 @@ def jackknife_cov(J: np.ndarray, r: np.ndarray, row_cluster: np.ndarray, n_group
 
 
 def _column_shift(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
-                  cov_full: np.ndarray) -> tuple[np.ndarray, float, int]:
+                  cov_full: np.ndarray) -> tuple[np.ndarray, float, int, np.ndarray]:
     """How far the head rows alone move the full fit, and a Hausman test of that move.
 
     Refits the inliers with the residual kind's ``test_against`` kind (the head rows only) from the
     full fit and returns the shift ``d`` (n_free,) of the internal parameters, the statistic
     ``d^T V^+ d`` with ``V = cov_rows - cov_full`` (the rows-only fit is the less efficient of two
-    consistent estimates), and V's rank. Under a right model the two agree to within V; head
+    consistent estimates), V's rank, and V (n_free, n_free). Under a right model the two agree to within V; head
     columns that do not follow the person's vertical (drawn straight above the foot, as boxes
     are) make them disagree.
     """
@@ -127,7 +128,7 @@ def _column_shift(prob: Problem, params: np.ndarray, free: np.ndarray, scale: fl
     w, U = np.linalg.eigh(cov_rows - cov_full)
     keep = w > _NULL_EIG * max(float(w.max()), 1e-300)
     proj = U[:, keep].T @ shift
-    return shift, float(np.sum(proj**2 / w[keep])), int(keep.sum())
+    return shift, float(np.sum(proj**2 / w[keep])), int(keep.sum()), cov_rows - cov_full
 
 
 def _perturbed(prob: Problem, which: str, amount: float) -> Problem:
@@ -148,7 +149,7 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
                     J: np.ndarray, assumed: Systematics) -> np.ndarray:
     """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
     sds = {"cx": assumed.principal_point_px, "cy": assumed.principal_point_px, "distortion": assumed.distortion,
-           "stature": assumed.stature_mean_m, "box": assumed.box_depth_m}
+           "stature": assumed.stature_mean_m, "box": assumed.box_depth_m, "focal": assumed.focal_log}
     gain = -np.linalg.pinv(J.T @ J, rcond=_NULL_EIG) @ J.T
     cov = np.zeros((J.shape[1], J.shape[1]))
     for name, sd in sds.items():
@@ -157,6 +158,10 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
         step = 0.1 * sd
         if name == "box":  # a fixed parameter of the model
             r_moved = model_residual(prob, (params + step * np.eye(len(params))[BOX_DEPTH])[None], free, scale)[0]
+        elif name == "focal":  # held at the prior's median: its log moves by ``step``
+            moved = params.copy()
+            moved[FOCAL] *= math.exp(step)
+            r_moved = model_residual(prob, moved[None], free, scale)[0]
         else:
             r_moved = model_residual(_perturbed(prob, name, step), params[None], free, scale)[0]
         shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
@@ -165,30 +170,45 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
 
 
 def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
-                 assumed: Systematics, test_columns: bool) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(total, statistical) covariances (6, 6) of the internal parameters (zero for fixed ones), warnings.
+                 assumed: Systematics, test_columns: bool) -> tuple[np.ndarray, np.ndarray, list[str], dict[int, str]]:
+    """(total, statistical) covariances (6, 6) of the internal parameters (zero for fixed ones), warnings,
+    and what determined each free slot (:func:`determined_by`).
 
-    With ``test_columns`` and a residual kind that has a ``test_against`` kind (full: the head
-    rows), when the head rows alone disagree with the joint fit beyond their noise
-    (:func:`_column_shift`, 99% chi-square), the total adds the disagreement: the head columns do
-    not follow the model (box-derived heads, principal point, distortion).
+    The statistical part is the posterior's (Gauss-Newton of the whole objective: the pairs with
+    their design effects, the track statures, the priors, the bodies' axis; or the cluster jackknife
+    when larger); the total adds the assumed systematics. With ``test_columns`` and a residual kind
+    that has a ``test_against`` kind (full: the head rows), when the head rows alone disagree with the
+    joint fit beyond their noise (:func:`_column_shift`, 99% chi-square), a warning says so and the
+    total adds, per parameter, the part of the squared disagreement beyond its noise
+    (``max(0, d_i^2 - V_ii)``: an estimate of the squared bias the columns put in the fit; zero on
+    average for a right model, whose disagreement is all noise), at most the parameter's prior variance.
     """
     from scipy.stats import chi2 as chi2_dist  # imported when used: keeps `rotavat --help` fast
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
     total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
     warns = []
+    by_slot = determined_by(J, _row_groups(prob, free, len(r)), free)
     if test_columns and prob.residual.test_against is not None:
         sub = order_invariant_subset(prob.rel_feet, prob.rel_feet - prob.diff, _COLUMN_TEST_PAIRS)
         sub_clusters = None if clusters is None else clusters[sub]
         sub_prob = prob.subset(sub)
         sub_stat = stat if len(sub) == len(prob.rel_feet) else _statistical_cov(sub_prob, params, free, scale,
                                                                                sub_clusters)[0]
-        shift, stat_h, rank = _column_shift(sub_prob, params, free, scale, sub_clusters, sub_stat)
+        shift, stat_h, rank, noise = _column_shift(sub_prob, params, free, scale, sub_clusters, sub_stat)
         if rank and stat_h > chi2_dist.ppf(0.99, rank):
-            total = total + np.outer(shift, shift)
+            excess = np.maximum(shift**2 - np.diag(noise), 0.0)
+            if prob.priors is not None:
+                excess = np.minimum(excess, prob.priors.sd[free] ** 2)
+            total = total + np.diag(excess)
             warns.append(f"the head columns disagree with the head rows (chi-square {stat_h:.0f} on {rank} dof): "
-                         "box-derived points (then use points 'boxes'), an off-centre principal point or lens "
+                         "box-derived points (then use --points boxes), an off-centre principal point or lens "
                          "distortion; the std includes the disagreement")
+    if assumed.focal_log > 0:  # a focal held at its prior's median: where its spread dominates, the prior determines
+        spread = np.diag(_systematic_cov(prob, params, free, scale, r, J, Systematics(0.0, 0.0, 0.0, 0.0,
+                                                                                       assumed.focal_log)))
+        for k, slot in enumerate(np.flatnonzero(free)):
+            if spread[k] >= (1.0 - _MATTERS) * total[k, k] and "prior" not in by_slot[int(slot)].split("+"):
+                by_slot[int(slot)] += "+prior"
     lost = _undetermined(J)
     out = []
     for cov in (total, stat):
@@ -198,7 +218,56 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
         full = np.zeros((len(free), len(free)))
         full[np.ix_(free, free)] = cov
         out.append(full)
-    return out[0], out[1], warns
+    return out[0], out[1], warns, by_slot
+
+
+# Sources of information, in the order labels name them (fit.determined_by).
+SOURCES = ("people", "bodies", "prior")
+_MATTERS = 0.75  # a source matters when leaving it out would raise a parameter's variance by a third or more
+
+
+def _row_groups(prob: Problem, free: np.ndarray, n_rows: int) -> np.ndarray:
+    """(M,) index into :data:`SOURCES` of each residual row of :func:`.objective.model_residual`:
+    the pairs and the track statures (people), the camera's priors (prior), the bodies' axis (bodies)."""
+    groups = np.zeros(n_rows, int)
+    n_prior = 0 if prob.priors is None else len(prob.priors.slots(free))
+    n_body = n_rows - len(prob.rel_feet) * prob.dof - prob.n_tracks - n_prior
+    groups[n_rows - n_body - n_prior : n_rows - n_body] = SOURCES.index("prior")
+    if n_body:
+        groups[n_rows - n_body :] = SOURCES.index("bodies")
+    return groups
+
+
+def _marginal_variances(info: np.ndarray) -> np.ndarray:
+    """(k,) diagonal of the inverse of an information matrix (k, k); inf for parameters it leaves undetermined."""
+    w, V = np.linalg.eigh(info)
+    null = w <= _NULL_EIG * max(float(w.max()), 1e-300)
+    var = (V[:, ~null] ** 2 / w[~null]).sum(axis=1)
+    var[(V[:, null] ** 2).sum(axis=1) > 1e-6] = np.inf
+    return var
+
+
+def determined_by(J: np.ndarray, row_groups: np.ndarray, free: np.ndarray) -> dict[int, str]:
+    """What determined each free slot: the :data:`SOURCES` without which its variance would rise by a
+    third or more, joined by "+" ("people", "prior", "people+prior", "bodies+prior", ...).
+
+    J: (M, n_free) Jacobian of the whitened objective; row_groups: (M,) source of each row.
+    Returns {slot: label}.
+    """
+    info = J.T @ J
+    v_all = _marginal_variances(info)
+    ratios = {}
+    for g, name in enumerate(SOURCES):
+        rows = row_groups == g
+        if rows.any():
+            v_without = _marginal_variances(info - J[rows].T @ J[rows])
+            ratios[name] = np.where(np.isfinite(v_without), v_all / np.where(np.isfinite(v_without), v_without, 1.0),
+                                    0.0)
+    out = {}
+    for k, slot in enumerate(np.flatnonzero(free)):
+        names = [n for n in SOURCES if n in ratios and ratios[n][k] < _MATTERS]
+        out[int(slot)] = "+".join(names) if names else min(ratios, key=lambda n: ratios[n][k])
+    return out
 
 
 def _undetermined(J: np.ndarray) -> np.ndarray:
@@ -223,33 +292,44 @@ def std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple
     return std, corr
 
 
-def fit_warnings(camera: Camera, std: dict[str, float], corr: float, inliers: int, usable: int,
-              pairs: int) -> list[str]:
-    """Plain-words warnings about what the data could not determine."""
+_GIVE = {"focal_px": "--focal PX", "pitch_deg": "--pitch DEG", "roll_deg": "--no-roll", "height_m": "--camera-height M",
+         "person_height_m": "--person-height M"}
+_WORDS = {"focal_px": "focal length", "pitch_deg": "pitch", "roll_deg": "roll", "height_m": "camera height",
+          "person_height_m": "people's mean stature"}
+
+
+def fit_warnings(camera: Camera, std: dict[str, float], corr: float, inliers: int, usable: int, pairs: int,
+                 determined: dict[str, str] | None = None, one_depth: bool = False) -> list[str]:
+    """Plain-words warnings about what the data could not determine (``determined``: fit.determined_by)."""
     out = []
+    determined = determined or {}
     lost = [k for k, v in std.items() if v == math.inf]
     horizon = float(horizon_v_px(camera.image_size[0] / 2.0, camera.focal_px, camera.principal_point,
                                  camera.up_cam))
     if lost:
         out.append(f"the pairs cannot determine {', '.join(lost)}: their values are arbitrary (the horizon, "
-                   f"row {horizon:.0f} at the centre, may still be right); give the focal length or a "
-                   "field-of-view prior")
+                   f"row {horizon:.0f} at the centre, may still be right); give the focal length (--focal PX) or "
+                   "a field-of-view prior (--fov-prior DEG)")
+    from_prior = [k for k, v in determined.items() if "people" not in v.split("+") and "prior" in v.split("+")]
+    if from_prior:
+        why = "the people stand at about one depth" if one_depth else "the people do not determine it"
+        out.append(f"{', '.join(_WORDS.get(k, k) for k in from_prior)} from the prior{'s' * (len(from_prior) > 1)} "
+                   f"({why}): give what you know ({', '.join(_GIVE.get(k, k) for k in from_prior)})")
     f_sd = std["focal_px"]
-    if math.isfinite(f_sd) and f_sd > WARN_FOCAL_REL_SD * camera.focal_px:
+    if math.isfinite(f_sd) and f_sd > WARN_FOCAL_REL_SD * camera.focal_px and "focal_px" not in from_prior:
         valley = (f"; focal and pitch trade off (correlation {corr:+.2f}): the horizon is better determined than "
                   "either") if abs(corr) > WARN_FOCAL_PITCH_CORR else ""
         out.append(f"focal length poorly determined: {camera.focal_px:.0f} +- {f_sd:.0f} px "
-                   f"({100 * f_sd / camera.focal_px:.0f}%){valley}; give the focal length if it is known, "
-                   "or a field-of-view prior")
-    if math.isfinite(std["pitch_deg"]) and std["pitch_deg"] > WARN_PITCH_SD_DEG:
+                   f"({100 * f_sd / camera.focal_px:.0f}%){valley}; give --focal PX if it is known")
+    if math.isfinite(std["pitch_deg"]) and std["pitch_deg"] > WARN_PITCH_SD_DEG and "pitch_deg" not in from_prior:
         out.append(f"pitch poorly determined: +- {std['pitch_deg']:.1f} deg")
-    if math.isfinite(std["height_m"]) and std["height_m"] > WARN_HEIGHT_REL_SD * camera.height_m:
+    if (math.isfinite(std["height_m"]) and std["height_m"] > WARN_HEIGHT_REL_SD * camera.height_m
+            and "height_m" not in from_prior):
         out.append(f"camera height poorly determined: {camera.height_m:.2f} +- {std['height_m']:.2f} m")
     if inliers < WARN_INLIER_FRACTION * usable:
         out.append(f"only {inliers} of {usable} usable pairs fit upright people of the given stature "
                    "(sitting, cropped or mis-detected people, or a wrong stature?)")
     if usable < pairs:
-        out.append(f"{pairs - usable} pairs with the head below the foot were ignored")
+        out.append(f"{pairs - usable} pair{'s' * (pairs - usable != 1)} with the head below the foot "
+                   f"{'were' if pairs - usable != 1 else 'was'} ignored")
     return out
-
-

@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
-from . import align, batch, calibrate, eval, export, import_, info, render, synth
+from . import align, batch, calibrate, eval, export, import_, info, measure, render, synth
 from ._common import RotavatGroup
 
 app = typer.Typer(
@@ -43,6 +43,7 @@ def _root(
 app.command()(info.info)
 app.command()(synth.synth)
 app.command()(calibrate.calibrate)
+app.command()(measure.measure)
 app.command()(align.align)
 app.command("eval")(eval.eval_)
 app.command()(render.render)

@@ -6,14 +6,16 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 
-from ..alignment import CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_sequence, camera_for_align
+from ..alignment import (CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_remedies, align_sequence, camera_for_align,
+                         check_align_camera, implausible_findings, reader_flags)
 from ..errors import InputError, input_errors
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json, progress_bar, progress_enabled, report)
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
+                      info, input_sequence, print_json, progress_bar, progress_enabled, report)
 from .calibrate import run_calibration
 
 
@@ -25,6 +27,7 @@ def align(
     upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
     height_from: Annotated[str | None, typer.Option(help="frame: each mesh keeps its stature; track: median stature per person_id.")] = None,
     jobs: Annotated[int | None, typer.Option(help="Worker processes for the frames (0 = one per core; never more than the cores).", min=0)] = None,
+    accept_camera: Annotated[bool, typer.Option("--accept-camera", help="Use the camera even if its calibration found it implausible (its camera.yaml fit lists implausible findings): a warning names them, and the output's camera.yaml records that you accepted it.")] = False,
     force: ForceOpt = False,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
@@ -39,6 +42,7 @@ def align(
     if seq is not None and in_ is not None and seq != in_:
         raise InputError(f"rotavat align: two inputs given ({seq} and --in {in_}): give one")
     seq = seq if seq is not None else in_
+    out_given = out
     with input_errors("align"):
         options = AlignOptions.from_config(config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs))
     out = out or beside(seq, "_aligned")
@@ -53,11 +57,16 @@ def align(
             return AlignCamera(calib.result.camera, calib.fit_dict(), CALIBRATED, "calibrated from the people")
 
         chosen = camera_for_align(sequence, given, calibrate)
+        remedies = align_remedies(seq, out_given, reader_flags(from_, image_size, smpl_model), config)
+        chosen, camera_warning = check_align_camera(chosen, str(seq), accept_camera, remedies)  # refused: exit 2
+        if camera_warning and not (quiet or as_json):  # one line, never wrapped: logs keep the findings together
+            console.print(f"[yellow]warning:[/] {escape(camera_warning)}", highlight=False, soft_wrap=True)
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
             summary = align_sequence(sequence, chosen.camera, out, options, camera_fit=chosen.fit or None, progress=advance,
                                      force=force)
     origin = chosen.source
-    result = {"out": str(out), "camera": origin, **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
+    result = {"out": str(out), "camera": origin, "camera_implausible": list(implausible_findings(chosen.fit)),
+              **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
     if as_json:
         print_json(result)
         return

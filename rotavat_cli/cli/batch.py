@@ -28,6 +28,11 @@ def batch(
     executor: Annotated[str | None, typer.Option(help="local (a process pool here) or dask (a Dask cluster; pip install 'rotavat[dask]').")] = None,
     scheduler: Annotated[str | None, typer.Option(help="dask: address of an existing scheduler, e.g. tcp://10.0.0.5:8786 (default: a LocalCluster here).")] = None,
     chunk_frames: Annotated[int | None, typer.Option(help="Align/eval longer sequences as tasks of this many frames.", min=1)] = None,
+    focal: Annotated[float | None, typer.Option("--focal", help="The cameras' known focal length (px), for every sequence's calibration (calibrate.focal_px).")] = None,
+    camera_height: Annotated[float | None, typer.Option(help="The cameras' known height above the ground (m), for every sequence's calibration (calibrate.camera_height_m).")] = None,
+    pitch: Annotated[float | None, typer.Option("--pitch", help="The cameras' known pitch (deg, + = looking down), for every sequence's calibration (calibrate.pitch_deg).")] = None,
+    camera: Annotated[Path | None, typer.Option(help="A camera.yaml to use for every sequence instead of calibrating (the calibrate step copies it).", dir_okay=False)] = None,
+    accept_camera: Annotated[bool, typer.Option("--accept-camera", help="Use cameras even if their calibration found them implausible (camera.yaml fit lists implausible findings); otherwise such a sequence fails with the findings and what to give.")] = False,
     force: Annotated[bool, typer.Option("--force", help="Redo sequences whose outputs are already complete; write into an OUT that rotavat did not write (never into ROOT or GT).")] = False,
     from_: FromOpt = None,
     gt_from: Annotated[str | None, typer.Option("--gt-from", help="Ground truth under --gt-root in a dataset's own format (agora, bedlam, ...): GT/<rel> is found by that importer and imported into OUT/<rel>/gt.")] = None,
@@ -43,12 +48,15 @@ def batch(
     failing sequence is reported with its reason and the others go on. Exit status: 0 all ok, 1 a
     sequence failed, 2 bad input or usage.
     """
+    known = {"focal_px": focal, "camera_height_m": camera_height, "pitch_deg": pitch}  # what the user knows of the cameras
+    if camera is not None and any(v is not None for v in known.values()):
+        raise InputError("--camera replaces the calibration: give it, or --focal/--camera-height/--pitch, not both")
     cfg = use_config(config, {"batch": {"steps": steps, "executor": executor, "jobs": jobs, "scheduler": scheduler,
-                                         "chunk_frames": chunk_frames}})
+                                         "chunk_frames": chunk_frames}, "calibrate": known})
     if gt_from is not None and gt_root is None:
         raise InputError("--gt-from needs --gt-root (the ground truth in that format, mirroring ROOT's tree)")
     options = BatchOptions.from_config(cfg, gt_root=gt_root, fmt=from_, gt_fmt=gt_from, image_size=image_size,
-                                       smpl_model=smpl_model, force=force)
+                                       smpl_model=smpl_model, force=force, camera=camera, accept_camera=accept_camera)
     if options.scheduler and options.executor != "dask":
         if executor is not None:
             raise InputError("--scheduler is for --executor dask")
@@ -124,7 +132,9 @@ class _Display:
         cam = row.get("camera") or {}
         parts = [f"{(row.get('seconds') or {}).get('total', 0.0):.1f} s"]
         if cam:
-            parts.append(f"f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, height {cam['height_m']:.2f} m")
+            parts.append(f"f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, height {cam['height_m']:.2f} m"
+                         + ((" (implausible camera" + (", accepted" if cam.get("accepted") else "") + ")")
+                            if cam.get("implausible") else ""))
         ev = row.get("eval") or {}
         w = [(ev.get(s) or {}).get("metrics", {}).get("w_mpjpe") for s in ("before", "after") if ev.get(s)]
         if w and all(v is not None and math.isfinite(v) for v in w):

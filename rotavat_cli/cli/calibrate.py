@@ -27,6 +27,10 @@ def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) ->
         info(f"note: {escape(note)}", quiet)
     for warning in calib.result.warnings:
         info(f"[yellow]warning:[/] {escape(warning)}", quiet)
+    if calib.result.implausible:
+        info(f"[yellow]warning:[/] implausible camera: {escape('; '.join(calib.result.implausible))} "
+             "(fit.implausible; align, render and batch refuse it without --accept-camera): give what you know "
+             "(--focal PX, --camera-height M, --pitch DEG)", quiet)
     return calib
 
 
@@ -40,6 +44,7 @@ def calibrate(
     focal: Annotated[float | None, typer.Option("--focal", help="The camera's known focal length (px). Otherwise it is estimated from the people, unless the sequence says its focal is the camera's own (focal_kind: camera).")] = None,
     estimate_focal: Annotated[bool | None, typer.Option("--estimate-focal", help="Estimate f even when the sequence's focal is the camera's own.")] = None,
     camera_height: Annotated[float | None, typer.Option(help="The camera's known height above the ground (m): fixes the scale; the people's mean stature is estimated and reported.")] = None,
+    pitch: Annotated[float | None, typer.Option("--pitch", help="The camera's known pitch (deg, + = looking down).")] = None,
     roll: Annotated[bool | None, typer.Option("--roll/--no-roll", help="Estimate roll (refine) or fix it at 0.")] = None,
     principal_point: Annotated[tuple[float, float] | None, typer.Option(help="Known principal point cx cy (px).")] = None,
     person_height: Annotated[float | None, typer.Option(help="Mean stature sole->crown (m).")] = None,
@@ -48,7 +53,11 @@ def calibrate(
     points: Annotated[str | None, typer.Option(help="auto (boxes when every head is in its foot's column), landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
     box_depth: Annotated[float | None, typer.Option(help="With --points boxes: box top's extra distance from the camera over the box bottom (m).")] = None,
     distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
-    fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Weak prior on the vertical field of view (deg).")] = None,
+    focal_prior: Annotated[str | None, typer.Option("--focal-prior", help="lens: the prior of real lenses' focal (docs/calibration.md); none: the people alone (refused when they cannot determine it).")] = None,
+    fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Your own prior on the vertical field of view (deg), instead of the lens prior.")] = None,
+    track: Annotated[list[int] | None, typer.Option("--track", help="Calibrate from this person_id only (repeat for several), e.g. a person of known stature with --person-height S --height-sd 0.01.")] = None,
+    standing_only: Annotated[bool | None, typer.Option("--standing-only/--all-people", help="Leave out people whose joints say they sit, kneel or bend.")] = None,
+    body_axes: Annotated[bool | None, typer.Option("--body-axes/--no-body-axes", help="Use standing bodies' own vertical where the pairs leave the pitch undetermined.")] = None,
     per_frame: Annotated[bool | None, typer.Option("--per-frame/--pooled", help="Also calibrate each frame alone and report the spread.")] = None,
     force: ForceOpt = False,
     from_: FromOpt = None,
@@ -66,7 +75,8 @@ def calibrate(
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False, quiet=quiet or as_json) as sequence:
         calib = run_calibration(
             sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
-            camera_height_m=camera_height,
+            camera_height_m=camera_height, pitch_deg=pitch, focal_prior=focal_prior, tracks=list(track) if track else None,
+            standing_only=standing_only, body_axes=body_axes,
             estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
             person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, points=points,
             box_depth_m=box_depth, distortion=distortion, fov_prior_deg=fov_prior, per_frame=per_frame)
@@ -87,17 +97,19 @@ def _table(summary: dict) -> Table:
     """Rich table of the estimate: each parameter's std, "given"/"declared"/... when it was not
     estimated, "undetermined" when the people could not determine it."""
     fit = summary["fit"]
-    std, fixed = fit.get("std", {}), fit.get("fixed", {})
+    std, fixed, by = fit.get("std", {}), fit.get("fixed", {}), fit.get("determined_by", {})
     table = Table(title=f"camera ({fit.get('method')}, focal {fit.get('focal_policy')})")
     spread = summary.get("per_frame") or {}
-    for col in ("parameter", "value", "± std") + (("frames alone: median (IQR)",) if spread else ()):
+    for col in ("parameter", "value", "± std", "from") + (("alone: median (IQR)",) if spread else ()):
         table.add_column(col)
     rows = [("focal_px", "px"), ("pitch_deg", "°"), ("roll_deg", "°"), ("height_m", "m")]
     if fit.get("person_height") == "estimated":
         rows.append(("person_height_m", "m"))
+    open_ = _undetermined_keys(fit)
     for key, unit in rows:
         alone = [_spread_cell(spread, key, unit)] if spread else []
-        table.add_row(key, f"{summary[key]:.3f} {unit}", _std_cell(std.get(key), fixed.get(key)), *alone)
+        value = "undetermined" if key in open_ else f"{summary[key]:.3f} {unit}"
+        table.add_row(key, value, _std_cell(std.get(key), fixed.get(key)), by.get(key, ""), *alone)
     if "distortion" in fit:
         table.add_row("distortion", f"{fit['distortion']:+.4f}", _std_cell(std.get("distortion"), None))
     mesh = (f"; meshes made with f {fit['mesh_focal_px']:.0f} px ({fit['mesh_focal_kind']})"
@@ -108,6 +120,13 @@ def _table(summary: dict) -> Table:
                      f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}"
                      f"{mesh}{alone}")
     return table
+
+
+def _undetermined_keys(fit: dict) -> set[str]:
+    """Parameters the plausibility checks call undetermined (fit.implausible): shown as such, never as a value."""
+    words = {"focal length undetermined": "focal_px", "pitch undetermined": "pitch_deg",
+             "roll undetermined": "roll_deg", "camera height undetermined": "height_m"}
+    return {key for finding in fit.get("implausible", []) for text, key in words.items() if finding.startswith(text)}
 
 
 def _spread_cell(spread: dict, key: str, unit: str) -> str:

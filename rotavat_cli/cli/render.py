@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 
+from ..alignment.camera_gate import reader_flags
 from ..atomic import staged_directory
 from ..errors import input_errors
 from ..outputs import beside, check_output_dir
 from ..render import FITS, GHOSTS, SCALES, VIEWS, FigureOptions, figure_steps, render_sequences
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
                       input_sequence, print_json, progress_bar, progress_enabled, report)
 
 
@@ -35,6 +38,7 @@ def render(
     mp4: Annotated[bool | None, typer.Option("--mp4/--no-mp4", help="Also write render.mp4 (needs: pip install 'rotavat[video]').")] = None,
     glb: Annotated[bool | None, typer.Option("--glb/--no-glb", help="Also write a glTF scene (.glb) per frame.")] = None,
     plots: Annotated[bool | None, typer.Option("--plots/--no-plots", help="Also write tracks_<row>.png: foot height, lean and stature of each track over all frames.")] = None,
+    accept_camera: Annotated[bool, typer.Option("--accept-camera", help="Use a row's camera even if its calibration found it implausible (its camera.yaml fit lists implausible findings); a warning names them.")] = False,
     force: ForceOpt = False,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
@@ -49,6 +53,8 @@ def render(
                       glb=glb, plots=plots)
     with input_errors():
         options = FigureOptions.from_config(opts, camera, image)
+    options = dataclasses.replace(options, accept_camera=accept_camera,
+                                  reader_flags=reader_flags(from_, image_size, smpl_model))
     out = out or beside(seqs[0], "_render")
     check_output_dir(out, [*seqs, *([camera] if camera else []), *([image] if image else [])], force)
     with contextlib.ExitStack() as inputs:
@@ -58,6 +64,8 @@ def render(
                 staged_directory(out, "render") as stage:  # the folder is replaced whole: no stale pictures
             summary = render_sequences(sequences, stage, options, advance)
     summary = summary.moved_to(out)
+    for warning in summary.warnings if not (quiet or as_json) else ():  # one line each, never wrapped
+        console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
     if as_json:
         print_json(vars(summary))
         return

@@ -18,8 +18,11 @@ def synth(
     seed: Annotated[int | None, typer.Option(help="Random seed (same seed, same scene).")] = None,
     frames: Annotated[int | None, typer.Option(help="Number of frames.", min=1)] = None,
     people: Annotated[int | None, typer.Option(help="People per frame.", min=0)] = None,
+    layout: Annotated[str | None, typer.Option(help="Where people stand: crowd (walking all over the ground), walk (walking across the view at one depth: one passer-by), row (a group photo: side by side at one depth, still; use --frames 1).")] = None,
     image_size: Annotated[tuple[int, int] | None, typer.Option(help="Image width and height (px).")] = None,
     roll: Annotated[float | None, typer.Option("--roll", help="Camera roll (deg); default random in [-3, 3].")] = None,
+    camera_height_range: Annotated[tuple[float, float] | None, typer.Option(help="The random camera's height range LO HI (m); a handheld camera: 1.2 2.")] = None,
+    pitch_range: Annotated[tuple[float, float] | None, typer.Option(help="The random camera's pitch range LO HI (deg, + = looking down); a handheld camera: -5 15.")] = None,
     noise_px: Annotated[float | None, typer.Option(help="Noise of the 2D detections (px).", min=0)] = None,
     outliers: Annotated[float | None, typer.Option(help="Fraction of gross 2D outliers.", min=0, max=1)] = None,
     hps_focal: Annotated[str | None, typer.Option(help="Focal the HPS prediction assumes: a method's rule (cliff: sqrt(W^2+H^2); bev, romp: 60 deg; 4dhumans: 5000/256 max(W,H)), true (the camera's), or a number of px. Default: cliff.")] = None,
@@ -30,8 +33,10 @@ def synth(
     as_json: JsonOpt = False,
 ) -> None:
     """Synthesise a static-camera scene: true people on the ground (gt/) and an HPS-like prediction (pred/)."""
-    opts = config_for(config, "synth", seed=seed, frames=frames, people=people,
-                      image_size=list(image_size) if image_size else None, roll_deg=roll, noise_px=noise_px,
+    opts = config_for(config, "synth", seed=seed, frames=frames, people=people, layout=layout,
+                      image_size=list(image_size) if image_size else None, roll_deg=roll,
+                      camera_height_range_m=list(camera_height_range) if camera_height_range else None,
+                      pitch_range_deg=list(pitch_range) if pitch_range else None, noise_px=noise_px,
                       outliers=outliers, hps_focal=hps_focal, depth_sd=depth_sd)
     with input_errors("synth"):
         options = SynthOptions.from_config(opts)
@@ -42,7 +47,7 @@ def synth(
     if as_json:
         print_json(summary)
     cam = summary["camera"]
-    report(f"wrote {summary['frames']} frames x {summary['people']} people to {out}/gt and {out}/pred "
+    report(f"wrote {summary['frames']} frames x {summary['people']} people ({summary['layout']}) to {out}/gt and {out}/pred "
          f"(camera: f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, roll {cam['roll_deg']:.1f}°, "
          f"height {cam['height_m']:.2f} m; HPS focal {summary['hps_focal_px']:.0f} px, rule "
          f"{summary['hps_focal_rule']})", quiet or as_json)

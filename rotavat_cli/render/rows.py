@@ -3,7 +3,8 @@
 Which camera places a row in the world (orthographic views, GLB): the sequence's own
 ``camera.yaml`` (the ground truth's is the true camera, an aligned output's the camera it was
 aligned with), else ``camera_path`` (``--camera``, for rows without one, e.g. a raw prediction),
-else an :class:`InputError` saying to run ``rotavat calibrate`` or pass ``--camera``. The front view
+else an :class:`InputError` saying to run ``rotavat calibrate`` or pass ``--camera``; whichever it is
+passes the camera gate (:func:`rotavat_cli.alignment.check_fit`, in :mod:`.sequences`). The front view
 uses the intrinsics the people were made with (the frame's ``focal_length``/``K``, else
 ``meta.yaml``), falling back to the camera's. Frames are chosen by index in the first sequence and
 matched by name in the others. People are meshes, point clouds (vertices without faces) or joints
@@ -22,10 +23,11 @@ from ..sequence import Sequence, read_camera_yaml
 from .skeleton import layout_name
 from .views import RowFrame
 
-__all__ = ["IMAGE_SUFFIXES", "select_frames", "frame_names", "row_labels", "sequence_camera", "sequence_layout", "no_camera",
-           "read_row"]
+__all__ = ["IMAGE_SUFFIXES", "OWN", "GIVEN_FILE", "select_frames", "frame_names", "row_labels", "sequence_camera",
+           "sequence_camera_fit", "sequence_layout", "no_camera", "read_row"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
+OWN, GIVEN_FILE = "own", "given"  # where a row's camera came from: the sequence's own, or the camera.yaml given (--camera)
 
 
 def select_frames(n_frames: int, frames: str | None, every: int | None) -> list[int]:
@@ -77,11 +79,19 @@ def sequence_camera(seq: Sequence, camera_path: Path | None, own_first: bool = F
     """The camera a sequence is drawn in: ``camera_path`` (a camera.yaml the user gave), else the
     sequence's own camera.yaml, else None. ``own_first``: the sequence's own camera wins and
     ``camera_path`` only fills in for a sequence without one (render's rows: each in its own camera)."""
+    return sequence_camera_fit(seq, camera_path, own_first)[0]
+
+
+def sequence_camera_fit(seq: Sequence, camera_path: Path | None,
+                        own_first: bool = False) -> tuple[Camera | None, dict, str | None]:
+    """:func:`sequence_camera`, with the camera's ``fit:`` block ({} when none) and where it came from:
+    :data:`OWN` (the sequence's), :data:`GIVEN_FILE` (``camera_path``) or None (no camera)."""
     if seq.camera is not None and (own_first or camera_path is None):
-        return seq.camera
+        return seq.camera, dict(seq.camera_fit or {}), OWN
     if camera_path is not None:
-        return read_camera_yaml(camera_path, seq.image_size)[0]
-    return None
+        camera, fit = read_camera_yaml(camera_path, seq.image_size)
+        return camera, fit, GIVEN_FILE
+    return None, {}, None
 
 
 def no_camera(seq: Sequence, what: str) -> InputError:

@@ -2,7 +2,9 @@
 
 One grid row per sequence (:mod:`.rows` reads them), one column per view (:mod:`.views`), drawn
 by :func:`.grid.render_grid` with the rasteriser :func:`.raster.open_rasterizer` picks. Each row
-is placed in the world by its own camera (:func:`.rows.sequence_camera`). One row may be the
+is placed in the world by its own camera (:func:`.rows.sequence_camera`), which passes the camera
+gate first (:func:`rotavat_cli.alignment.check_fit`: an implausible calibration is refused unless
+``accept_camera``; the warnings go to :attr:`FigureSummary.warnings`). One row may be the
 ground truth (``gt``): the other rows' captions then give their errors against it on the frame
 shown (W-MPJPE, lean, foot height: :func:`rotavat_cli.metrics.evaluate.evaluate` on that frame),
 and with ``ghost="gt"`` it is drawn faintly over them (docs/render.md, "Ground truth").
@@ -24,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..alignment.camera_gate import check_fit, render_remedies
 from ..atomic import atomic_open
 from ..camera import Camera
 from ..config import packaged_default
@@ -32,7 +35,7 @@ from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
 from .raster import RENDERERS, open_rasterizer
-from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
+from .rows import OWN, frame_names, no_camera, read_row, row_labels, sequence_camera_fit
 from .style import RenderStyle
 from .tracks import plot_tracks, sequence_tracks
 from .video import require_mp4, write_gif, write_mp4
@@ -83,6 +86,8 @@ class FigureOptions:
     glb: bool = packaged_default(_packaged_options, "glb")
     plots: bool = packaged_default(_packaged_options, "plots")
     style: RenderStyle = packaged_default(_packaged_options, "style")
+    accept_camera: bool = False  # not a config key: --accept-camera (use cameras whose calibration is implausible)
+    reader_flags: tuple[str, ...] = ()  # not a config key: how rows read with --from were read (the gate's advice)
 
     @classmethod
     def from_config(cls, render: dict, camera_path: Path | None = None, image_dir: Path | None = None) -> "FigureOptions":
@@ -116,6 +121,7 @@ class FigureSummary:
     seconds_per_frame: float
     gt: str | None = None  # the ground-truth row's label
     captions: dict[str, str] = dataclasses.field(default_factory=dict)  # row label -> its numbers (last frame)
+    warnings: list[str] = dataclasses.field(default_factory=list)  # e.g. an implausible camera used (--accept-camera)
 
     def moved_to(self, out: str | Path) -> "FigureSummary":
         """The same summary once its folder was moved to ``out`` (a staging folder swapped in)."""
@@ -171,14 +177,23 @@ def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
     return f"vs gt: {' · '.join(shown) or 'no metric'} ({result.matched}/{result.people_gt} matched)"
 
 
-def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> list[Camera | None]:
-    """Each sequence's camera (its own, else ``opts.camera_path``); an error naming what ``needs`` one if it is missing."""
-    cameras = [sequence_camera(s, opts.camera_path, own_first=True) for s in seqs]
-    if needs:
-        for seq, cam in zip(seqs, cameras):
-            if cam is None:
-                raise no_camera(seq, needs)
-    return cameras
+def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> tuple[list[Camera | None], list[str]]:
+    """Each sequence's camera (its own, else ``opts.camera_path``), each past the camera gate, and the gate's
+    warnings; an error naming what ``needs`` one if it is missing, or refusing an implausible camera."""
+    cameras, warnings = [], []
+    for seq in seqs:
+        cam, fit, whence = sequence_camera_fit(seq, opts.camera_path, own_first=True)
+        if cam is None and needs:
+            raise no_camera(seq, needs)
+        if cam is not None:
+            what = seq.camera_label if whence == OWN else f"{opts.camera_path} (--camera, for {seq.label})"
+            remedies = render_remedies(seq.label, own=whence == OWN, aligned="aligned_from" in (seq.meta or {}),
+                                       reader_flags=opts.reader_flags if seq.origin is not None else ())
+            warning = check_fit(what, fit, opts.accept_camera, remedies)
+            if warning is not None and warning not in warnings:
+                warnings.append(warning)
+        cameras.append(cam)
+    return cameras, warnings
 
 
 def _save_png(path: Path, image: np.ndarray) -> None:
@@ -241,7 +256,7 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     placed = [view.name for view in view_specs(opts.views) if view.needs_camera]  # views placing rows in the world
     needs = [f"{'/'.join(placed)} views"] if placed else []
     needs += (["the GLB"] if opts.glb else []) + (["the track plots"] if opts.plots else [])
-    cameras = _cameras(seqs, opts, " and ".join(needs))
+    cameras, warnings = _cameras(seqs, opts, " and ".join(needs))
     labels = row_labels([Path(s.label) for s in seqs])
     names = frame_names(seqs[0], opts.frames, opts.every)
     gt = ground_truth_row(opts.gt, labels)
@@ -293,4 +308,5 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
             files.append(str(plot_tracks(out / f"tracks_{_file_stem(label)}.png", tracks, opts.style.palette)))
     seconds = time.perf_counter() - start
     return FigureSummary(str(out), rasterizer.name, rasterizer.detail, rasterizer.note, labels, list(opts.views), names,
-                         files, seconds, seconds / max(len(names), 1), None if gt is None else labels[gt], captions)
+                         files, seconds, seconds / max(len(names), 1), None if gt is None else labels[gt], captions,
+                         warnings)

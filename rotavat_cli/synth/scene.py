@@ -10,6 +10,11 @@ puts the rigid, undistorted body with its root on the root pixel's ray at the de
 ``F / f`` (:func:`rotavat_cli.camera.reexpress_cam`), turned so its foot and crown fall on their
 pixels, as a method fitted to the image draws them. Plus small 3D noise and noisy 2D detections
 with gross outliers. Deterministic for a given seed.
+
+Where the people stand is the ``layout`` (:mod:`.layouts`): a crowd walking all over the ground
+(the default), one or more people walking across the view at one depth, or a group photo (a row
+at one depth, still). The random camera's height and pitch ranges are options too (a handheld
+camera: 1.2-2 m, -5..15 deg).
 """
 
 from __future__ import annotations
@@ -22,22 +27,27 @@ import numpy as np
 
 from ..alignment.transform import closest_scale_on_line
 from ..atomic import staged_directory
-from ..camera import MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
+from ..camera import MAX_HEIGHT_M, MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
 from ..focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from ..landmarks import foot_head_points
 from ..outputs import check_output_dir
 from ..rotations import axis_angle_to_matrix, rotation_between
 from ..sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
 from .bodies import BodyLibrary, load_bodies
+from .layouts import FPS, LAYOUTS, place_people, sample_walks
 
-__all__ = ["SynthOptions", "HPS_FOCAL_CHOICES", "random_camera", "hps_focal_px", "sample_walks", "synth_frames",
-           "write_synth_scene"]
+__all__ = ["SynthOptions", "HPS_FOCAL_CHOICES", "LAYOUTS", "random_camera", "hps_focal_px", "sample_walks",
+           "synth_frames", "write_synth_scene"]
 
-FPS = 5.0  # frames per second of the synthetic video
-WALK_SPEED_MPS = (0.8, 1.6)  # walking speeds
-MAX_GROUND_DISTANCE_M = 45.0  # people farther than this are too small to matter
 HFOV_RANGE_DEG = (45.0, 100.0)  # horizontal fields of view of real surveillance lenses
+CAMERA_HEIGHT_RANGE_M = (2.5, 15.0)  # the random camera's default heights (surveillance)
+PITCH_RANGE_DEG = (10.0, 60.0)  # and downward tilts
+CAMERA_DRAWS = 20  # cameras drawn for a one-depth layout before giving up
+MAX_PITCH_DEG = 89.0  # |pitch| a range may reach (90: looking straight down, no horizon)
 HPS_FOCAL_CHOICES = (*FOCAL_RULES, "true")  # or a number of pixels
+# Options added after scenes were committed (sample_data/scene): synth.yaml lists them only when they
+# differ from these defaults, so an older scene is reproduced byte for byte.
+_LATER_OPTIONS = {"layout": "crowd", "camera_height_range_m": CAMERA_HEIGHT_RANGE_M, "pitch_range_deg": PITCH_RANGE_DEG}
 
 
 @dataclass(frozen=True)
@@ -47,8 +57,11 @@ class SynthOptions:
     seed: int = 0
     frames: int = 20
     people: int = 8
+    layout: str = "crowd"  # where people stand: LAYOUTS (crowd | walk | row)
     image_size: tuple[int, int] = (1280, 720)
     roll_deg: float | None = None  # None: random in [-3, 3]
+    camera_height_range_m: tuple[float, float] = CAMERA_HEIGHT_RANGE_M  # the random camera's height, uniform
+    pitch_range_deg: tuple[float, float] = PITCH_RANGE_DEG  # its downward tilt, uniform
     noise_px: float = 2.0
     outliers: float = 0.0
     hps_focal: str | float = "cliff"  # a focal rule (HPS_FOCAL_CHOICES), "true", or a number of pixels
@@ -62,6 +75,9 @@ class SynthOptions:
     def from_config(cls, section: dict) -> "SynthOptions":
         """Options from the ``synth`` config section (its keys are the fields; the rest keep their defaults)."""
         values = {**section, "image_size": tuple(section["image_size"])}
+        for key in ("camera_height_range_m", "pitch_range_deg"):
+            if key in values:
+                values[key] = tuple(values[key])
         return cls(**values)
 
     def __post_init__(self) -> None:
@@ -71,17 +87,31 @@ class SynthOptions:
                              f"{list(self.image_size)}")
         if self.frames < 1 or self.people < 0:
             raise ValueError(f"frames must be >= 1 and people >= 0, got {self.frames} and {self.people}")
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {self.layout!r}")
+        for name, flag, low, high in (("camera_height_range_m", "--camera-height-range", 1e-3, MAX_HEIGHT_M),
+                                      ("pitch_range_deg", "--pitch-range", -MAX_PITCH_DEG, MAX_PITCH_DEG)):
+            value = getattr(self, name)
+            try:
+                lo, hi = (float(v) for v in value)
+            except (TypeError, ValueError):
+                raise ValueError(f"{flag} ({name}) must be two numbers LO HI, got {value!r}") from None
+            if not (low <= lo <= hi <= high):  # False for NaN
+                raise ValueError(f"{flag} ({name}) must be LO <= HI within {low:g}..{high:g}, got {[lo, hi]}")
+            object.__setattr__(self, name, (lo, hi))
 
 
 def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None,
-                  roll_max_deg: float = 3.0) -> Camera:
-    """Realistic surveillance camera: horizontal field of view 45-100 deg, pitch 10-60 deg, height
-    2.5-15 m; roll given or +-max."""
+                  roll_max_deg: float = 3.0, height_range_m: tuple[float, float] = CAMERA_HEIGHT_RANGE_M,
+                  pitch_range_deg: tuple[float, float] = PITCH_RANGE_DEG) -> Camera:
+    """Realistic camera: horizontal field of view 45-100 deg, pitch and height uniform in their ranges
+    (default a surveillance camera: 10-60 deg, 2.5-15 m; handheld: -5..15 deg, 1.2-2 m); roll given
+    or +-max."""
     W = image_size[0]
     roll = rng.uniform(-roll_max_deg, roll_max_deg) if roll_deg is None else roll_deg
     hfov = np.deg2rad(rng.uniform(*HFOV_RANGE_DEG))
-    return Camera(image_size, W / (2.0 * np.tan(hfov / 2.0)), None, np.deg2rad(rng.uniform(10.0, 60.0)),
-                  np.deg2rad(roll), rng.uniform(2.5, 15.0))
+    return Camera(image_size, W / (2.0 * np.tan(hfov / 2.0)), None, np.deg2rad(rng.uniform(*pitch_range_deg)),
+                  np.deg2rad(roll), rng.uniform(*height_range_m))
 
 
 def hps_focal_px(spec: str | float, camera: Camera) -> tuple[float, str]:
@@ -102,49 +132,6 @@ def hps_focal_px(spec: str | float, camera: Camera) -> tuple[float, str]:
     if not (np.isfinite(value) and value > 0):
         raise ValueError(f"hps_focal must be a positive number of pixels, got {spec!r}")
     return value, "number"
-
-
-def _in_view(camera: Camera, ground_world: np.ndarray, stature_m: float = 1.9) -> np.ndarray:
-    """Ground points (..., 3) whose foot and head (at ``stature_m``) project well inside the image."""
-    W, H = camera.image_size
-    foot_px = camera.project(camera.cam_from_world(ground_world))
-    head_px = camera.project(camera.cam_from_world(ground_world + np.array([0.0, stature_m, 0.0])))
-    with np.errstate(invalid="ignore"):
-        ok = (foot_px[..., 0] > 0.04 * W) & (foot_px[..., 0] < 0.96 * W) & (foot_px[..., 1] < 0.97 * H)
-        ok &= (head_px[..., 1] > 0.03 * H) & (head_px[..., 0] > 0.02 * W) & (head_px[..., 0] < 0.98 * W)
-    return ok & (np.linalg.norm(ground_world[..., [0, 2]], axis=-1) < MAX_GROUND_DISTANCE_M)
-
-
-def _sample_ground_points(rng: np.random.Generator, camera: Camera, n: int) -> np.ndarray:
-    """n ground points (n, 3) world frame, uniform over the visible image region."""
-    W, H = camera.image_size
-    found = np.zeros((0, 3))
-    for _ in range(200):
-        px = np.stack([rng.uniform(0, W, 64 * n), rng.uniform(0, H, 64 * n)], axis=-1)
-        ground = camera.world_from_cam(camera.backproject_px_to_ground(px))
-        keep = np.all(np.isfinite(ground), axis=-1)
-        keep[keep] = _in_view(camera, ground[keep])
-        found = np.concatenate([found, ground[keep]])
-        if len(found) >= n:
-            return found[:n]
-    raise ValueError("this camera sees almost no ground where people fit in the image")
-
-
-def sample_walks(rng: np.random.Generator, camera: Camera, n_people: int, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """Back-and-forth walks: ground positions (T, P, 3) world frame and headings (T, P) rad."""
-    start = _sample_ground_points(rng, camera, n_people)
-    end = _sample_ground_points(rng, camera, n_people)
-    seg = end - start
-    length = np.maximum(np.linalg.norm(seg, axis=-1), 1e-6)
-    speed = rng.uniform(*WALK_SPEED_MPS, n_people)
-    phase0 = rng.uniform(0.0, 2.0, n_people)
-    t = np.arange(n_frames)[:, None] / FPS
-    phase = (phase0 + t * speed / length) % 2.0  # (T, P): 0..1 forward, 1..2 back
-    frac = np.where(phase < 1.0, phase, 2.0 - phase)
-    pos = start + frac[..., None] * seg
-    forward = np.where(phase < 1.0, 1.0, -1.0)[..., None] * seg / length[:, None]
-    heading = np.arctan2(forward[..., 0], forward[..., 2])  # yaw about +Y taking +Z to the walk direction
-    return pos, heading
 
 
 def _pose_bodies(library: BodyLibrary, body_index: np.ndarray, scale: np.ndarray, heading: np.ndarray,
@@ -239,14 +226,39 @@ def _detections(rng: np.random.Generator, feet_px: np.ndarray, heads_px: np.ndar
     return feet, heads
 
 
+def _camera_and_places(rng: np.random.Generator, opts: SynthOptions) -> tuple[Camera, tuple[np.ndarray, np.ndarray]]:
+    """The random camera, and its people's ground positions (T, P, 3) and headings (T, P).
+
+    A camera with no room for a one-depth layout (walk, row: e.g. 2.6 m up, looking 40 deg down, it
+    cuts off the heads of all but the nearest people) is drawn again, up to ``CAMERA_DRAWS`` times; the
+    crowd keeps its first camera, as it always has (its scenes stay byte for byte what they were).
+    """
+    def draw() -> Camera:
+        return random_camera(rng, opts.image_size, opts.roll_deg, height_range_m=opts.camera_height_range_m,
+                             pitch_range_deg=opts.pitch_range_deg)
+
+    if opts.layout == "crowd":
+        camera = draw()
+        return camera, place_people(opts.layout, rng, camera, opts.people, opts.frames)
+    for _ in range(CAMERA_DRAWS):
+        camera = draw()
+        try:
+            return camera, place_people(opts.layout, rng, camera, opts.people, opts.frames)
+        except ValueError as exc:
+            why = str(exc)
+    low_h, high_h = opts.camera_height_range_m
+    low_p, high_p = opts.pitch_range_deg
+    raise ValueError(f"{why} for any of {CAMERA_DRAWS} random cameras ({low_h:g}-{high_h:g} m up, pitch {low_p:g} to "
+                     f"{high_p:g} deg): try other --camera-height-range / --pitch-range, or fewer --people")
+
+
 def synth_frames(opts: SynthOptions, library: BodyLibrary | None = None) -> tuple[Camera, float, Iterator[tuple[Frame, Frame]]]:
     """True camera, the HPS focal, and an iterator of (gt frame, pred frame)."""
     library = library or load_bodies()
     rng = np.random.default_rng(opts.seed)
-    camera = random_camera(rng, opts.image_size, opts.roll_deg)
+    camera, (pos, heading) = _camera_and_places(rng, opts)
     hps_focal, _ = hps_focal_px(opts.hps_focal, camera)
     P = opts.people
-    pos, heading = sample_walks(rng, camera, P, opts.frames)
     body_index = rng.integers(0, len(library), P)
     stature = np.clip(rng.normal(1.70, opts.stature_sd_m, P), 1.45, 2.05)
     scale = stature / library.stature_m[body_index]
@@ -317,8 +329,9 @@ def _write_scene(out: Path, camera: Camera, hps_focal: float, frames: Iterator[t
         pred_meta["focal_rule"] = rule
     write_meta(out / "pred", {**pred_meta, "source": "rotavat-synth", "fps": FPS})
     write_camera_yaml(out / "gt" / "camera.yaml", camera)
-    params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(opts).items()}
+    params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(opts).items()
+              if k not in _LATER_OPTIONS or v != _LATER_OPTIONS[k]}
     write_yaml(out / "synth.yaml", params)
     return {"out": str(out), "gt": str(out / "gt"), "pred": str(out / "pred"), "frames": opts.frames,
-            "people": opts.people, "camera": camera_parameters(camera),
+            "people": opts.people, "layout": opts.layout, "camera": camera_parameters(camera),
             "hps_focal_px": hps_focal, "hps_focal_rule": rule}

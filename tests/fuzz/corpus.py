@@ -1811,7 +1811,8 @@ def gen_degenerate() -> list[Case]:
     add("nobody/eval", lambda: {**seq(empty())(), **{k.replace("seq/", "gt/", 1): v for k, v in
                                                       contract_seq("seq", frames=empty()).items()}},
         ["eval", "seq", "--gt", "gt", "--out", "ev"], "either", ["ev"])
-    add("one-person/calibrate", lambda: seq(scene_frames(1, 1))(), calib, "refuse")
+    add("one-person/calibrate", lambda: seq(scene_frames(1, 1))(), calib, "ok", ["cal.yaml"],
+        [check_camera_yaml("cal.yaml")], note="one pair: the priors answer, and fit.implausible says what is open")
     add("heads-below-feet/calibrate", lambda: seq([_swap_2d(f) for f in scene_frames()])(), calib, "refuse")
     add("identical-points/calibrate", lambda: seq([_set(f, feet_2d=np.full_like(f["feet_2d"], 100.0),
                                                         heads_2d=np.full_like(f["heads_2d"], 100.0))

@@ -1,0 +1,132 @@
+"""What the calibration assumes where the people do not tell: documented priors on the camera.
+
+People at one depth (one person walking across the view, a group photo) cannot fix the focal
+length, and a person standing still cannot fix the pitch or the camera height either. Instead of
+refusing (or answering with a camera at the end of a search range), the refinement is a maximum
+a posteriori estimate: the people's pairs plus weak Gaussian priors on the internal parameters
+(:mod:`.params`: ``log f``, pitch, roll, ``log h``). Where the people determine a parameter the prior
+moves it by a negligible amount (its information is a few percent of theirs); where they do not,
+the answer is the prior's, and the fit says so (``fit.determined_by``).
+
+The priors (each a normal distribution on the internal parameter):
+
+==========  ==========================  ===============================================================
+parameter   prior                       why
+==========  ==========================  ===============================================================
+focal       ``log(f / D)`` ~ N(log 0.75,  real lenses, ``D`` the image diagonal: phones' main cameras
+            0.30) (the *lens prior*)      0.65-0.75 D, webcams 0.62-0.73 D, compacts ~0.71 D, surveillance
+                                        cameras 0.8-1.25 D, wide-angle (2.8 mm) surveillance lenses of
+                                        100 deg horizontally ~0.35 D; +-2 sd spans 0.41-1.37 D, +-3 sd
+                                        0.30-1.84 D (a 2.9 deg field of view, 4D-Humans' focal rule, is
+                                        +10 sd: an HPS tool's rule is never a prior)
+pitch       N(15 deg, 25 deg)             handheld cameras look about level (-5..15 deg), surveillance
+                                        cameras down (10-60 deg); a bound, not an opinion
+roll        N(0 deg, 10 deg)              cameras are mounted and held nearly level
+height      ``log h`` ~ N(log 3 m, 0.8)   handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m)
+==========  ==========================  ===============================================================
+
+With ``--camera-height M`` the height is known and the people's mean stature ``S`` is estimated
+instead; since the model sees only ``S / h``, that is the height slot with the prior
+``log h ~ N(log M, sd_S / S0)``: the group's mean stature ``N(S0, 0.10 m)`` (adult means differ by
+country and sex mix by +-8 cm, children and HPS size bias add more), reported as a stature.
+``--fov-prior DEG`` replaces the lens prior by the user's own on the vertical field of view, and
+``focal_prior="none"`` removes it (the people alone then decide the focal, or the fit refuses).
+
+>>> p = default_priors((1920, 1080))
+>>> round(float(np.exp(p.mean[FOCAL])), 1), round(float(np.rad2deg(p.mean[PITCH])), 1)
+(1652.2, 15.0)
+>>> rows = p.rows(to_internal(param_vector(focal=1652.2, pitch=np.deg2rad(40.0), roll=0.0, height=3.0))[None],
+...               param_vector(focal=True, pitch=True, roll=True, height=True, dtype=bool))
+>>> np.round(rows, 3).tolist()        # (pitch - 15 deg) / 25 deg = 1; the rest at their means
+[[0.0, 1.0, 0.0, 0.0]]
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal
+
+__all__ = ["FOCAL_PRIORS", "LENS_FOCAL_OVER_DIAGONAL", "LENS_LOG_SD", "PITCH_PRIOR_DEG", "ROLL_PRIOR_SD_DEG",
+           "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
+
+FOCAL_PRIORS = ("lens", "none")  # calibrate.focal_prior: the lens prior, or none (the people alone)
+LENS_FOCAL_OVER_DIAGONAL = 0.75  # median focal of real lenses / image diagonal (table above)
+LENS_LOG_SD = 0.30  # sd of log(f / D)
+PITCH_PRIOR_DEG = (15.0, 25.0)  # mean, sd
+ROLL_PRIOR_SD_DEG = 10.0  # mean 0
+HEIGHT_PRIOR_M = 3.0  # median camera height
+HEIGHT_LOG_SD = 0.8  # sd of log h
+MEAN_STATURE_SD_M = 0.10  # the people's mean stature, when the camera height is given
+
+
+@dataclass(frozen=True)
+class Priors:
+    """Independent normal priors on the internal parameters: ``mean (6,)`` and ``sd (6,)`` (inf: no prior).
+
+    ``focal_kind`` names the focal's prior in messages: "lens", "fov" (the user's field-of-view
+    prior) or "none"; ``height_kind``: "camera" (where cameras are mounted) or "stature" (the
+    camera height is known and the prior is on the people's mean stature).
+    """
+
+    mean: np.ndarray
+    sd: np.ndarray
+    focal_kind: str = "lens"
+    height_kind: str = "camera"
+
+    def rows(self, x_internal: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """Prior residuals (Q, R) of internal parameter sets ``x_internal (Q, 6)``: one row per free slot with a prior."""
+        slots = self.slots(free)
+        return (x_internal[:, slots] - self.mean[slots]) / self.sd[slots]
+
+    def slots(self, free: np.ndarray) -> np.ndarray:
+        """Indices of the free slots that have a prior."""
+        return np.flatnonzero(np.asarray(free, bool) & np.isfinite(self.sd))
+
+    def without_focal(self) -> "Priors":
+        """The same priors with none on the focal."""
+        sd = self.sd.copy()
+        sd[FOCAL] = math.inf
+        return Priors(self.mean, sd, "none", self.height_kind)
+
+
+def default_priors(image_size: tuple[int, int], *, focal_prior: str = "lens",
+                   fov_prior_deg: tuple[float, float] | None = None, camera_height_m: float | None = None,
+                   person_height_m: float = 1.70) -> Priors:
+    """The priors of a calibration (module docstring) for an image of ``image_size (W, H)`` px.
+
+    fov_prior_deg: (mean, sd) of the vertical field of view, the user's own focal prior (replaces the
+    lens prior); focal_prior: "lens" or "none"; camera_height_m: a known camera height, which turns
+    the height prior into one on the people's mean stature about ``person_height_m``.
+    """
+    if focal_prior not in FOCAL_PRIORS:
+        raise ValueError(f"focal_prior must be one of {FOCAL_PRIORS}, got {focal_prior!r}")
+    W, H = (float(v) for v in image_size)
+    mean = param_vector(focal=math.log(LENS_FOCAL_OVER_DIAGONAL * math.hypot(W, H)),
+                        pitch=math.radians(PITCH_PRIOR_DEG[0]), roll=0.0, height=math.log(HEIGHT_PRIOR_M))
+    sd = np.full(N_PARAMS, math.inf)
+    sd[[FOCAL, PITCH, ROLL, HEIGHT]] = (LENS_LOG_SD, math.radians(PITCH_PRIOR_DEG[1]),
+                                        math.radians(ROLL_PRIOR_SD_DEG), HEIGHT_LOG_SD)
+    focal_kind, height_kind = focal_prior, "camera"
+    if fov_prior_deg is not None:  # the user's prior on the vertical field of view, as a log-focal prior
+        fov_mean, fov_sd = fov_prior_deg
+        mean[FOCAL] = math.log(H / (2.0 * math.tan(math.radians(fov_mean) / 2.0)))
+        # d log f / d fov = -1 / sin(fov) (radians): the fov's sd as a log-focal sd
+        sd[FOCAL] = math.radians(fov_sd) / math.sin(math.radians(fov_mean))
+        focal_kind = "fov"
+    elif focal_prior == "none":
+        sd[FOCAL] = math.inf
+    if camera_height_m is not None:
+        mean[HEIGHT] = math.log(camera_height_m)
+        sd[HEIGHT] = MEAN_STATURE_SD_M / person_height_m
+        height_kind = "stature"
+    return Priors(mean, sd, focal_kind, height_kind)
+
+
+def lens_range_px(image_size: tuple[int, int], n_sd: float = 3.0) -> tuple[float, float]:
+    """The lens prior's focal range (px) within ``n_sd`` standard deviations of its median."""
+    centre = LENS_FOCAL_OVER_DIAGONAL * math.hypot(*(float(v) for v in image_size))
+    return centre * math.exp(-n_sd * LENS_LOG_SD), centre * math.exp(n_sd * LENS_LOG_SD)

@@ -1,0 +1,133 @@
+"""``rotavat measure SEQ``: each person's stature (m) from the sequence's calibrated camera."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..atomic import atomic_open
+from ..calibration.pairs import gather_pairs
+from ..camera import Camera
+from ..errors import InputError
+from ..measure import TrackStatures, statures_from_camera_m, statures_by_track
+from ..outputs import beside, check_output_file
+from ..plain import csv_cell
+from ..sequence import Sequence, read_camera_yaml
+from ._common import (ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, input_sequence,
+                      print_json, report)
+
+CSV_COLUMNS = ("track_id", "pairs", "median_stature_m", "spread_m")
+CSV_SIGNATURE = ",".join(CSV_COLUMNS)  # how every CSV this command writes starts (the overwrite check)
+UNTRACKED = -1  # the track of pairs without a person id (every pair, when some frame has no person_ids)
+
+
+def measure(
+    seq: Annotated[Path, typer.Argument(help="Sequence directory (2D feet_2d/heads_2d with person_ids, or meshes with their focal); with --from the HPS tool's output.")],
+    camera: Annotated[Path | None, typer.Option(help="camera.yaml to measure with; default SEQ/camera.yaml (made by `rotavat calibrate SEQ`).", dir_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Per-track CSV; default SEQ_measure.csv beside the input.", dir_okay=False)] = None,
+    force: ForceOpt = False,
+    from_: FromOpt = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Measure each person's stature (sole to crown) from the camera: median and spread per track."""
+    out = out or beside(seq, "_measure.csv")
+    check_output_file(out, [seq, *([camera] if camera else [])], force, signature=CSV_SIGNATURE.encode())
+    quiet_notes = quiet or as_json
+    with input_sequence(seq, from_, image_size, smpl_model, read_camera=camera is None, quiet=quiet_notes) as sequence:
+        cam, fit, origin = _camera(sequence, camera, from_)
+        pairs = gather_pairs(sequence)
+    statures_m = statures_from_camera_m(pairs.feet_px, pairs.heads_px, cam)
+    ids = pairs.person_ids if pairs.tracked else np.full(len(statures_m), UNTRACKED, np.int64)
+    tracks = statures_by_track(statures_m, np.where(ids < 0, UNTRACKED, ids))
+    _write_csv(out, tracks)
+    _warn(fit, origin, pairs.tracked, statures_m, quiet_notes)
+    finite = statures_m[np.isfinite(statures_m)]
+    people = tracks.median_m[(tracks.ids != UNTRACKED) & (tracks.pairs > 0)]
+    summary = {"camera": origin, "csv": str(out), "pairs": len(statures_m), "measured": len(finite),
+               "tracked": pairs.tracked, "median_stature_m": float(np.median(finite)) if len(finite) else None,
+               "median_of_tracks_m": float(np.median(people)) if len(people) else None, "tracks": tracks.rows()}
+    if as_json:
+        print_json(summary)
+        return
+    report(_table(tracks, summary), quiet)
+    report(f"camera: {origin}; wrote {out}", quiet)
+
+
+def _camera(seq: Sequence, given: Path | None, fmt: str | None) -> tuple[Camera, dict, str]:
+    """The camera to measure with, its fit block and how messages name it: ``--camera``, else the
+    sequence's own (its camera.yaml, or the camera its format carried), else an InputError naming
+    the command that makes one."""
+    if given is not None:
+        cam, fit = read_camera_yaml(given, seq.image_size)
+        origin = str(given)
+    elif seq.camera is not None:
+        cam, fit, origin = seq.camera, dict(seq.camera_fit or {}), seq.camera_label
+    else:
+        make = (f"`rotavat calibrate {seq.label}`" if fmt is None else
+                f"`rotavat calibrate {seq.label} --from {fmt} --out camera.yaml` and pass --camera camera.yaml")
+        raise InputError(f"{seq.label}: no camera to measure with: make one with {make} (or pass --camera FILE)")
+    size = seq.image_size
+    if size is not None and tuple(size) != tuple(cam.image_size):
+        raise InputError(f"{origin}: its image size {cam.image_size[0]}x{cam.image_size[1]} differs from the "
+                         f"sequence's {size[0]}x{size[1]} ({seq.label}): not this sequence's camera")
+    return cam, fit, origin
+
+
+def _note(message: str, quiet: bool) -> None:
+    """One diagnostic line on stderr unless quiet (never wrapped: logs and tests see one line)."""
+    if not quiet:
+        console.print(message, highlight=False, soft_wrap=True)
+
+
+def _warn(fit: dict, origin: str, tracked: bool, statures_m: np.ndarray, quiet: bool) -> None:
+    """Diagnostics on stderr: a camera its calibration found implausible, pairs not grouped by person,
+    pairs that could not be measured."""
+    implausible = fit.get("implausible")
+    if isinstance(implausible, list) and implausible:
+        more = f"; and {len(implausible) - 3} more" if len(implausible) > 3 else ""
+        shown = "; ".join(str(v) for v in implausible[:3]) + more
+        _note(f"[yellow]warning:[/] {escape(origin)}: its calibration found the camera implausible (fit.implausible: "
+              f"{escape(shown)}): statures measured with it may be wrong", quiet)
+    if not tracked:
+        _note("note: some frames have no person_ids: every pair is pooled into one row (track -1)", quiet)
+    missing = int(np.isnan(statures_m).sum())
+    if missing:
+        _note(f"note: {missing} of {len(statures_m)} pairs could not be measured (foot on or above the horizon, or "
+              "head behind the camera)", quiet)
+
+
+def _write_csv(path: Path, tracks: TrackStatures) -> None:
+    """One row per track (atomic): track_id, pairs, median_stature_m, spread_m (half the IQR)."""
+    with atomic_open(path, "w") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(CSV_COLUMNS)
+        for row in tracks.rows():
+            writer.writerow([row["id"], row["pairs"], csv_cell(row["median_m"]), csv_cell(row["spread_m"])])
+
+
+def _table(tracks: TrackStatures, summary: dict) -> Table:
+    """Rich table: one row per track, the overall medians in the caption."""
+    table = Table(title="statures (sole to crown)")
+    for col in ("track", "pairs", "median m", "spread m (½ IQR)"):
+        table.add_column(col, justify="right")
+    for row in tracks.rows():
+        label = "untracked" if row["id"] == UNTRACKED else str(row["id"])
+        table.add_row(label, str(row["pairs"]), _metres(row["median_m"]), _metres(row["spread_m"]))
+    table.caption = (f"overall median {_metres(summary['median_stature_m'])} m over {summary['measured']} of "
+                     f"{summary['pairs']} pairs; median of the tracks' medians "
+                     f"{_metres(summary['median_of_tracks_m'])} m")
+    return table
+
+
+def _metres(value: float | None) -> str:
+    """A stature in metres with 3 decimals (millimetres), 'n/a' when unknown."""
+    return "n/a" if value is None or not np.isfinite(value) else f"{value:.3f}"
