@@ -284,15 +284,20 @@ def check_targets(scenes: list[Scene]) -> bool:
     """Print the targets' measurements and PASS/MISS; True when every one is met."""
     print("\n### Targets\n")
     rows, ok_all = [], True
-    for layout in dict.fromkeys(s.layout for s in scenes):
+    one = [s for s in scenes if s.one_depth]
+    for rule in dict.fromkeys(s.rule for s in one):  # the issue's target: every rule, over the one-depth scenes
+        group = [s for s in one if s.rule == rule]
+        default, tool = (_median(s.get(v, "w_mpjpe_mm") for s in group) for v in ("default", "tool-f"))
+        ok = default < tool  # NaN (refused everywhere) is a miss
+        rows.append([f"one-depth / {rule}: default < tool-f (median W-MPJPE over {len(group)} scenes)",
+                     f"{_fmt(default, '{:,.0f}')} vs {_fmt(tool, '{:,.0f}')} mm", "PASS" if ok else "MISS"])
+        ok_all &= ok
+    for layout in dict.fromkeys(s.layout for s in scenes):  # per layout: for the record (3 seeds are noisy)
         for rule in dict.fromkeys(s.rule for s in scenes if s.layout == layout):
             group = [s for s in scenes if s.layout == layout and s.rule == rule]
             default, tool = (_median(s.get(v, "w_mpjpe_mm") for s in group) for v in ("default", "tool-f"))
-            ok = default < tool  # NaN (refused everywhere) is a miss
-            rows.append([f"{layout} / {rule}: default < tool-f (median W-MPJPE)",
-                         f"{_fmt(default, '{:,.0f}')} vs {_fmt(tool, '{:,.0f}')} mm", "PASS" if ok else "MISS"])
-            ok_all &= ok
-    one = [s for s in scenes if s.one_depth]
+            rows.append([f"({layout} / {rule}: default vs tool-f, median W-MPJPE)",
+                         f"{_fmt(default, '{:,.0f}')} vs {_fmt(tool, '{:,.0f}')} mm", "info"])
     if one:
         covered = sum(bool(s.variants["default"].covered.get("focal_px")) for s in one)
         ok = covered >= TARGET_COVERAGE * len(one)

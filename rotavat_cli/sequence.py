@@ -513,6 +513,14 @@ class Sequence:
         with input_errors(self._meta_name):
             return focal_kind_or_default(self.meta.get("focal_kind"))
 
+    @property
+    def joints_layout(self) -> str | None:
+        """The layout of the frames' 3D joints, as meta.yaml's ``import.joints_layout`` names it (e.g.
+        'phalp44 (OpenPose-25 + 19 extra)'); None when not named (SMPL's, by the joint count)."""
+        block = self.meta.get("import") if isinstance(self.meta, dict) else None
+        layout = block.get("joints_layout") if isinstance(block, dict) else None
+        return layout if isinstance(layout, str) else None
+
     @cached_property
     def intrinsics(self) -> Intrinsics:
         """Sequence-level intrinsics from meta.yaml (frames may override)."""

@@ -4,6 +4,7 @@ what the bodies know (who stands, which way is up), at the level of pairs and of
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -247,3 +248,23 @@ def test_the_cli_shows_what_determined_each_parameter_and_flags_an_open_one(tmp_
 def test_a_hand_written_camera_is_never_flagged(tmp_path):
     write_camera_yaml(tmp_path / "camera.yaml", HANDHELD)
     assert "fit" not in yaml.safe_load((tmp_path / "camera.yaml").read_text())
+
+
+def test_align_flags_people_who_do_not_stand_and_leaves_them_out_of_the_medians():
+    from rotavat_cli.alignment import AlignSummary, align_frame
+    from rotavat_cli.sequence import Frame
+
+    joints = _seated_joints(2, np.array([False, True]))  # (2 people, 24, 3): one stands, one sits
+    joints[1, :, 0] += 1.0
+    cam = Camera((1280, 720), 900.0, None, math.radians(10.0), 0.0, 1.6)
+    feet = cam.project(joints[:, [7, 8]].mean(axis=1) + [0.0, 0.05, 0.0])
+    heads = cam.project(joints[:, 15] - [0.0, 0.1, 0.0])
+    frame = Frame("f", {"joints": joints, "feet_2d": feet, "heads_2d": heads, "person_ids": np.array([0, 1]),
+                        "focal_length": np.float64(900.0), "image_size": np.array([1280, 720])})
+    _, cols = align_frame(frame, cam)
+    assert cols["flag"].tolist() == ["", "sitting"]
+    summary = AlignSummary(Path("."))  # counts only: no folder is written
+    summary.add(2, cols)
+    summary.finish()
+    assert summary.aligned == 2 and summary.not_standing == 1 and summary.flagged == {"sitting": 1}
+    assert summary.median_stature_m == pytest.approx(float(cols["stature_m"][0]))

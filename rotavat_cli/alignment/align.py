@@ -32,12 +32,13 @@ from ..landmarks import foot_head_points
 from ..outputs import check_output_dir
 from ..parallel import cap_workers, ordered_map
 from ..plain import csv_cell
+from ..posture import POSTURES, postures
 from ..sequence import Frame, Intrinsics, Sequence, can_align, write_camera_yaml, write_frame, write_meta
 from .options import AlignOptions
 from .transform import (FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
                         rotavat_transforms, transformed_blocks)
 
-__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "MeshIntrinsics", "AlignSummary",
+__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "NOT_STANDING", "ALIGNED_FLAGS", "MeshIntrinsics", "AlignSummary",
            "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]
 
 PEOPLE_COLUMNS = (
@@ -45,6 +46,9 @@ PEOPLE_COLUMNS = (
     "final_scale", "mesh_focal_px", "drift_mean_px", "drift_max_px", "head_drift_px", "flag",
 )
 IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outside the plausible range (AlignOptions)
+# Aligned, but the joints say the person does not stand (rotavat_cli.posture): a sitting body has no stature.
+NOT_STANDING = tuple(name for name in POSTURES if name not in ("standing", "unknown"))
+ALIGNED_FLAGS = ("", IMPLAUSIBLE_STATURE, *NOT_STANDING)  # flags of people that were transformed
 
 
 @dataclass(frozen=True)
@@ -210,14 +214,17 @@ def output_dtype(points: np.ndarray) -> np.dtype:
 
 def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = None,
                 stature_by_id: dict[int, float] | None = None,
-                intrinsics: Intrinsics | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
+                intrinsics: Intrinsics | None = None,
+                joints_layout: str | None = None) -> tuple[Frame, dict[str, np.ndarray]]:
     """Align one frame into ``camera``: the new frame and per-person columns (see ``PEOPLE_COLUMNS``).
 
     options: ``upright`` and ``stature_range_m`` are read (default :class:`AlignOptions`);
     stature_by_id: per person_id stature to keep (``height_from: track``, :func:`track_statures`);
     intrinsics: what the frame's meshes were made with (``Sequence.frame_intrinsics``; None: the
-    frame's own keys); what is not stated is the camera's own. People aligned to a stature outside
-    ``options.stature_range_m`` are flagged ``implausible_stature`` (still aligned).
+    frame's own keys); what is not stated is the camera's own; joints_layout: the layout of the
+    frame's ``joints`` (``Sequence.joints_layout``; None: SMPL's by count). People aligned to a
+    stature outside ``options.stature_range_m`` are flagged ``implausible_stature``, people whose
+    joints say they sit, kneel or bend by their posture (``sitting``, ...); both are still aligned.
     """
     options = AlignOptions() if options is None else options
     upright, stature_range_m = options.upright, options.stature_range_m
@@ -243,6 +250,10 @@ def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = Non
     with np.errstate(invalid="ignore"):
         implausible = ok & ((transform.stature_m < stature_range_m[0]) | (transform.stature_m > stature_range_m[1]))
     flags[implausible] = IMPLAUSIBLE_STATURE
+    posture = None if frame.get("joints") is None else postures(frame.data["joints"], joints_layout)
+    if posture is not None:
+        seated = ok & np.isin(posture, NOT_STANDING)
+        flags[seated] = posture[seated]
     columns = {
         "frame": np.full(P, frame.name, dtype=object),
         "person_id": frame.person_ids,
@@ -310,7 +321,8 @@ def _align_chunk(task: tuple) -> tuple[list[tuple[int, dict[str, np.ndarray], st
     for name in names:
         frame = seq.read_frame(name)
         seq.require_static_frame(frame, camera.image_size)
-        new_frame, cols = align_frame(frame, camera, options, stature_by_id, seq.frame_intrinsics(frame))
+        new_frame, cols = align_frame(frame, camera, options, stature_by_id, seq.frame_intrinsics(frame),
+                                      seq.joints_layout)
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols)))
     return results, seq.frame_notes(names)
@@ -324,7 +336,8 @@ class AlignSummary:
     """What ``align_sequence`` did (``add`` per frame, then ``finish``).
 
     ``aligned`` counts the people that were transformed (``implausible`` of them with a stature
-    outside the plausible range); ``flagged`` counts every flag, including ``implausible_stature``.
+    outside the plausible range, ``not_standing`` of them sitting, kneeling or bending); ``flagged``
+    counts every flag, including those. The medians are over the aligned people who stand.
     """
 
     out: Path
@@ -332,6 +345,7 @@ class AlignSummary:
     people: int = 0
     aligned: int = 0
     implausible: int = 0
+    not_standing: int = 0
     flagged: dict[str, int] = field(default_factory=dict)
     median_depth_scale: float = float("nan")
     median_abs_depth_change_pct: float = float("nan")
@@ -345,19 +359,22 @@ class AlignSummary:
     def add(self, n_people: int, cols: dict[str, np.ndarray]) -> None:
         """Count one frame's people and keep the aligned people's factors."""
         flag = np.asarray(cols["flag"], dtype=object)
-        ok = (flag == "") | (flag == IMPLAUSIBLE_STATURE)
+        ok = (flag == "") | (flag == IMPLAUSIBLE_STATURE)  # aligned and standing: the medians
+        seated = np.isin(flag, NOT_STANDING)
         self.frames += 1
         self.people += n_people
-        self.aligned += int(ok.sum())
+        self.aligned += int(ok.sum() + seated.sum())
         self.implausible += int((flag == IMPLAUSIBLE_STATURE).sum())
+        self.not_standing += int(seated.sum())
         for name in flag[flag != ""]:
             self.flagged[str(name)] = self.flagged.get(str(name), 0) + 1
         self._aligned_columns.append({k: np.asarray(cols[k], dtype=np.float64)[ok]
                                       for k in _SUMMARY_COLUMNS})
 
     def finish(self) -> None:
-        """Medians over every aligned person (small: four floats per person)."""
-        if not self.aligned:
+        """Medians over every aligned person who stands (small: four floats per person)."""
+        if not self._aligned_columns or not sum(len(c["stature_m"]) for c in self._aligned_columns):
+            self._aligned_columns.clear()
             return
         col = {k: np.concatenate([c[k] for c in self._aligned_columns]) for k in self._aligned_columns[0]}
         self.median_depth_scale = float(np.median(col["depth_scale"]))

@@ -76,7 +76,7 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     pair; ``not_in_front`` counts them, so a refusal can say why.
     """
     feet, heads, index, ids, axes, poses, sources = [], [], [], [], [], [], set()
-    layout = joints_layout(seq)
+    layout = seq.joints_layout
     tracked = True
     not_in_front = 0
     for i, frame in enumerate(seq.frames()):
@@ -104,13 +104,6 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
                          np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source,
                          not_in_front, np.concatenate(axes)[keep] if axes else np.zeros((0, 3)),
                          np.concatenate(poses)[keep] if poses else np.zeros(0, "<U8"))
-
-
-def joints_layout(seq: Sequence) -> str | None:
-    """The layout of the sequence's 3D joints: meta.yaml's ``import.joints_layout`` (None: SMPL's by count)."""
-    block = (seq.meta or {}).get("import")
-    layout = block.get("joints_layout") if isinstance(block, dict) else None
-    return layout if isinstance(layout, str) else None
 
 
 def _postures(frame: Frame, layout: str | None) -> np.ndarray:

@@ -77,7 +77,11 @@ def align(
         lo, hi = options.stature_range_m
         info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
              "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
-    if summary.aligned:
+    if summary.not_standing:
+        info(f"note: {summary.not_standing} aligned people do not stand, by their joints (sitting, kneeling or bending "
+             "in people.csv's flag): their feet are on the ground, but their implied stature means nothing and the "
+             "medians leave them out", quiet)
+    if summary.aligned > summary.not_standing:
         report(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
                f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m; "
                f"foot and crown keep their pixels, the other points move {summary.median_drift_px:.0f} px (median), "

@@ -116,8 +116,7 @@ def _frame_image(image_dir: Path, name: str) -> np.ndarray:
 
 def sequence_layout(seq: Sequence, n_joints: int) -> str | None:
     """The layout of a sequence's ``n_joints`` joints: meta.yaml's ``import.joints_layout``, else SMPL's by count."""
-    block = (seq.meta or {}).get("import")
-    return layout_name(block.get("joints_layout") if isinstance(block, dict) else None, n_joints)
+    return layout_name(seq.joints_layout, n_joints)
 
 
 def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_dir: Path | None = None) -> RowFrame:
