@@ -365,12 +365,13 @@ def write_spec(folder: Path, scene, image_size, model: BodyModel, focal: float, 
 
 # ---- AGORA ----------------------------------------------------------------------------------------
 def write_agora(folder: Path, scene, image_size=(3840, 2160), scene_tag="cam01", params=False, joints_2d=24,
-                root_centred=False) -> Path:
+                root_centred=False, batch_axis=False) -> Path:
     """<image>_personId_<k>.pkl dicts: verts + allSmplJoints3d (camera) and joints (24, 2) at 3840x2160.
 
     joints_2d: 45 appends 21 points to 'joints' (smplx.create's SMPL output, as AGORA's own files);
     root_centred: people written without their translation (pelvis at the camera centre, transl = 0),
-    as AGORA's sample predictions are.
+    as AGORA's sample predictions are; batch_axis: 'joints' (1, K, 2) and 'verts' (1, V, 3), as those
+    samples' joints are.
     """
     folder.mkdir(parents=True, exist_ok=True)
     focal_4k = 18.0 / 36.0 * 3840 if scene_tag.startswith("cam0") else 28.0 / 36.0 * 3840
@@ -387,6 +388,8 @@ def write_agora(folder: Path, scene, image_size=(3840, 2160), scene_tag="cam01",
                                 "global_orient": p.pose[None, :1], "body_pose": p.pose[None, 1:]}}
             else:
                 d = {"joints": joints_4k, "verts": p.verts_cam - shift, "allSmplJoints3d": p.joints_cam - shift}
+            if batch_axis:
+                d = {**d, "joints": d["joints"][None], **({"verts": d["verts"][None]} if "verts" in d else {})}
             (folder / f"{image}_personId_{k}.pkl").write_bytes(pickle.dumps(d, protocol=2))
     return folder
 

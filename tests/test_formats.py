@@ -814,3 +814,23 @@ def test_a_spawned_worker_reads_the_source_once(tmp_path, model, camera, model_p
             np.testing.assert_array_equal(got[key], want[key])
     dropped = [w for w in seq.warnings if "dropped 1 person" in w]
     assert len(dropped) == 1 and [w for notes in first[4].values() for w in notes.warnings] == dropped
+
+
+def test_agora_sample_predictions_with_a_batch_axis_import_like_the_others(tmp_path, scene):
+    """AGORA's own sample predictions carry 'joints' (1, 45, 2) and 'verts' (1, 6890, 3): the batch axis of one
+    is dropped (they were refused: "'joints' must have 2 dimensions"); other shapes still are."""
+    plain = import_sequence(F.write_agora(tmp_path / "a", scene, joints_2d=45), tmp_path / "plain", "agora")
+    batched = import_sequence(F.write_agora(tmp_path / "b", scene, joints_2d=45, batch_axis=True), tmp_path / "batch",
+                              "agora")
+    assert batched["people"] == plain["people"] > 0
+    for x, y in zip(open_sequence(tmp_path / "plain").frames(), open_sequence(tmp_path / "batch").frames()):
+        for key in ("vertices", "keypoints_2d", "feet_2d"):
+            if x.get(key) is not None:
+                np.testing.assert_array_equal(x.data[key], y.data[key])
+    bad = tmp_path / "c"
+    F.write_agora(bad, scene[:1])
+    victim = sorted(bad.glob("*.pkl"))[0]
+    data = safe_pickle.load_file(victim)
+    victim.write_bytes(pickle.dumps({**data, "joints": np.repeat(data["joints"][None], 2, axis=0)}, protocol=2))
+    with pytest.raises(InputError, match=r"'joints' must have 2 dimensions \(or a leading batch axis of 1\)"):
+        import_sequence(bad, tmp_path / "bad", "agora")

@@ -155,3 +155,21 @@ def test_fourdhumans_walker_without_a_model(tmp_path, runner):
     result = invoke(runner, "align", tmp_path / "out", "--out", tmp_path / "aligned", "--json")
     assert result.exit_code == 0, result.stderr
     assert 1.5 < json.loads(result.stdout)["median_stature_m"] < 1.9
+
+
+AGORA_SAMPLE = REALFILES / "agora_sample" / "smpl_verts_personId_0.pkl"
+
+
+@pytest.mark.skipif(not AGORA_SAMPLE.is_file(), reason="AGORA's sample predictions absent (../shared/realfiles)")
+def test_agora_sample_prediction_imports_and_calibrate_names_what_still_works(tmp_path, runner):
+    """AGORA's own sample (a batch axis of one on 'joints', root-centred): imported; calibrate refuses in one
+    line naming the step that works (root-aligned eval), and that step runs."""
+    summary = import_sequence(AGORA_SAMPLE, tmp_path / "ag", "agora")
+    frame = next(open_sequence(tmp_path / "ag").frames())
+    assert summary["people"] == 1 and frame.data["keypoints_2d"].shape[:2] == (1, 45)
+    result = invoke(runner, "calibrate", tmp_path / "ag")
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1
+    step = result.stderr.strip().rsplit("root-aligned metrics still apply: ", 1)[1]
+    assert step == f"rotavat eval {tmp_path / 'ag'} --gt GT"
+    ran = invoke(runner, *step.split()[1:-1], tmp_path / "ag", "--out", tmp_path / "ev")  # GT: itself, here
+    assert ran.exit_code == 0, ran.stderr

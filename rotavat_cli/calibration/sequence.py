@@ -122,6 +122,12 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
             per_frame = {"frames_fitted": len(spread.frame_ids), "frames_skipped": len(spread.skipped),
                          "median": spread.median, "iqr": spread.iqr}
     except DegenerateSceneError as exc:
+        if pairs.not_in_front and not len(pairs.feet_px):
+            noun = "person is" if pairs.not_in_front == 1 else "people are"
+            raise DegenerateSceneError(
+                f"{seq.label}: its {pairs.not_in_front} {noun} not placed in the camera frame (root-centred or behind "
+                f"the camera: rotavat info {seq.label}), so no camera can be calibrated from them, nor can they be "
+                f"aligned; root-aligned metrics still apply: rotavat eval {seq.label} --gt GT") from None
         why = (f"; {pairs.not_in_front} people were left out, root-centred or behind the camera (not placed in the "
                "camera frame: see rotavat info)") if pairs.not_in_front else ""
         raise DegenerateSceneError(f"{seq.label}: {exc}{why}") from None

@@ -78,6 +78,17 @@ def _groups(src: Path) -> list[tuple[str, list[Path]]]:
     return [(image, [p for _, p in sorted(items)]) for image, items in sorted(groups.items(), key=lambda kv: natural_key(kv[0]))]
 
 
+def _one_person(array: np.ndarray, name: str, source: Path) -> np.ndarray:
+    """A person's (K, D) array; AGORA's own sample predictions (agora_evaluation @8c9dece,
+    sample_pred_format/) carry a leading batch axis of one, (1, K, D), which is dropped."""
+    if array.ndim == 3 and array.shape[0] == 1:
+        array = array[0]
+    if array.ndim != 2:
+        raise fail(source, f"'{name}' must have 2 dimensions (or a leading batch axis of 1), got shape "
+                           f"{list(array.shape)}")
+    return array
+
+
 def _pose_params(params: Mapping, model_joints: int, pose2rot: bool, source: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """(pose (J, 3[, 3]), betas, transl, expression) from AGORA's 'params' dict."""
     names = ["global_orient", "body_pose"]
@@ -123,12 +134,12 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
             raise fail(path, f"expected a dict, got {type(data).__name__}")
         out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None}
         if data.get("joints") is not None:
-            joints_2d = as_array(data["joints"], "joints", path, ndim=2)
+            joints_2d = _one_person(as_array(data["joints"], "joints", path), "joints", path)
             if joints_2d.shape[1] != 2:
                 raise fail(path, f"'joints' must be (J, 2) pixels, got shape {list(joints_2d.shape)}")
             out["keypoints_2d"] = joints_2d * scale_2d
         if data.get("verts") is not None:
-            out["vertices"] = as_array(data["verts"], "verts", path, ndim=2, last=(3,))
+            out["vertices"] = _one_person(as_array(data["verts"], "verts", path, last=(3,)), "verts", path)
             if data.get("allSmplJoints3d") is not None:
                 out["joints"] = as_array(data["allSmplJoints3d"], "allSmplJoints3d", path, ndim=2, last=(3,))
         elif data.get("params") is not None:
