@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import re
+import shlex
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -568,7 +569,19 @@ class Sequence:
         if size is not None and expected is not None and tuple(size) != tuple(expected):
             raise InputError(f"{frame.source}: image size {size[0]}x{size[1]} differs from "
                              f"{expected[0]}x{expected[1]}: these frames are not one static camera's (e.g. photos of "
-                             "different sizes); calibrate and align each image size as a sequence of its own")
+                             f"different sizes); calibrate and align each image size as a sequence of its own"
+                             f"{self._split_hint(frame)}")
+
+    def _split_hint(self, frame: Frame) -> str:
+        """A command that makes ``frame`` a sequence of its own (a sequence directory's frame), or ''."""
+        source = self.frame_source
+        if not isinstance(source, DirectorySource) or self.form != "npz":
+            return ""
+        folder = shlex.quote(f"{self.path.name}_{frame.name}")
+        files = [shlex.quote(str(source.frame_path(frame.name)))]
+        if (self.path / META_FILE).is_file() and self.meta.get("image_size") is None:  # else it names the other size
+            files.append(shlex.quote(str(self.path / META_FILE)))
+        return f", e.g. mkdir {folder} && cp {' '.join(files)} {folder}/ && rotavat calibrate {folder}"
 
     def frame_path(self, name: str) -> Path:
         """File (npz) or folder (obj) of a frame (a sequence directory's; ValueError for other sources)."""

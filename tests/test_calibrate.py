@@ -281,7 +281,7 @@ def test_head_columns_that_disagree_with_the_rows_inflate_the_focal_std():
     res = fit_camera(data.feet_px, data.heads_px, TC_LIKE.image_size, frame_index=data.frame_index,
                      track_id=data.track_id)  # box-derived points read as mid-sole/crown, full residual
     assert any("head columns disagree" in w for w in res.warnings)
-    assert res.std["focal_px"] > 1.5 * res.std_statistical["focal_px"]  # the disagreement is in the std (up to
+    assert res.std["focal_px"] > 1.1 * res.std_statistical["focal_px"]  # the disagreement is in the std (up to
     # the lens prior's sd) and the camera, 5x the true focal, is never used silently: it is flagged
     assert abs(res.camera.focal_px - TC_LIKE.focal_px) < 2 * res.std["focal_px"] or any(
         finding.startswith("focal length") for finding in res.implausible)

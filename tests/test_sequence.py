@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from conftest import invoke, tetra_frame, tree_hash
 
 from rotavat_cli.camera import Camera
@@ -237,6 +240,13 @@ def test_frames_of_another_image_size_are_refused_by_calibrate_and_align(tmp_pat
     cal = invoke(runner, "calibrate", tmp_path / "s" / "pred", "--out", tmp_path / "cam.yaml")
     assert cal.exit_code == 2 and "image size 1666x2500 differs from 1280x720" in cal.stderr
     assert cal.stderr.count("\n") == 1 and "000002" in cal.stderr
+    step = cal.stderr.strip().split(", e.g. ", 1)[1]  # the step it names runs as written
+    assert step.startswith("mkdir ") and step.endswith("rotavat calibrate pred_000002")
+    rotavat = Path(sys.executable).parent / "rotavat"  # the console script of this environment
+    ran = subprocess.run(step.replace("rotavat calibrate", f"{rotavat} calibrate"), shell=True,
+                         cwd=tmp_path / "s", capture_output=True, text=True)
+    assert ran.returncode == 0, ran.stderr
+    assert yaml.safe_load((tmp_path / "s" / "pred_000002" / "camera.yaml").read_text())["image_size"] == [1666, 2500]
     aligned = invoke(runner, "align", "--in", tmp_path / "s" / "pred", "--camera", tmp_path / "s" / "gt" / "camera.yaml",
                      "--out", tmp_path / "a")
     assert aligned.exit_code == 2 and "not one static camera's" in aligned.stderr

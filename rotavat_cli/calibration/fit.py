@@ -195,7 +195,7 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
             params, mask_u, scale, start = refine_fit(prob, inp.feet[idx], inp.heads[idx], inp.pp, inp.size,
                                                       options.focal_px, free, box, _seed_grid(options),
                                                       options.max_rounds)
-            if not _priors_cover(inp, free):  # the people alone: no answer is better than a confident wrong one
+            if inp.priors is None or not inp.priors.cover(free):  # the people alone: no answer is better than a confident wrong one
                 if _unmoved(params, start, free):
                     method = "grid"
                     extra = [f"the refinement ended where it started (pitch {math.degrees(params[PITCH]):.5f} deg, "
@@ -309,14 +309,6 @@ def _seed_grid(options: CalibrateOptions):
         return options.grid
     steps = options.grid.steps
     return replace(options.grid, pitch_range_deg=(options.pitch_deg, options.pitch_deg), steps=(steps[0], 1, steps[2]))
-
-
-def _priors_cover(inp: PairsInput, free: np.ndarray) -> bool:
-    """True when every free camera parameter has a prior (the MAP answers whatever the pairs are)."""
-    if inp.priors is None:
-        return False
-    camera = param_vector(focal=True, pitch=True, roll=True, height=True, dtype=bool)
-    return bool(np.all(np.isfinite(inp.priors.sd[free & camera])))
 
 
 def _weigh_correlated_pairs(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,

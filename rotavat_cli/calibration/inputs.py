@@ -102,13 +102,9 @@ def check_inputs(feet_px, heads_px, image_size, options: CalibrateOptions, point
     if n_usable == 0:
         raise DegenerateSceneError(f"no usable foot-head pair (of {len(feet)}): no one stands with the head above "
                                    "the foot")
-    if priors is None or not np.isfinite(priors.sd[free[: len(priors.sd)] & _CAMERA_SLOTS]).all():
+    if priors is None or not priors.cover(free):
         _people_alone(feet[usable], heads[usable], n_usable, one_depth, residual, int(free.sum()))
     return PairsInput(size, feet, heads, usable, frames, tracks, pp, priors, residual, points, one_depth)
-
-
-# The camera's slots the priors can cover (focal, pitch, roll, height).
-_CAMERA_SLOTS = param_vector(focal=True, pitch=True, roll=True, height=True, dtype=bool)
 
 
 def _people_alone(feet: np.ndarray, heads: np.ndarray, n_usable: int, one_depth: bool, residual: ResidualKind,

@@ -48,19 +48,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal
+from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal  # noqa: F401 (to_internal: the doctest)
 
-__all__ = ["FOCAL_PRIORS", "LENS_FOCAL_OVER_DIAGONAL", "LENS_LOG_SD", "PITCH_PRIOR_DEG", "ROLL_PRIOR_SD_DEG",
+__all__ = ["FOCAL_PRIORS", "LENS_FOCAL_OVER_DIAGONAL", "LENS_LOG_SD", "LENS_DOF", "student_row", "PITCH_PRIOR_DEG", "ROLL_PRIOR_SD_DEG",
            "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
 
 FOCAL_PRIORS = ("lens", "none")  # calibrate.focal_prior: the lens prior, or none (the people alone)
 LENS_FOCAL_OVER_DIAGONAL = 0.75  # median focal of real lenses / image diagonal (table above)
-LENS_LOG_SD = 0.30  # sd of log(f / D)
+LENS_LOG_SD = 0.30  # sd of log(f / D) (the curvature at the median; the lens prior is a Student-t, LENS_DOF)
+LENS_DOF = 3.0  # its degrees of freedom: heavy tails, so people who determine a wide or long lens are not pulled back
 PITCH_PRIOR_DEG = (15.0, 25.0)  # mean, sd
 ROLL_PRIOR_SD_DEG = 10.0  # mean 0
 HEIGHT_PRIOR_M = 3.0  # median camera height
 HEIGHT_LOG_SD = 0.8  # sd of log h
 MEAN_STATURE_SD_M = 0.10  # the people's mean stature, when the camera height is given
+_CAMERA_SLOTS = param_vector(focal=True, pitch=True, roll=True, height=True, dtype=bool)  # the slots priors cover
 
 
 @dataclass(frozen=True)
@@ -78,19 +80,39 @@ class Priors:
     height_kind: str = "camera"
 
     def rows(self, x_internal: np.ndarray, free: np.ndarray) -> np.ndarray:
-        """Prior residuals (Q, R) of internal parameter sets ``x_internal (Q, 6)``: one row per free slot with a prior."""
+        """Prior residuals (Q, R) of internal parameter sets ``x_internal (Q, 6)``: one row per free slot with a
+        prior; the lens prior's row is a Student-t's (:func:`student_row`), the others normal."""
         slots = self.slots(free)
-        return (x_internal[:, slots] - self.mean[slots]) / self.sd[slots]
+        z = (x_internal[:, slots] - self.mean[slots]) / self.sd[slots]
+        if self.focal_kind == "lens" and FOCAL in slots:
+            k = int(np.flatnonzero(slots == FOCAL)[0])
+            z[:, k] = student_row(z[:, k], LENS_DOF)
+        return z
 
     def slots(self, free: np.ndarray) -> np.ndarray:
         """Indices of the free slots that have a prior."""
         return np.flatnonzero(np.asarray(free, bool) & np.isfinite(self.sd))
+
+    def cover(self, free: np.ndarray) -> bool:
+        """True when every free camera slot (focal, pitch, roll, height; ``free`` (6,) bool) has a prior: the
+        posterior then has a mode whatever the pairs are, and one usable pair is enough."""
+        return bool(np.all(np.isfinite(self.sd[np.asarray(free, bool) & _CAMERA_SLOTS])))
 
     def without_focal(self) -> "Priors":
         """The same priors with none on the focal."""
         sd = self.sd.copy()
         sd[FOCAL] = math.inf
         return Priors(self.mean, sd, "none", self.height_kind)
+
+
+def student_row(z: np.ndarray, dof: float) -> np.ndarray:
+    """Residual row (...) whose square is a Student-t's ``-2 log density`` (up to a constant) with ``dof``
+    degrees of freedom, for standardised values ``z`` (...): ``sign(z) sqrt((dof+1) log(1 + z^2 c / dof))``
+    with ``c = dof / (dof + 1)``, so that its curvature at 0 is a unit normal's (the same sd where the
+    prior alone speaks) while far values pull less (a lens the people put 2.2 sd from the median is
+    pulled 2.5x less than by a normal prior)."""
+    c = dof / (dof + 1.0)
+    return np.sign(z) * np.sqrt((dof + 1.0) * np.log1p(z * z * c / dof))
 
 
 def default_priors(image_size: tuple[int, int], *, focal_prior: str = "lens",

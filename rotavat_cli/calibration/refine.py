@@ -21,7 +21,6 @@ from .params import FOCAL, from_internal, param_bounds, to_internal
 __all__ = ["robust_least_squares", "min_pairs", "fit_with_rejection", "refine_fit"]
 
 _SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
-_CAMERA = np.array([True, True, True, True, False, False])  # focal, pitch, roll, height (params slots)
 _FULL_START_WIDEN = 4.0  # the full fit starts from the pairs within 4x the 99% chi-square of the best start
 
 
@@ -50,7 +49,7 @@ def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, s
 def min_pairs(prob: Problem, free: np.ndarray) -> int:
     """Fewest pairs a fit keeps: 1 when the priors cover every free camera parameter, else 3 (and enough
     residual components for the free parameters)."""
-    if prob.priors is not None and np.all(np.isfinite(prob.priors.sd[free & _CAMERA])):
+    if prob.priors is not None and prob.priors.cover(free):
         return 1
     return max(3, math.ceil(int(free.sum()) / prob.dof))
 

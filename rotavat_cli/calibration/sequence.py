@@ -165,8 +165,8 @@ def _standing(seq: Sequence, pairs: FootHeadPairs) -> tuple[FootHeadPairs, str |
     if away.all():
         raise DegenerateSceneError(f"{seq.label}: no one stands ({what}, by their joints' knee and hip angles): "
                                    "sitting or kneeling people are not verticals of known height; give the camera "
-                                   "(rotavat align SEQ --camera FILE, docs/conventions.md#camerayaml), or "
-                                   "--all-people to calibrate from them anyway")
+                                   f"(rotavat align {seq.label} --camera FILE, docs/conventions.md#camerayaml), or "
+                                   f"calibrate from them anyway (rotavat calibrate {seq.label} --all-people)")
     who = "person who does not stand" if people == 1 else "people who do not stand"
     note = (f"left out {people} {who} ({what}; {int(away.sum())} of {len(away)} pairs, by their joints' knee and "
             "hip angles; --all-people keeps them)")
