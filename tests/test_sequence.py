@@ -291,7 +291,8 @@ def test_calibrate_leaves_out_root_centred_people_and_says_so(tmp_path, runner):
         data.update(vertices=frame.data["vertices"] - roots, joints=frame.data["joints"] - roots)
         write_frame(pred, Frame(name, data, frame.source), "npz")
     result = invoke(runner, "calibrate", pred, "--out", tmp_path / "cam.yaml")
-    assert result.exit_code == 2 and "6 people were left out, root-centred or behind the camera" in result.stderr
+    assert result.exit_code == 2 and "its 6 people are not placed in the camera frame (root-centred" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and f"rotavat eval {pred} --gt GT" in result.stderr
 
 
 def test_results_go_to_stdout_and_diagnostics_to_stderr(tmp_path):

@@ -3,27 +3,24 @@
 People at one depth (one person walking across the view, a group photo) cannot fix the focal
 length, and a person standing still cannot fix the pitch or the camera height either. Instead of
 refusing (or answering with a camera at the end of a search range), the refinement is a maximum
-a posteriori estimate: the people's pairs plus weak Gaussian priors on the internal parameters
+a posteriori estimate: the people's pairs plus weak priors on the internal parameters
 (:mod:`.params`: ``log f``, pitch, roll, ``log h``). Where the people determine a parameter the prior
 moves it by a negligible amount (its information is a few percent of theirs); where they do not,
 the answer is the prior's, and the fit says so (``fit.determined_by``).
 
-The priors (each a normal distribution on the internal parameter):
+The priors, on the internal parameters:
 
-==========  ==========================  ===============================================================
-parameter   prior                       why
-==========  ==========================  ===============================================================
-focal       ``log(f / D)`` ~ N(log 0.75,  real lenses, ``D`` the image diagonal: phones' main cameras
-            0.30) (the *lens prior*)      0.65-0.75 D, webcams 0.62-0.73 D, compacts ~0.71 D, surveillance
-                                        cameras 0.8-1.25 D, wide-angle (2.8 mm) surveillance lenses of
-                                        100 deg horizontally ~0.35 D; +-2 sd spans 0.41-1.37 D, +-3 sd
-                                        0.30-1.84 D (a 2.9 deg field of view, 4D-Humans' focal rule, is
-                                        +10 sd: an HPS tool's rule is never a prior)
-pitch       N(15 deg, 25 deg)             handheld cameras look about level (-5..15 deg), surveillance
-                                        cameras down (10-60 deg); a bound, not an opinion
-roll        N(0 deg, 10 deg)              cameras are mounted and held nearly level
-height      ``log h`` ~ N(log 3 m, 0.8)   handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m)
-==========  ==========================  ===============================================================
+- focal, the *lens prior*: ``log(f / D)`` (``D`` the image diagonal) about log 0.75, a Student-t of
+  3 degrees of freedom with the curvature of a normal of sd 0.30 at its centre (:func:`student_row`:
+  where it alone speaks its std is 30%; a lens the people put far from the median is pulled 2-3x
+  less than by a normal). Real lenses: phones' main cameras 0.65-0.75 D, webcams 0.62-0.73 D,
+  compacts ~0.71 D, surveillance cameras 0.8-1.25 D, wide-angle (2.8 mm) surveillance lenses of
+  100 deg horizontally ~0.35 D; +-2 sd spans 0.41-1.37 D, +-3 sd 0.30-1.84 D. A 2.9 deg field of
+  view, 4D-Humans' focal rule, is +10 sd: an HPS tool's rule is never a prior;
+- pitch: N(15 deg, 25 deg). Handheld cameras look about level (-5..15 deg), surveillance cameras
+  down (10-60 deg): a bound, not an opinion;
+- roll: N(0 deg, 10 deg). Cameras are mounted and held nearly level;
+- height: ``log h`` ~ N(log 3 m, 0.8). Handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m).
 
 With ``--camera-height M`` the height is known and the people's mean stature ``S`` is estimated
 instead; since the model sees only ``S / h``, that is the height slot with the prior
