@@ -3,6 +3,7 @@ what the bodies know (who stands, which way is up), at the level of pairs and of
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -268,3 +269,22 @@ def test_align_flags_people_who_do_not_stand_and_leaves_them_out_of_the_medians(
     summary.finish()
     assert summary.aligned == 2 and summary.not_standing == 1 and summary.flagged == {"sitting": 1}
     assert summary.median_stature_m == pytest.approx(float(cols["stature_m"][0]))
+
+
+def test_align_flags_a_median_stature_no_adult_group_has(tmp_path, runner):
+    """A camera of the wrong scale (a hand-written one: never implausible by itself) seats the people at
+    3.4 m: align says so (stderr, and median_stature_plausible in its JSON), naming what to give."""
+    scene = Path(__file__).resolve().parents[1] / "sample_data" / "scene"
+    truth = yaml.safe_load((scene / "gt" / "camera.yaml").read_text())
+    wrong = {k: truth[k] for k in ("image_size", "focal_px", "principal_point", "pitch_deg", "roll_deg")}
+    (tmp_path / "wrong.yaml").write_text(yaml.safe_dump({**wrong, "height_m": 2.0 * truth["height_m"]}))
+    result = invoke(runner, "align", scene / "pred", "--camera", tmp_path / "wrong.yaml", "--out", tmp_path / "a",
+                    "--json")
+    assert result.exit_code == 0 and json.loads(result.stdout)["median_stature_plausible"] is False
+    assert json.loads(result.stdout)["median_stature_m"] > 3.0
+    noisy = invoke(runner, "align", scene / "pred", "--camera", tmp_path / "wrong.yaml", "--out", tmp_path / "b")
+    said = " ".join(noisy.stderr.split())  # the terminal wraps warnings
+    assert "median stature 3." in said and "is outside 1.4-2.1 m" in said and "--camera-height M" in said
+    fine = invoke(runner, "align", scene / "pred", "--camera", scene / "gt" / "camera.yaml", "--out", tmp_path / "c",
+                  "--json")
+    assert json.loads(fine.stdout)["median_stature_plausible"] is True

@@ -10,6 +10,7 @@ from rich.markup import escape
 
 from ..alignment import (CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_remedies, align_sequence, camera_for_align,
                          check_align_camera, implausible_findings, reader_flags)
+from ..calibration.plausibility import MEAN_STATURE_RANGE_M
 from ..errors import InputError, input_errors
 from ..outputs import beside, check_output_dir
 from ..parallel import cpu_count
@@ -65,8 +66,11 @@ def align(
             summary = align_sequence(sequence, chosen.camera, out, options, camera_fit=chosen.fit or None, progress=advance,
                                      force=force)
     origin = chosen.source
+    group_lo, group_hi = MEAN_STATURE_RANGE_M  # the same rule as calibrate's for a given camera height
+    plausible = not summary.aligned > summary.not_standing or group_lo <= summary.median_stature_m <= group_hi
     result = {"out": str(out), "camera": origin, "camera_implausible": list(implausible_findings(chosen.fit)),
-              **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")}}
+              **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")},
+              "median_stature_plausible": plausible}
     if as_json:
         print_json(result)
         return
@@ -77,6 +81,10 @@ def align(
         lo, hi = options.stature_range_m
         info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
              "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
+    if not plausible:
+        info(f"[yellow]warning:[/] the aligned people's median stature {summary.median_stature_m:.2f} m is outside "
+             f"{group_lo:g}-{group_hi:g} m: the camera is wrong (give what you know: rotavat calibrate {seq} --focal PX "
+             "--camera-height M), or these are not adults standing", quiet)
     if summary.not_standing:
         info(f"note: {summary.not_standing} aligned people do not stand, by their joints (sitting, kneeling or bending "
              "in people.csv's flag): their feet are on the ground, but their implied stature means nothing and the "
