@@ -184,3 +184,29 @@ def test_box_depth_flag_overrides_the_config_and_bad_values_exit_2(tmp_path, run
                     "--out", tmp_path / "bad.yaml")
     assert result.exit_code == 2 and "--box-depth" in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad.yaml").exists()
+
+
+def test_calibrate_never_replaces_a_camera_no_fit_produced(tmp_path, runner):
+    """The truth synth wrote (scene/gt: focal_kind camera) and a hand-written camera.yaml are never replaced,
+    not even with --force; the one-line refusal names where the estimate goes, and that step runs."""
+    from rotavat_cli.synth import SynthOptions, write_synth_scene
+
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=2, frames=3, people=6))
+    gt, pred = tmp_path / "s" / "gt", tmp_path / "s" / "pred"
+    truth = (gt / "camera.yaml").read_bytes()
+    for args in ([gt], [gt, "--force"]):
+        result = invoke(runner, "calibrate", *args)
+        assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1
+        assert "never replaces it" in result.stderr and (gt / "camera.yaml").read_bytes() == truth
+    step = result.stderr.strip().rsplit("write the estimate beside it: ", 1)[1].split()
+    ran = invoke(runner, *step[1:])
+    assert step[:2] == ["rotavat", "calibrate"] and ran.exit_code == 0, (step, ran.stderr)
+    assert (tmp_path / "s" / "gt_camera.yaml").is_file()
+    hand = yaml.safe_dump({k: v for k, v in yaml.safe_load(truth).items() if k in ("image_size", "focal_px",
+                                                                                 "pitch_deg", "height_m")})
+    (pred / "camera.yaml").write_text(hand)
+    refused = invoke(runner, "calibrate", pred, "--force")
+    assert refused.exit_code == 2 and "no fit produced" in refused.stderr and (pred / "camera.yaml").read_text() == hand
+    (pred / "camera.yaml").unlink()
+    assert invoke(runner, "calibrate", pred, "-q").exit_code == 0  # its own estimate ...
+    assert invoke(runner, "calibrate", pred, "-q").exit_code == 0  # ... is replaced by the next one

@@ -249,3 +249,12 @@ def test_default_out_is_beside_the_first_prediction_even_from_inside_it(tmp_path
     monkeypatch.chdir(tmp_path / "s")
     assert invoke(runner, "eval", "pred", "--gt", "gt", "-q").exit_code == 0  # replaces its own output
     assert sorted(p.name for p in (tmp_path / "s" / "pred_eval").iterdir()) == ["metrics.json", "metrics.md"]
+
+
+def test_a_note_every_row_shares_is_said_once(tmp_path, runner):
+    """foot_sliding's "no value" note was printed once per row on every synthetic run: now once, naming the rows."""
+    scene = Path(__file__).resolve().parents[1] / "sample_data" / "scene"
+    result = invoke(runner, "eval", scene / "pred", scene / "gt", "--gt", scene / "gt", "--out", tmp_path / "ev")
+    said = " ".join(result.stderr.split())
+    assert result.exit_code == 0 and said.count("foot_sliding: no value") == 1
+    assert "pred (paper), gt (paper): foot_sliding: no value" in said

@@ -28,6 +28,7 @@ from ..errors import DegenerateSceneError, InputError
 from ..focal import CAMERA
 from ..posture import summarize_postures
 from ..sequence import Sequence
+from ..words import count
 from .fit import CalibrationResult, fit_camera, fit_per_frame
 from .objective import BodyAxes
 from .options import CalibrateOptions
@@ -128,7 +129,7 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
                 f"{seq.label}: its {pairs.not_in_front} {noun} not placed in the camera frame (root-centred or behind "
                 f"the camera: rotavat info {seq.label}), so no camera can be calibrated from them, nor can they be "
                 f"aligned; root-aligned metrics still apply: rotavat eval {seq.label} --gt GT") from None
-        why = (f"; {pairs.not_in_front} people were left out, root-centred or behind the camera (not placed in the "
+        why = (f"; {count(pairs.not_in_front, 'person was', 'people were')} left out, root-centred or behind the camera (not placed in the "
                "camera frame: see rotavat info)") if pairs.not_in_front else ""
         raise DegenerateSceneError(f"{seq.label}: {exc}{why}") from None
     except ValueError as exc:

@@ -213,9 +213,10 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
             if prob.priors is not None:
                 excess = np.minimum(excess, prob.priors.sd[free] ** 2)
             total = total + np.diag(excess)
+            focal = "" if free[FOCAL] else "a wrong focal length, "
             warns.append(f"the head columns disagree with the head rows (chi-square {stat_h:.0f} on {rank} dof): "
-                         "box-derived points (then use --points boxes), an off-centre principal point or lens "
-                         "distortion; the std includes the disagreement")
+                         f"{focal}box-derived points (then use --points boxes), an off-centre principal point "
+                         "(--principal-point CX CY) or lens distortion (--distortion); the std includes the disagreement")
     if assumed.focal_log > 0:  # a focal held at its prior's median: where its spread dominates, the prior determines
         spread = np.diag(_systematic_cov(prob, params, free, scale, r, J, Systematics(0.0, 0.0, 0.0, 0.0,
                                                                                        assumed.focal_log)))

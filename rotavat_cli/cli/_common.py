@@ -22,6 +22,7 @@ from ..config import config_choices, load_config, merge_config
 from ..errors import InputError, RotavatError
 from ..limits import Limits
 from ..limits import configure as configure_limits
+from ..outputs import beside
 from ..plain import to_plain
 from ..sequence import Sequence, open_sequence
 
@@ -29,7 +30,7 @@ console = Console(stderr=True)  # diagnostics: progress, notes, warnings, errors
 results = Console()  # what a command produces for a human (tables, its summary): `rotavat info SEQ > f.txt` keeps it
 
 ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file overriding configs/default.yaml (flags override it).", dir_okay=False)]
-QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no summary on stderr.")]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar, no notes and no summary or table on stdout; warnings and errors still go to stderr.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON result on stdout (implies no progress bar).")]
 FromOpt = Annotated[str | None, typer.Option("--from", help="Read the input in an HPS tool's own format, converted on the fly (formats: see `rotavat import --help`).")]
 ImageSizeOpt = Annotated[tuple[int, int] | None, typer.Option(help="With --from: original image width and height (px), for formats that do not store it.")]
@@ -219,7 +220,7 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
     """
     if fmt is None:
         seq = open_sequence(path, read_camera=read_camera)
-        warn_ignored(seq, quiet)
+        warn_ignored(seq)
         yield seq
         return
     from ..formats import available_formats, imported_sequence
@@ -229,15 +230,22 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
     with imported_sequence(path, fmt, image_size=image_size, smpl_model=smpl_model, read_camera=read_camera) as seq:
         yield seq
         for warning in seq.warnings:
-            info(f"[yellow]warning:[/] {escape(str(warning))}", quiet)
+            warn(str(warning))
 
 
-def warn_ignored(seq: Sequence, quiet: bool) -> None:
+def default_output(src: Path, suffix: str, fmt: str | None) -> Path:
+    """Where a command writes when no ``--out`` is given: beside a contract sequence (``SEQ<suffix>``), but in
+    the current folder for an HPS tool's own output read with ``--from`` (never into the user's data folder)."""
+    if fmt is None:
+        return beside(src, suffix)
+    return Path.cwd() / ((src.stem if src.is_file() else Path(src).resolve().name) + suffix)
+
+
+def warn_ignored(seq: Sequence) -> None:
     """One warning line for the entries of OBJ frame folders that were ignored, with the first few."""
     if seq.ignored:
         shown = "; ".join(seq.ignored[:3]) + (f"; and {len(seq.ignored) - 3} more" if len(seq.ignored) > 3 else "")
-        info(f"[yellow]warning:[/] {seq.path}: ignored {len(seq.ignored)} entries of OBJ frame folders "
-             f"({escape(shown)})", quiet)
+        warn(f"{seq.path}: ignored {len(seq.ignored)} entries of OBJ frame folders ({shown})")
 
 
 def progress_enabled(quiet: bool, as_json: bool) -> bool:
@@ -270,9 +278,14 @@ def print_json(data: Any) -> None:
 
 
 def info(message: str, quiet: bool) -> None:
-    """A diagnostic (a note, a warning) on stderr unless --quiet."""
+    """A note (what rotavat decided, what it did) on stderr unless --quiet."""
     if not quiet:
         console.print(message, highlight=False)
+
+
+def warn(message: str) -> None:
+    """A warning on stderr, one line, even under --quiet (it says something is wrong); ``message`` is plain text."""
+    console.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
 
 def report(message: Any, quiet: bool) -> None:

@@ -6,17 +6,17 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 
 from ..alignment import (CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_remedies, align_sequence, camera_for_align,
                          check_align_camera, implausible_findings, reader_flags)
 from ..calibration.plausibility import MEAN_STATURE_RANGE_M
 from ..errors import InputError, input_errors
-from ..outputs import beside, check_output_dir
+from ..outputs import check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
-                      info, input_sequence, print_json, progress_bar, progress_enabled, report)
+from ..words import count
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
+                      default_output, info, input_sequence, print_json, progress_bar, progress_enabled, report, warn)
 from .calibrate import run_calibration
 
 
@@ -24,7 +24,7 @@ def align(
     seq: Annotated[Path | None, typer.Argument(help="Input sequence directory (never modified); with --from the HPS tool's output.", show_default=False)] = None,
     in_: Annotated[Path | None, typer.Option("--in", help="The same as SEQ (kept for scripts written for earlier versions).")] = None,
     camera: Annotated[Path | None, typer.Option(help="camera.yaml to use; default SEQ/camera.yaml, else calibrate first.", dir_okay=False)] = None,
-    out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input.", file_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Output directory; default SEQ_aligned beside the input (with --from: in the current folder).", file_okay=False)] = None,
     upright: Annotated[str | None, typer.Option(help="paper: rotate in the camera-foot-head plane (pixels unchanged); full: true vertical.")] = None,
     height_from: Annotated[str | None, typer.Option(help="frame: each mesh keeps its stature; track: median stature per person_id.")] = None,
     jobs: Annotated[int | None, typer.Option(help="Worker processes for the frames (0 = one per core; never more than the cores).", min=0)] = None,
@@ -46,7 +46,7 @@ def align(
     out_given = out
     with input_errors("align"):
         options = AlignOptions.from_config(config_for(config, "align", upright=upright, height_from=height_from, jobs=jobs))
-    out = out or beside(seq, "_aligned")
+    out = out or default_output(seq, "_aligned", from_)
     check_output_dir(out, [seq, *([camera] if camera else [])], force)
     if options.jobs > cpu_count():
         info(f"jobs {options.jobs}: using at most {cpu_count()} workers (one per core)", quiet or as_json)
@@ -61,7 +61,7 @@ def align(
         remedies = align_remedies(seq, out_given, reader_flags(from_, image_size, smpl_model), config)
         chosen, camera_warning = check_align_camera(chosen, str(seq), accept_camera, remedies)  # refused: exit 2
         if camera_warning and not (quiet or as_json):  # one line, never wrapped: logs keep the findings together
-            console.print(f"[yellow]warning:[/] {escape(camera_warning)}", highlight=False, soft_wrap=True)
+            warn(camera_warning)
         with progress_bar("aligning", len(sequence), progress_enabled(quiet, as_json)) as advance:
             summary = align_sequence(sequence, chosen.camera, out, options, camera_fit=chosen.fit or None, progress=advance,
                                      force=force)
@@ -75,16 +75,17 @@ def align(
         print_json(result)
         return
     flagged = sum(summary.flagged.values())
-    report(f"aligned {summary.aligned} of {summary.people} people in {summary.frames} frames ({flagged} flagged"
+    report(f"aligned {summary.aligned} of {count(summary.people, 'person', 'people')} in "
+           f"{count(summary.frames, 'frame')} ({flagged} flagged"
          + (": " + ", ".join(f"{k} {v}" for k, v in summary.flagged.items()) if flagged else "") + ")", quiet)
     if summary.implausible:
         lo, hi = options.stature_range_m
-        info(f"[yellow]warning:[/] {summary.implausible} aligned people have a stature outside {lo:g}-{hi:g} m "
-             "(implausible_stature in people.csv): check the camera, or those people's detections", quiet)
+        warn(f"{count(summary.implausible, 'aligned person has', 'aligned people have')} a stature outside {lo:g}-{hi:g} m "
+             "(implausible_stature in people.csv): check the camera, or those people's detections")
     if not plausible:
-        info(f"[yellow]warning:[/] the aligned people's median stature {summary.median_stature_m:.2f} m is outside "
-             f"{group_lo:g}-{group_hi:g} m: the camera is wrong (give what you know: rotavat calibrate {seq} --focal PX "
-             "--camera-height M), or these are not adults standing", quiet)
+        warn(f"the aligned people's median stature {summary.median_stature_m:.2f} m is outside {group_lo:g}-{group_hi:g} m: "
+             f"the camera is wrong (give what you know: rotavat calibrate {seq} --focal PX --camera-height M), or these "
+             "are not adults standing")
     if summary.not_standing:
         info(f"note: {summary.not_standing} aligned people do not stand, by their joints (sitting, kneeling or bending "
              "in people.csv's flag): their feet are on the ground, but their implied stature means nothing and the "

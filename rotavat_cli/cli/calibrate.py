@@ -13,10 +13,12 @@ from rich.table import Table
 from ..calibration import RESIDUAL_KINDS, CalibrateOptions, SequenceCalibration, calibrate_sequence
 from ..camera import camera_parameters
 from ..errors import InputError
+from ..focal import CAMERA
 from ..outputs import check_output_file
-from ..sequence import Sequence, write_camera_yaml
+from ..sequence import Sequence, read_yaml, write_camera_yaml
+from ..words import count
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json, report)
+                      input_sequence, print_json, report, warn)
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
@@ -26,11 +28,10 @@ def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) ->
     for note in calib.result.notes:
         info(f"note: {escape(note)}", quiet)
     for warning in calib.result.warnings:
-        info(f"[yellow]warning:[/] {escape(warning)}", quiet)
+        warn(warning)
     if calib.result.implausible:
-        info(f"[yellow]warning:[/] implausible camera: {escape('; '.join(calib.result.implausible))} "
-             "(fit.implausible; align, render and batch refuse it without --accept-camera): give what you know "
-             "(--focal PX, --camera-height M, --pitch DEG)", quiet)
+        warn(f"implausible camera: {'; '.join(calib.result.implausible)} (fit.implausible; align, render and batch "
+             "refuse it without --accept-camera): give what you know (--focal PX, --camera-height M, --pitch DEG)")
     return calib
 
 
@@ -73,6 +74,7 @@ def calibrate(
     target = out or seq / "camera.yaml"
     check_output_file(target, [seq], force, inside_input_ok=("camera.yaml",) if from_ is None else ())
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False, quiet=quiet or as_json) as sequence:
+        _never_replace_a_given_camera(target, seq, sequence)
         calib = run_calibration(
             sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
             camera_height_m=camera_height, pitch_deg=pitch, focal_prior=focal_prior, tracks=list(track) if track else None,
@@ -91,6 +93,24 @@ def calibrate(
     if not quiet:
         report(_table(summary), quiet)
     report(f"wrote {target}", quiet)
+
+
+def _never_replace_a_given_camera(target: Path, seq: Path, sequence: Sequence) -> None:
+    """InputError (even with --force) when ``target`` holds a camera no fit produced: a camera.yaml without
+    a ``fit:`` block (ground truth, written by hand), or the own camera.yaml of a sequence that declares
+    its focal the camera's (``focal_kind: camera``). The estimate then goes beside it."""
+    if not target.is_file():
+        return
+    try:
+        given = read_yaml(target)
+    except InputError:
+        return  # not a camera at all: check_output_file has already judged it
+    declared = target == seq / "camera.yaml" and sequence.focal_kind == CAMERA
+    if isinstance(given, dict) and ("fit" not in given or declared):
+        why = ("the camera of a sequence that declares it its own (focal_kind: camera)" if declared else
+               "a camera no fit produced (no fit: block: ground truth, or written by hand)")
+        raise InputError(f"{target}: {why}; calibrate never replaces it (not even with --force): write the estimate "
+                         f"beside it: rotavat calibrate {seq} --out {seq.parent / (seq.name + '_camera.yaml')}")
 
 
 def _table(summary: dict) -> Table:
@@ -116,7 +136,7 @@ def _table(summary: dict) -> Table:
             if fit.get("mesh_focal_px") is not None else "")
     alone = (f"; {spread['frames_fitted']} frames calibrated alone ({spread['frames_skipped']} skipped)"
              if spread else "")
-    table.caption = (f"{fit.get('inliers')}/{fit.get('pairs')} pairs inliers over {fit.get('frames')} frames, "
+    table.caption = (f"{fit.get('inliers')}/{count(fit.get('pairs'), 'pair')} inliers over {count(fit.get('frames'), 'frame')}, "
                      f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}"
                      f"{mesh}{alone}")
     return table

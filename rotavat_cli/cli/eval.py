@@ -14,15 +14,15 @@ from ..errors import GateError
 from ..metrics.evaluate import PER_PERSON_SIGNATURE, EvalOptions, evaluate, parse_joints, write_per_person_csv
 from ..metrics.report import (check_gate_metrics, check_gate_rows, check_gates, format_value, metric_label,
                               metric_value, parse_gate, report_paths, report_rows, write_reports)
-from ..outputs import beside, check_output_file
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json, progress_bar, progress_enabled, report)
+from ..outputs import check_output_file
+from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
+                      default_output, info, input_sequence, print_json, progress_bar, progress_enabled, report)
 
 
 def eval_(
     pred: Annotated[list[Path] | None, typer.Argument(help="Prediction sequence directories (default: the current directory).")] = None,
     gt: Annotated[Path, typer.Option("--gt", help="Ground-truth sequence directory (its camera.yaml enables ground-aware metrics).")] = ...,
-    out: Annotated[Path | None, typer.Option(help="Folder for metrics.json and metrics.md; default <first PRED>_eval beside it (never inside a prediction).", file_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Folder for metrics.json and metrics.md; default <first PRED>_eval beside it (with --from: in the current folder; never inside a prediction).", file_okay=False)] = None,
     per_person: Annotated[Path | None, typer.Option("--per-person", help="Also write one CSV row per matched person.", dir_okay=False)] = None,
     fail_if: Annotated[list[str] | None, typer.Option("--fail-if", help="Gate, e.g. 'w_mpjpe>300' or 'pred_aligned:f1<0.9'; exit 1 if true.")] = None,
     match: Annotated[str | None, typer.Option(help="auto (ids if both sides have them, else hungarian), ids, hungarian, agora.")] = None,
@@ -49,7 +49,7 @@ def eval_(
     check_gate_rows(gates, preds)
     check_gate_metrics(gates, options.protocol)
     inputs = [*preds, gt]
-    out = out or beside(preds[0], "_eval")
+    out = out or default_output(preds[0], "_eval", from_)
     for target in report_paths(out):
         check_output_file(target, inputs, force)
     if per_person:
@@ -69,12 +69,20 @@ def eval_(
                     "predictions": [r.as_dict() for r in results]})
     elif not quiet:
         report(_table(results), quiet)
-        for r in results:
-            for note in r.notes:
-                info(f"{Path(r.pred).name or r.pred} ({r.protocol}): {note}", quiet)
+        for note, rows in _notes_once(results).items():  # a note every row shares is said once, naming them
+            info(f"{', '.join(rows)}: {note}", quiet)
         report(f"wrote {json_path} and {md_path}", quiet)
     if reasons:
         raise GateError("quality gate failed: " + "; ".join(reasons))
+
+
+def _notes_once(results) -> dict[str, list[str]]:
+    """Each distinct note of the rows, in order, with the rows that have it (``name (protocol)``)."""
+    out: dict[str, list[str]] = {}
+    for r in results:
+        for note in r.notes:
+            out.setdefault(note, []).append(f"{Path(r.pred).name or r.pred} ({r.protocol})")
+    return out
 
 
 def _table(results) -> Table:

@@ -8,16 +8,17 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError, input_errors
-from ..outputs import beside, check_output_file
+from ..outputs import check_output_file
 from ..render import RenderStyle, export_frame
+from ..words import count
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
-                      input_sequence, print_json, report)
+                      default_output, input_sequence, print_json, report)
 
 
 def export(
     seq: Annotated[Path, typer.Argument(help="Sequence directory (with --from: the HPS tool's output).")],
     frame: Annotated[int, typer.Option(help="Frame index (negative counts from the end).")] = 0,
-    out: Annotated[Path | None, typer.Option(help="Output .glb file; default <SEQ>_<frame>.glb beside SEQ.", dir_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Output .glb file; default <SEQ>_<frame>.glb beside SEQ (with --from: in the current folder).", dir_okay=False)] = None,
     camera: Annotated[Path | None, typer.Option(help="camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
     force: ForceOpt = False,
     from_: FromOpt = None,
@@ -33,12 +34,12 @@ def export(
         palette = RenderStyle.from_config(opts).palette
     if out is not None and out.suffix.lower() != ".glb":
         raise InputError(f"--out must end in .glb, got {out}")
-    target = out or beside(seq, f"_{frame}.glb")
+    target = out or default_output(seq, f"_{frame}.glb", from_)
     check_output_file(target, [seq, *([camera] if camera else [])], force)
     with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
         summary = export_frame(sequence, target, frame, camera, palette)
     if as_json:
         print_json(summary)
         return
-    report(f"wrote {summary['out']}: frame {summary['frame']}, {summary['people']} people, ground, camera "
+    report(f"wrote {summary['out']}: frame {summary['frame']}, {count(summary['people'], 'person', 'people')}, ground, camera "
          f"({summary['image_size'][0]}x{summary['image_size'][1]}, vertical FOV {summary['yfov_deg']:.1f}°)", quiet)

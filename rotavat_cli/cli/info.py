@@ -7,12 +7,11 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 from rich.table import Table
 
 from ..sequence import open_sequence, summarize_sequence
-from ._common import ConfigOpt, JsonOpt, QuietOpt, print_json, report, use_config, warn_ignored
-from ._common import info as say
+from ..words import count
+from ._common import ConfigOpt, JsonOpt, QuietOpt, print_json, report, use_config, warn, warn_ignored
 
 
 def info(
@@ -24,7 +23,7 @@ def info(
     """Validate a sequence and print a summary: form, frames, people, keys, sizes, intrinsics, camera."""
     use_config(config)  # its limits
     sequence = open_sequence(seq)
-    warn_ignored(sequence, quiet or as_json)
+    warn_ignored(sequence)
     summary = summarize_sequence(sequence)
     if as_json:
         print_json(summary)
@@ -38,9 +37,9 @@ def info(
         ("tracks", str(summary["tracks"]) if summary["tracks"] is not None else "no person_ids"),
         ("keys", ", ".join(summary["keys"])),
         ("vertices / joints / 2D keypoints", " / ".join(",".join(map(str, summary[k])) or "-" for k in ("vertex_counts", "joint_counts", "keypoint_counts"))),
-        ("image size", "x".join(map(str, summary["image_size"])) if summary["image_size"] else "[red]unknown[/]"),
+        ("image size", _size_cell(summary)),
         ("mesh focal (px)", _focal_cell(summary)),
-        ("principal point", ", ".join(f"{v:.1f}" for v in summary["principal_point"]) if summary["principal_point"] else "image centre"),
+        ("principal point", _principal_point_cell(summary)),
         ("source", summary["source"] or "-"),
     ]
     cam = summary["camera"]
@@ -50,7 +49,7 @@ def info(
         table.add_row(key, value)
     report(table, False)  # the command's result: --quiet silences its warnings only
     for warning in sequence_warnings(summary):
-        say(f"[yellow]warning:[/] {escape(warning)}", quiet)
+        warn(warning)
 
 
 def sequence_warnings(summary: dict) -> list[str]:
@@ -61,7 +60,7 @@ def sequence_warnings(summary: dict) -> list[str]:
         warnings.append(f"{summary['path']}: frames of {len(summary['image_sizes'])} image sizes ({sizes}) are not one "
                         "static camera's: calibrate and align refuse them; split them into one sequence per camera")
     if summary["people_root_centred"]:
-        warnings.append(f"{summary['path']}: {summary['people_root_centred']} people are centred on the camera (their "
+        warnings.append(f"{summary['path']}: {count(summary['people_root_centred'], 'person is', 'people are')} centred on the camera (their "
                         "translation is zero: a root-centred output, not placed in the camera frame); they cannot be "
                         "calibrated or aligned: import the tool's camera-frame output (its translation) instead")
     if summary["frames_not_alignable"]:
@@ -78,15 +77,36 @@ def sequence_warnings(summary: dict) -> list[str]:
         warnings.append(f"{summary['path']}: camera.yaml's focal {cam['focal_px']:.1f} px differs from the declared "
                         f"camera focal {declared:.1f} px (meta.yaml, focal_kind: camera): one of them is wrong")
     if summary["people_behind_camera"]:
-        warnings.append(f"{summary['path']}: {summary['people_behind_camera']} people are partly at or behind the camera "
+        warnings.append(f"{summary['path']}: {count(summary['people_behind_camera'], 'person is', 'people are')} partly at or behind the camera "
                         "(z <= 0): not what the camera saw; check the file's camera frame and translation")
     return warnings
+
+
+def _sizes(summary: dict) -> list[list[int]]:
+    """The frames' image sizes when they differ (photos of several sizes), else []."""
+    return summary["image_sizes"] if len(summary["image_sizes"]) > 1 else []
+
+
+def _size_cell(summary: dict) -> str:
+    """The image size, or "per frame (N sizes: ...)" when the frames differ."""
+    if _sizes(summary):
+        return f"per frame ({len(_sizes(summary))} sizes: {', '.join('x'.join(map(str, s)) for s in _sizes(summary))})"
+    return "x".join(map(str, summary["image_size"])) if summary["image_size"] else "[red]unknown[/]"
+
+
+def _principal_point_cell(summary: dict) -> str:
+    """The declared principal point, "image centre", or per frame when the image sizes differ."""
+    if summary["principal_point"]:
+        return ", ".join(f"{v:.1f}" for v in summary["principal_point"])
+    if _sizes(summary):
+        return "per frame" if "principal_point" in summary["keys"] else "each image's centre"
+    return "image centre"
 
 
 def _focal_cell(summary: dict) -> str:
     """The focal the meshes were made with, and whether it is the camera's own or a method's guess."""
     if not summary["focal_px"]:
-        return "not stated"
+        return "per frame" if "focal_length" in summary["keys"] or "K" in summary["keys"] else "not stated"
     if summary["focal_kind"] == "camera":
         return f"{summary['focal_px']:.1f} (the camera's own)"
     rule = f", rule {summary['focal_rule']}" if summary.get("focal_rule") else ""

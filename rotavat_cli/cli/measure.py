@@ -16,11 +16,11 @@ from ..calibration.pairs import gather_pairs
 from ..camera import Camera
 from ..errors import InputError
 from ..measure import TrackStatures, statures_from_camera_m, statures_by_track
-from ..outputs import beside, check_output_file
+from ..outputs import check_output_file
 from ..plain import csv_cell
 from ..sequence import Sequence, read_camera_yaml
-from ._common import (ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, input_sequence,
-                      print_json, report)
+from ._common import (ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, default_output,
+                      input_sequence, print_json, report)
 
 CSV_COLUMNS = ("track_id", "pairs", "median_stature_m", "spread_m")
 CSV_SIGNATURE = ",".join(CSV_COLUMNS)  # how every CSV this command writes starts (the overwrite check)
@@ -30,7 +30,7 @@ UNTRACKED = -1  # the track of pairs without a person id (every pair, when some 
 def measure(
     seq: Annotated[Path, typer.Argument(help="Sequence directory (2D feet_2d/heads_2d with person_ids, or meshes with their focal); with --from the HPS tool's output.")],
     camera: Annotated[Path | None, typer.Option(help="camera.yaml to measure with; default SEQ/camera.yaml (made by `rotavat calibrate SEQ`).", dir_okay=False)] = None,
-    out: Annotated[Path | None, typer.Option(help="Per-track CSV; default SEQ_measure.csv beside the input.", dir_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Per-track CSV; default SEQ_measure.csv beside the input (with --from: in the current folder).", dir_okay=False)] = None,
     force: ForceOpt = False,
     from_: FromOpt = None,
     image_size: ImageSizeOpt = None,
@@ -39,7 +39,7 @@ def measure(
     as_json: JsonOpt = False,
 ) -> None:
     """Measure each person's stature (sole to crown) from the camera: median and spread per track."""
-    out = out or beside(seq, "_measure.csv")
+    out = out or default_output(seq, "_measure.csv", from_)
     check_output_file(out, [seq, *([camera] if camera else [])], force, signature=CSV_SIGNATURE.encode())
     quiet_notes = quiet or as_json
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=camera is None, quiet=quiet_notes) as sequence:

@@ -10,6 +10,7 @@ import typer
 
 from ..errors import input_errors
 from ..synth import SynthOptions, hps_focal_px, random_camera, write_synth_scene
+from ..words import count
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, print_json, progress_bar, progress_enabled, report
 
 
@@ -47,7 +48,7 @@ def synth(
     if as_json:
         print_json(summary)
     cam = summary["camera"]
-    report(f"wrote {summary['frames']} frames x {summary['people']} people ({summary['layout']}) to {out}/gt and {out}/pred "
+    report(f"wrote {count(summary['frames'], 'frame')} x {count(summary['people'], 'person', 'people')} ({summary['layout']}) to {out}/gt and {out}/pred "
          f"(camera: f {cam['focal_px']:.0f} px, pitch {cam['pitch_deg']:.1f}°, roll {cam['roll_deg']:.1f}°, "
          f"height {cam['height_m']:.2f} m; HPS focal {summary['hps_focal_px']:.0f} px, rule "
          f"{summary['hps_focal_rule']})", quiet or as_json)

@@ -1,0 +1,63 @@
+"""Real habits (issue 24): where outputs go, what --quiet silences, what info says of photos of several sizes,
+and counts in words."""
+
+from __future__ import annotations
+
+import json
+
+import _format_fixtures as F
+import numpy as np
+from _format_fixtures import model, model_path  # noqa: F401 (pytest fixtures)
+from conftest import invoke
+
+from rotavat_cli.cli import app
+from rotavat_cli.sequence import Frame, open_sequence, write_frame
+from rotavat_cli.synth import SynthOptions, write_synth_scene
+from rotavat_cli.words import count
+
+W, H = F.W, F.H
+
+
+def _bev_photo(folder, model):
+    """A BEV image-mode output of 5 standing people (the tool's own file)."""
+    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
+    rng = np.random.default_rng(3)
+    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
+             for _ in range(2)]
+    return F.write_bev(folder, scene, (W, H))
+
+
+def test_outputs_of_a_from_source_go_to_the_current_folder_not_the_data_folder(tmp_path, model, model_path,
+                                                                                 runner, monkeypatch):
+    data, work = tmp_path / "data", tmp_path / "work"
+    src = _bev_photo(data / "bev", model)
+    work.mkdir()
+    monkeypatch.chdir(work)
+    common = ["--from", "bev", "--smpl-model", model_path, "--image-size", str(W), str(H)]
+    assert invoke(runner, "calibrate", src, *common, "--out", work / "cam.yaml", "-q").exit_code == 0
+    before = sorted(p.name for p in data.iterdir())
+    result = invoke(runner, "align", src, *common, "--camera", work / "cam.yaml", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["out"] == str(work / "bev_aligned") and (work / "bev_aligned").is_dir()
+    assert sorted(p.name for p in data.iterdir()) == before  # nothing written beside the tool's output
+    result = invoke(runner, "eval", src, *common, "--gt", work / "bev_aligned", "--json")
+    assert result.exit_code == 0 and (work / "bev_eval" / "metrics.json").is_file()
+
+
+def test_quiet_silences_notes_and_results_but_keeps_warnings(tmp_path, runner):
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=4, frames=2, people=4))
+    pred = tmp_path / "s" / "pred"
+    seq = open_sequence(pred)
+    frame = seq.read_frame(seq.frame_names[1])
+    write_frame(pred, Frame(frame.name, {**frame.data, "image_size": np.array([1666, 2500])}, frame.source), "npz")
+    result = invoke(runner, "info", pred, "-q")
+    assert result.exit_code == 0 and "frames of 2 image sizes" in result.stderr  # the warning stays ...
+    assert "per frame (2 sizes: 1280x720, 1666x2500)" in result.stdout  # ... and the table says what sizes are
+    wide = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "240"})  # the help, unwrapped
+    assert "No progress bar, no notes and no summary or table on stdout; warnings and errors still go to stderr" in \
+        wide.stdout
+
+
+def test_counts_read_in_words():
+    assert [count(n, "person", "people") for n in (0, 1, 2)] == ["0 people", "1 person", "2 people"]
+    assert count(1, "frame") == "1 frame" and count(5, "frame") == "5 frames"
