@@ -236,9 +236,12 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
 def default_output(src: Path, suffix: str, fmt: str | None) -> Path:
     """Where a command writes when no ``--out`` is given: beside a contract sequence (``SEQ<suffix>``), but in
     the current folder for an HPS tool's own output read with ``--from`` (never into the user's data folder)."""
-    if fmt is None:
-        return beside(src, suffix)
-    return Path.cwd() / ((src.stem if src.is_file() else Path(src).resolve().name) + suffix)
+    out = beside(src, suffix) if fmt is None else \
+        Path.cwd() / ((src.stem if src.is_file() else Path(src).resolve().name) + suffix)
+    try:  # as the user would type it: relative to the current folder when it lies below it
+        return out.relative_to(Path.cwd())
+    except ValueError:
+        return out
 
 
 def warn_ignored(seq: Sequence) -> None:

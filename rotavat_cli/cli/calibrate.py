@@ -91,7 +91,9 @@ def calibrate(
         print_json(summary)
         return
     if not quiet:
-        report(_table(summary), quiet)
+        table, line = _table(summary)  # the summary line below the table, not wrapped to its width
+        report(table, quiet)
+        report(line, quiet)
     report(f"wrote {target}", quiet)
 
 
@@ -113,7 +115,7 @@ def _never_replace_a_given_camera(target: Path, seq: Path, sequence: Sequence) -
                          f"beside it: rotavat calibrate {seq} --out {seq.parent / (seq.name + '_camera.yaml')}")
 
 
-def _table(summary: dict) -> Table:
+def _table(summary: dict) -> tuple[Table, str]:
     """Rich table of the estimate: each parameter's std, "given"/"declared"/... when it was not
     estimated, "undetermined" when the people could not determine it."""
     fit = summary["fit"]
@@ -136,10 +138,9 @@ def _table(summary: dict) -> Table:
             if fit.get("mesh_focal_px") is not None else "")
     alone = (f"; {spread['frames_fitted']} frames calibrated alone ({spread['frames_skipped']} skipped)"
              if spread else "")
-    table.caption = (f"{fit.get('inliers')}/{count(fit.get('pairs'), 'pair')} inliers over {count(fit.get('frames'), 'frame')}, "
-                     f"head rmse {fit.get('rmse_px', float('nan')):.2f} px, points {fit.get('points', 'landmarks')}"
-                     f"{mesh}{alone}")
-    return table
+    return table, (f"{fit.get('inliers')}/{count(fit.get('pairs'), 'pair')} inliers over "
+                   f"{count(fit.get('frames'), 'frame')}, head rmse {fit.get('rmse_px', float('nan')):.2f} px, points "
+                   f"{fit.get('points', 'landmarks')}{mesh}{alone}")
 
 
 def _undetermined_keys(fit: dict) -> set[str]:
