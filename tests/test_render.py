@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -14,12 +15,13 @@ from rotavat_cli.camera import Camera
 from rotavat_cli.config import default_config
 from rotavat_cli.errors import RotavatError
 from rotavat_cli.landmarks import foot_head_points
-from rotavat_cli.render import (LABEL_PX, REGISTRY, RENDERERS, VIEWS, FigureOptions, RenderStyle, RowFrame,
-                                clip_from_cam_perspective, figure_steps, fit_ortho_extent, front_view,
+from rotavat_cli.render import (LABEL_PX, REGISTRY, RENDERERS, VIEWS, FigureOptions, FrontCrop, PanelView, RenderStyle,
+                                RowFrame, clip_from_cam_perspective, figure_steps, fit_ortho_extent, front_view,
                                 ground_truth_row, horizontal_forward_world, layout_bones, layout_name, metrics_caption,
-                                open_rasterizer, ortho_basis_world, ortho_view, parse_views, person_colors, plot_tracks,
-                                project_view_px, rasterize_numpy, read_row, render_grid, render_panel, render_sequences,
-                                scene_extents, select_frames, sequence_camera, sequence_tracks)
+                                open_rasterizer, ortho_basis_world, ortho_bounds, ortho_view, parse_views, paste_boxes_px,
+                                people_flags, person_colors, plot_tracks, project_view_px, rasterize_numpy, read_row,
+                                render_grid, render_panel, render_sequences, scene_extents, select_frames,
+                                sequence_camera, sequence_tracks)
 from rotavat_cli.render.skeleton import JOINT_RADIUS_M
 from rotavat_cli.render.views import side_fov_px, tick_marks
 from rotavat_cli.sequence import open_sequence, read_camera_yaml
@@ -803,3 +805,183 @@ def test_an_aligned_output_with_an_implausible_camera_is_sent_back_to_align():
     with pytest.raises(RotavatError, match=r"rotavat align INPUT --out out/pred_aligned, INPUT being the sequence"):
         check_fit("out/pred_aligned/camera.yaml", {"implausible": ["pitch undetermined"]}, False,
                   render_remedies("out/pred_aligned", own=True, aligned=True))
+
+
+# ---- issue 24: odd image sizes, flagged people, messages that run ---------------------------------
+def _photo_row(image_size: tuple[int, int], photo_size: tuple[int, int] | None = None) -> RowFrame:
+    """A row without people over a solid magenta photo (``photo_size``, default the image size)."""
+    w, h = photo_size or image_size
+    photo = np.zeros((h, w, 3), np.uint8)
+    photo[..., 0] = photo[..., 2] = 255
+    return RowFrame("photo", np.zeros((0, 0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), image_size,
+                    float(max(image_size)), (image_size[0] / 2, image_size[1] / 2), image=photo)
+
+
+def _front_background(row: RowFrame, size: tuple[int, int], crop: FrontCrop | None) -> tuple[np.ndarray, PanelView]:
+    """The front view's background (letterbox + photo) of a row in a panel, and the view."""
+    view = front_view(row, size, crop)
+    img = Image.new("RGB", size, (0, 0, 0))
+    REGISTRY["front"].under(img, view, row, STYLE)
+    return np.asarray(img).astype(int), view
+
+
+def test_front_view_pastes_a_500x493_photo_letterboxed():
+    """Issue 24: a 500x493 photo letterboxed in a 640x360 panel starts at x = 137.45 px, which rounded to 137
+    asked Pillow for the photo from x = -0.6 ("box offset can't be negative")."""
+    row = _photo_row((500, 493))
+    panel, view = _front_background(row, (640, 360), None)
+    x0, _, x1, _ = view.image_rect
+    assert x0 == pytest.approx(137.45, abs=0.01)
+    magenta = (panel[..., 0] > 240) & (panel[..., 1] < 15) & (panel[..., 2] > 240)
+    cols = np.nonzero(magenta.all(axis=0))[0]
+    assert cols.min() <= x0 + 1 and cols.max() >= x1 - 2  # the photo fills its rectangle...
+    assert not magenta[:, : int(x0) - 1].any() and not magenta[:, int(x1) + 2:].any()  # ...and no more
+
+
+def test_front_view_pastes_every_image_size_and_crop():
+    """Random image, photo and panel sizes, whole or cropped (crops overhanging the image included): the photo
+    always lands, never asking Pillow for a negative offset or for more than the photo."""
+    rng = np.random.default_rng(0)
+    for _ in range(150):
+        image_size = tuple(int(v) for v in rng.integers(16, 1200, 2))
+        photo_size = tuple(int(v) + int(d) for v, d in zip(image_size, rng.integers(-1, 2, 2)))  # inferred sizes: +-1 px
+        size = tuple(int(v) for v in rng.integers(16, 400, 2))
+        crop = None
+        if rng.random() < 0.6:  # a crop: may be wider or taller than the image, offsets fractional
+            w = rng.uniform(0.05, 1.5) * image_size[0]
+            h = w * size[1] / size[0]
+            cx, cy = rng.uniform(0, image_size[0]), rng.uniform(0, image_size[1])
+            crop = FrontCrop((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2))
+        row = _photo_row(image_size, photo_size)
+        panel, view = _front_background(row, size, crop)
+        boxes = paste_boxes_px(view.image_rect, size, photo_size)
+        if boxes is None:
+            continue
+        (b0, b1, b2, b3), (s0, s1, s2, s3) = boxes
+        assert 0 <= b0 < b2 <= size[0] and 0 <= b1 < b3 <= size[1]
+        assert 0 <= s0 < s2 <= photo_size[0] and 0 <= s1 < s3 <= photo_size[1]
+        inner = panel[b1 + 1:b3 - 1, b0 + 1:b2 - 1]
+        assert inner.size == 0 or (np.abs(inner - [255, 0, 255]).max() <= 2)
+
+
+def _move_and_flag(aligned: Path, frame: str, person_id: int, ahead_m: float, flag: str) -> None:
+    """Move one person of an aligned frame ``ahead_m`` further along the ground, away from the camera, and
+    give it ``flag`` in people.csv (as align does for a half-visible bystander sent far away)."""
+    import csv
+
+    cam = open_sequence(aligned).camera
+    with np.load(aligned / f"{frame}.npz") as npz:
+        data = dict(npz)
+    p = int(np.nonzero(data["person_ids"] == person_id)[0][0])
+    shift_world = ahead_m * horizontal_forward_world(cam)
+    for key in ("vertices", "joints"):
+        moved = cam.cam_from_world(cam.world_from_cam(data[key][p].astype(np.float64)) + shift_world)
+        data[key][p] = moved.astype(data[key].dtype)
+    np.savez(aligned / f"{frame}.npz", **data)
+    with open(aligned / "people.csv", encoding="utf-8", newline="") as handle:
+        records = list(csv.DictReader(handle))
+    for r in records:
+        if r["frame"] == frame and int(r["person_id"]) == person_id:
+            r["flag"] = flag
+    with open(aligned / "people.csv", "w", encoding="utf-8", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(records[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(records)
+
+
+def _window_box_m(extent, size: tuple[int, int]) -> np.ndarray:
+    """(2, 2) min/max of an orthographic window in its view plane, metres."""
+    half = np.array(size, dtype=float) / 2 / extent.px_per_m
+    return np.stack([np.asarray(extent.center_m) - half, np.asarray(extent.center_m) + half])
+
+
+def test_side_and_top_windows_frame_the_plausible_people_and_mark_the_flagged(runner, scene, tmp_path, monkeypatch):
+    """Issue 24: a person align flagged, 30 m behind the group, no longer shrinks the group to specks: the
+    side/top windows hold the others and not it; it is drawn with its flag, an edge marker points to it and the
+    caption says what the mark means."""
+    import rotavat_cli.render.sequences as figure_module
+
+    aligned = tmp_path / "aligned"
+    assert invoke(runner, "align", scene / "pred", "--camera", scene / "gt" / "camera.yaml", "--out", aligned,
+                  "-q").exit_code == 0
+    _move_and_flag(aligned, "000000", 1, 30.0, "implausible_stature")
+    seen = {}
+    draw_grid = figure_module.render_grid
+
+    def spy(rows, views, size, rasterize, style, extents=None, **kwargs):
+        seen.update(rows=rows, extents=extents)
+        seen["image"] = draw_grid(rows, views, size, rasterize, style, extents, **kwargs)
+        return seen["image"]
+
+    monkeypatch.setattr(figure_module, "render_grid", spy)
+    size = (320, 180)
+    summary = render_sequences([open_sequence(aligned)], tmp_path / "fig",
+                               FigureOptions(views=("side", "top"), renderer="fallback", size=size, style=STYLE))
+    row, extents = seen["rows"][0], seen["extents"][0]
+    assert row.flags == ("", "implausible_stature", "", "")  # read from people.csv, by frame and person_id
+    for kind in ("side", "top"):
+        window = _window_box_m(extents[kind], size)
+        for p in range(4):
+            lo, hi = ortho_bounds(kind, row.camera, row.points_cam[p])[:, :2]
+            if p == 1:  # the flagged one: outside the window
+                assert np.any(lo > window[1]) or np.any(hi < window[0]), (kind, lo, hi, window)
+            else:  # the others: inside it
+                assert np.all(lo >= window[0]) and np.all(hi <= window[1]), (kind, p, lo, hi, window)
+    assert "1 flagged in people.csv (outlined label: id and flag; not framed in side/top)" in summary.captions["aligned"]
+    side = seen["image"][_panel_top(0):_panel_top(0) + size[1], :size[0]]
+    top = seen["image"][_panel_top(0):_panel_top(0) + size[1], size[0]:]
+    green = 1  # person 1's colour in STYLE's palette: only its edge markers are green
+    assert _masks(side)[green][:, -16:].sum() > 10  # ahead of the camera: off the side panel's right edge
+    assert _masks(top)[green][:16].sum() > 10  # ahead of the camera: off the top panel's top edge
+    # without people.csv's flags the same person widens the windows to hold it; with nobody plausible, everyone is framed
+    plain = dataclasses.replace(row, flags=None)
+    assert scene_extents([plain], ("side",), size, STYLE.margin)["side"].px_per_m < 0.5 * extents["side"].px_per_m
+    everyone_flagged = dataclasses.replace(row, flags=("sitting",) * 4)
+    assert scene_extents([everyone_flagged], ("side",), size, STYLE.margin) == scene_extents([plain], ("side",), size,
+                                                                                            STYLE.margin)
+    assert people_flags(open_sequence(scene / "pred")) is None  # rows without a people.csv have no flags
+    (tmp_path / "odd").mkdir()
+    (tmp_path / "odd" / "people.csv").write_text("frame,person\n000000,1\n")
+    warnings = []
+    assert people_flags(dataclasses.replace(open_sequence(aligned), path=tmp_path / "odd"), warnings) is None
+    assert warnings == [f"{tmp_path / 'odd' / 'people.csv'}: no person_id, flag column: no person is marked as flagged"]
+
+
+def test_render_without_a_camera_names_commands_that_run(runner, tmp_path):
+    """Issue 24: `render --from bev FILE` without a camera named `rotavat calibrate FILE`, which fails (not a
+    folder); the commands it names now run as written, with the user's paths and --from/--image-size/--smpl-model."""
+    import shlex
+
+    import _format_fixtures as F
+
+    camera = F.scene_camera()
+    model_path = F.write_synthetic_smpl(tmp_path / "smpl.npz")
+    src = F.write_bev(tmp_path / "bev", F.default_scene(F.load_model(model_path), camera), camera.image_size)
+    reader = ["--from", "bev", "--image-size", *map(str, camera.image_size), "--smpl-model", str(model_path)]
+    result = invoke(runner, "render", src, *reader, "--size", "160", "90")
+    assert result.exit_code == 2 and "Traceback" not in result.stderr, result.output
+    message = " ".join(result.stderr.split())
+    commands = message.split("`")[1::2]  # the commands, between backquotes
+    assert [c.split()[:2] for c in commands] == [["rotavat", "calibrate"], ["rotavat", "render"]], message
+    for command in commands:
+        assert " ".join(reader) in command, command  # the reading flags, as given
+        run = invoke(runner, *shlex.split(command)[1:], "-q")
+        assert run.exit_code == 0, (command, run.stderr)
+    assert sorted((tmp_path / "bev_render").glob("*.png"))  # the named render's pictures (its default output)
+
+
+def test_render_notes_a_row_whose_own_camera_wins_over_camera(runner, scene, tmp_path):
+    """Issue 24: with --camera, a row drawn in its own camera.yaml says so (one note line on stderr)."""
+    from rotavat_cli.sequence import write_camera_yaml
+
+    write_camera_yaml(tmp_path / "other.yaml", open_sequence(scene / "gt").camera.replace(height_m=9.0))
+    args = ["--views", "side", "--renderer", "fallback", "--size", "160", "90"]
+    result = invoke(runner, "render", scene / "pred", scene / "gt", "--camera", tmp_path / "other.yaml", *args,
+                    "--out", tmp_path / "a")
+    assert result.exit_code == 0, result.stderr
+    notes = [line for line in result.stderr.splitlines() if line.startswith("note:")]
+    assert notes == [f"note: {scene / 'gt'}: drawn in its own camera ({scene / 'gt' / 'camera.yaml'}), not --camera "
+                     f"{tmp_path / 'other.yaml'} (--camera is for the rows without one)"]  # pred has none: --camera's
+    same = invoke(runner, "render", scene / "pred", scene / "gt", "--camera", scene / "gt" / "camera.yaml", *args,
+                  "--out", tmp_path / "b")
+    assert same.exit_code == 0 and "note:" not in same.stderr  # its own camera is the one given: nothing to say

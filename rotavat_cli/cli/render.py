@@ -66,6 +66,8 @@ def render(
     summary = summary.moved_to(out)
     for warning in summary.warnings if not (quiet or as_json) else ():  # one line each, never wrapped
         console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
+    for note in summary.notes if not (quiet or as_json) else ():  # e.g. a row's own camera used, not --camera's
+        console.print(f"note: {escape(note)}", highlight=False, soft_wrap=True)
     if as_json:
         print_json(vars(summary))
         return

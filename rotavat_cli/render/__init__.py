@@ -21,13 +21,13 @@ from .export import (R_CV_FROM_GL, build_scene, export_frame, frustum_segments_w
 from .fallback import rasterize_numpy
 from .geometry import (FrontCrop, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
                        fit_front_crop, fit_ortho_extent, horizontal_forward_world, ndc_to_px, nice_length_m,
-                       panel_px_per_m, project_view_px)
+                       panel_px_per_m, paste_boxes_px, project_view_px)
 from .gl import GL_SYSTEM_PACKAGES
-from .grid import LABEL_PX, render_grid, render_panel, row_shapes
+from .grid import LABEL_PX, person_label, render_grid, render_panel, row_shapes
 from .raster import RENDERERS, Rasterizer, open_rasterizer
-from .rows import IMAGE_SUFFIXES, read_row, row_labels, select_frames, sequence_camera, sequence_layout
-from .sequences import (GHOSTS, SCALES, FigureOptions, FigureSummary, figure_steps, ground_truth_row, metrics_caption,
-                        render_sequences)
+from .rows import IMAGE_SUFFIXES, people_flags, read_row, row_labels, select_frames, sequence_camera, sequence_layout
+from .sequences import (GHOSTS, SCALES, FigureOptions, FigureSummary, figure_steps, flagged_caption, ground_truth_row,
+                        metrics_caption, render_sequences)
 from .skeleton import BONE_FAMILIES, Shapes, layout_bones, layout_name, point_shapes, skeleton_shapes
 from .tracks import Tracks, plot_tracks, sequence_tracks
 from .video import MP4_INSTALL, require_mp4, write_gif, write_mp4
@@ -57,6 +57,7 @@ __all__ = [
     "PanelView",
     "fit_front_crop",
     "panel_px_per_m",
+    "paste_boxes_px",
     "clip_from_cam_perspective",
     "clip_from_world_ortho",
     "fit_ortho_extent",
@@ -80,6 +81,7 @@ __all__ = [
     "render_panel",
     "render_grid",
     "row_shapes",
+    "person_label",
     "LABEL_PX",
     "IMAGE_SUFFIXES",
     "select_frames",
@@ -87,6 +89,7 @@ __all__ = [
     "sequence_camera",
     "sequence_layout",
     "read_row",
+    "people_flags",
     "FigureOptions",
     "FigureSummary",
     "SCALES",
@@ -95,6 +98,7 @@ __all__ = [
     "figure_steps",
     "ground_truth_row",
     "metrics_caption",
+    "flagged_caption",
     # people without triangles
     "BONE_FAMILIES",
     "Shapes",

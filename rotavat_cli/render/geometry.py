@@ -26,6 +26,7 @@ __all__ = [
     "clip_from_world_ortho",
     "fit_ortho_extent",
     "fit_front_crop",
+    "paste_boxes_px",
     "panel_px_per_m",
     "ndc_to_px",
     "project_view_px",
@@ -176,6 +177,36 @@ def fit_front_crop(box_px: np.ndarray, image_size: tuple[int, int], size: tuple[
     cx = min(max(cx, w / 2), Wi - w / 2) if w <= Wi else Wi / 2  # slide inside the image where it fits
     cy = min(max(cy, h / 2), Hi - h / 2) if h <= Hi else Hi / 2
     return FrontCrop((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2))
+
+
+def paste_boxes_px(image_rect: tuple[float, float, float, float], size: tuple[int, int],
+                   source_size: tuple[int, int]) -> tuple[tuple[int, int, int, int], tuple[float, float, float, float]] | None:
+    """Where a picture of ``source_size`` (w, h px) drawn over ``image_rect`` (x0, y0, x1, y1 panel px,
+    possibly overhanging) lands in a W x H panel: the whole panel pixels it covers (``x0, y0, x1, y1``
+    ints, clipped to the panel) and the part of the picture that fills them (source px, clipped to the
+    picture: never a negative offset, never past its far edge). Each axis has its own scale (a picture
+    a pixel off the image size still fills the image's rectangle). None when no whole pixel is covered.
+
+    Rounding the rectangle to whole pixels may reach up to half a pixel past it: that sliver shows the
+    picture's edge (the source is clipped), where an unclipped source would start at a negative offset.
+
+    >>> paste_boxes_px((137.45, 0.0, 502.55, 360.0), (640, 360), (500, 493))  # 500x493 letterboxed in 640x360
+    ((137, 0, 503, 360), (0.0, 0.0, 500.0, 493.0))
+    >>> paste_boxes_px((-50.0, 10.4, 590.0, 350.4), (320, 180), (640, 340))  # a crop: the left part of the picture
+    ((0, 10, 320, 180), (50.0, 0.0, 370.0, 169.6))
+    """
+    W, H = size
+    sw, sh = (float(v) for v in source_size)
+    x0, y0, x1, y1 = (float(v) for v in image_rect)
+    box = (min(max(round(x0), 0), W), min(max(round(y0), 0), H), min(max(round(x1), 0), W), min(max(round(y1), 0), H))
+    if box[2] <= box[0] or box[3] <= box[1] or x1 <= x0 or y1 <= y0 or sw < 1 or sh < 1:
+        return None
+    sx, sy = (x1 - x0) / sw, (y1 - y0) / sh  # panel px per picture px
+    source = (min(max((box[0] - x0) / sx, 0.0), sw), min(max((box[1] - y0) / sy, 0.0), sh),
+              min(max((box[2] - x0) / sx, 0.0), sw), min(max((box[3] - y0) / sy, 0.0), sh))
+    if source[2] <= source[0] or source[3] <= source[1]:
+        return None
+    return box, source
 
 
 def ndc_to_px(ndc_xy: np.ndarray, size: tuple[int, int]) -> np.ndarray:

@@ -20,9 +20,9 @@ import numpy as np
 from .geometry import PanelView, panel_px_per_m, project_view_px
 from .skeleton import BONE_RADIUS_M, POINT_RADIUS_M, Shapes, layout_bones, point_shapes, skeleton_shapes
 from .style import RenderStyle, font, mix, person_colors, rgb8, shade_vertices, vertex_normals
-from .views import REGISTRY, RowFrame, scene_extents, view_specs
+from .views import REGISTRY, RowFrame, edge_marker, scene_extents, view_specs
 
-__all__ = ["render_panel", "render_grid", "LABEL_PX", "row_shapes", "GHOST_ALPHA"]
+__all__ = ["render_panel", "render_grid", "LABEL_PX", "row_shapes", "GHOST_ALPHA", "person_label"]
 
 LABEL_PX = 26  # header strip and row caption strip height in grids
 GHOST_ALPHA = 0.35  # the ghost's fill opacity (its outline is opaque)
@@ -118,12 +118,27 @@ def _ghost_over(base: np.ndarray, layer: np.ndarray, style: RenderStyle) -> np.n
     return out
 
 
-def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
-    """Each person's id above its silhouette (panel pixels of its points), in its colour."""
+def person_label(person_id: int, flag: str = "", ids: bool = True) -> str:
+    """What is written above a person: its id, and for a person align flagged the flag too (the mark; drawn
+    in an outlined box, even without ids).
+
+    >>> person_label(3), person_label(3, "sitting"), person_label(3, "sitting", ids=False), person_label(3, ids=False)
+    ('3', '3 sitting', 'sitting', '')
+    """
+    return " ".join(part for part in (str(int(person_id)) if ids else "", flag) if part)
+
+
+def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle, ids: bool = True,
+               taken: list[tuple[float, float, float, float]] | None = None) -> None:
+    """Each person's id above its silhouette (panel pixels of its points), in its colour; flagged people
+    (:attr:`RowFrame.flagged`) get their flag in an outlined box, and in an orthographic view, when they
+    lie off the panel (windows are fitted on the others), an edge marker pointing to them, clear of the
+    labels in ``taken`` (the view's annotations) and of the ids."""
     from PIL import ImageDraw
 
     points = row.points_cam
-    if not points.shape[1]:
+    flagged = row.flagged
+    if not points.shape[1] or not (ids or flagged):
         return
     draw = ImageDraw.Draw(img, "RGBA")
     W, H = view.size
@@ -131,7 +146,12 @@ def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     face = font(f_px)
     step = max(1, points.shape[1] // _LABEL_POINTS)
     colors = person_colors(np.asarray(row.person_ids), style.palette)
-    for pts, pid, color in zip(points[:, ::step], row.person_ids, colors):
+    taken = list(taken or [])
+    off_panel = []  # flagged people off an orthographic panel: their edge markers come after the labels
+    for i, (pts, pid, color) in enumerate(zip(points[:, ::step], row.person_ids, colors)):
+        text = person_label(pid, flagged.get(i, ""), ids)
+        if not text:
+            continue
         pts = pts[np.isfinite(pts).all(axis=1)]
         if view.kind == "front":
             pts = pts[pts[:, 2] > 0]
@@ -141,19 +161,34 @@ def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
         uv = uv[np.isfinite(uv).all(axis=1)]
         if not len(uv):
             continue
+        ink = rgb8(mix(color, style.text, 0.35))
+        outline = ink if i in flagged else None
         x, y = float(np.median(uv[:, 0])), float(uv[:, 1].min()) - 2
         if not (0 <= x < W and f_px <= y < H + f_px):
+            if outline is not None and view.px_per_m and not _on_panel(uv, view.size):
+                off_panel.append((np.median(uv, axis=0), rgb8(color), ink, text))
             continue
-        text = str(int(pid))
         box = draw.textbbox((x, y), text, font=face, anchor="md")
-        draw.rectangle([box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1], fill=(255, 255, 255, 200))
-        draw.text((x, y), text, fill=rgb8(mix(color, style.text, 0.35)), font=face, anchor="md")
+        x += max(0.0, 2 - box[0]) - max(0.0, box[2] + 2 - W)  # the whole label inside the panel
+        box = draw.textbbox((x, y), text, font=face, anchor="md")
+        draw.rectangle([box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1], fill=(255, 255, 255, 200), outline=outline,
+                       width=1 if outline else 0)
+        draw.text((x, y), text, fill=ink, font=face, anchor="md")
+        taken.append((box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1))
+    for target_px, fill, ink, text in off_panel:
+        edge_marker(draw, view, target_px, fill, ink, text, max(4, min(W, H) // 60), f_px, ink, taken)
+
+
+def _on_panel(uv: np.ndarray, size: tuple[int, int]) -> bool:
+    """Whether any of the (N, 2) panel points is inside a W x H panel."""
+    W, H = size
+    return bool(np.any((uv[:, 0] >= 0) & (uv[:, 0] < W) & (uv[:, 1] >= 0) & (uv[:, 1] < H)))
 
 
 def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderStyle, mesh: _Mesh | None = None,
                  labels: bool = True, ghost_mesh: _Mesh | None = None) -> np.ndarray:
     """One panel: the view's background, the shaded people, the ghost, the view's annotations and
-    the person ids -> (H, W, 3) uint8. ``mesh`` / ``ghost_mesh``: the row's / its ghost's mesh when
+    the person ids (``labels``; flagged people's marks are drawn either way) -> (H, W, 3) uint8. ``mesh`` / ``ghost_mesh``: the row's / its ghost's mesh when
     already flattened (mesh rows: the same in every view)."""
     from PIL import Image
 
@@ -169,9 +204,8 @@ def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderSt
         ghost = ghost_mesh if ghost_mesh is not None and row.ghost.kind == "mesh" else _row_mesh(row.ghost, style, view)
         out = _ghost_over(out, _mesh_layer(ghost, view, rasterize), style)
     img = Image.fromarray(np.round(255.0 * np.clip(out, 0.0, 1.0)).astype(np.uint8))
-    spec.over(img, view, row, style)
-    if labels:
-        _id_labels(img, view, row, style)
+    annotations = spec.over(img, view, row, style)
+    _id_labels(img, view, row, style, labels, annotations)  # ids (``labels``), and the flagged people's marks always
     return np.asarray(img)
 
 

@@ -13,6 +13,9 @@ matched by name in the others. People are meshes, point clouds (vertices without
 
 from __future__ import annotations
 
+import csv
+import shlex
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +27,7 @@ from .skeleton import layout_name
 from .views import RowFrame
 
 __all__ = ["IMAGE_SUFFIXES", "OWN", "GIVEN_FILE", "select_frames", "frame_names", "row_labels", "sequence_camera",
-           "sequence_camera_fit", "sequence_layout", "no_camera", "read_row"]
+           "sequence_camera_fit", "sequence_layout", "no_camera", "people_flags", "read_row"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 OWN, GIVEN_FILE = "own", "given"  # where a row's camera came from: the sequence's own, or the camera.yaml given (--camera)
@@ -94,10 +97,63 @@ def sequence_camera_fit(seq: Sequence, camera_path: Path | None,
     return None, {}, None
 
 
-def no_camera(seq: Sequence, what: str) -> InputError:
-    """The error for a view that needs a camera the sequence does not have."""
-    return InputError(f"{seq.path}: no camera.yaml for the {what}: run `rotavat calibrate {seq.path}` "
-                      "or pass --camera camera.yaml")
+def no_camera(seq: Sequence, what: str, reader_flags: tuple[str, ...] = (), rows: tuple[str, ...] = ()) -> InputError:
+    """The error for a view that needs a camera the sequence does not have, naming commands that run as
+    written. A folder: ``rotavat calibrate SEQ`` writes its camera.yaml. An HPS tool's output read with
+    ``--from`` (``reader_flags``: ``--from FMT [--image-size W H] [--smpl-model FILE]``, as given): calibrate
+    it with the same flags into ``<SEQ>_camera.yaml``, then render the ``rows`` (every SEQ, as given) with
+    ``--camera`` that file.
+
+    >>> print(no_camera(Sequence(Path("bev/a.npz"), "npz", ("a",), origin="bev/a.npz"), "side views",
+    ...                 ("--from", "bev"), ("bev/a.npz", "b")))
+    bev/a.npz: no camera for the side views: run `rotavat calibrate bev/a.npz --from bev --out bev/a.npz_camera.yaml`, \
+then `rotavat render bev/a.npz b --from bev --camera bev/a.npz_camera.yaml` (your other options as before), or pass \
+--camera FILE (a camera.yaml you wrote)
+    """
+    if seq.origin is None or not reader_flags:
+        return InputError(f"{seq.path}: no camera.yaml for the {what}: run `{_join('rotavat', 'calibrate', seq.path)}` "
+                          "or pass --camera camera.yaml")
+    camera_file = str(seq.label).rstrip("/\\") + "_camera.yaml"
+    calibrate = _join("rotavat", "calibrate", seq.label, *reader_flags, "--out", camera_file)
+    render = _join("rotavat", "render", *(rows or (seq.label,)), *reader_flags, "--camera", camera_file)
+    return InputError(f"{seq.label}: no camera for the {what}: run `{calibrate}`, then `{render}` (your other options "
+                      "as before), or pass --camera FILE (a camera.yaml you wrote)")
+
+
+def _join(*parts: object) -> str:
+    """A command line, each part quoted for a POSIX shell when needed (paths with spaces)."""
+    return " ".join(shlex.quote(str(p)) for p in parts)
+
+
+def people_flags(seq: Sequence, warnings: list[str] | None = None) -> dict[tuple[str, int], str] | None:
+    """An aligned sequence's flags from its ``people.csv`` (``rotavat align``): ``{(frame name, person_id):
+    flag}``, ``""`` for the people aligned without one; None for a sequence without a people.csv (or read
+    with --from). The flags only mark people, so a people.csv that cannot be read, or lacks the ``frame``,
+    ``person_id`` or ``flag`` column, gives None and a line in ``warnings`` rather than an error."""
+    path = Path(seq.path) / "people.csv"
+    if seq.origin is not None or not path.is_file():
+        return None
+    flags: dict[tuple[str, int], str] = {}
+    try:
+        with open(path, encoding="utf-8", newline="") as handle:
+            reader = csv.DictReader(handle)
+            missing = [c for c in ("frame", "person_id", "flag") if c not in (reader.fieldnames or ())]
+            if missing:
+                problem = f"no {', '.join(missing)} column"
+            else:
+                problem = ""
+                for record in reader:
+                    try:
+                        flags[(record["frame"], int(float(record["person_id"])))] = (record["flag"] or "").strip()
+                    except (TypeError, ValueError):
+                        continue  # a row without a person id names nobody
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        problem = f"unreadable ({exc})"
+    if problem:
+        if warnings is not None:
+            warnings.append(f"{path}: {problem}: no person is marked as flagged")
+        return None
+    return flags
 
 
 def _frame_image(image_dir: Path, name: str) -> np.ndarray:
@@ -119,11 +175,13 @@ def sequence_layout(seq: Sequence, n_joints: int) -> str | None:
     return layout_name(seq.joints_layout, n_joints)
 
 
-def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_dir: Path | None = None) -> RowFrame:
+def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_dir: Path | None = None,
+             flags: Mapping[tuple[str, int], str] | None = None) -> RowFrame:
     """One row of a figure: frame ``name`` of ``seq`` with its intrinsics, camera and video frame.
 
     People are drawn from their meshes (``vertices`` + ``faces``), their vertices alone (a point
-    cloud) or their ``joints`` (a skeleton); a frame with people but neither is refused.
+    cloud) or their ``joints`` (a skeleton); a frame with people but neither is refused. ``flags``
+    (:func:`people_flags`) gives each person its flag by frame name and ``person_id`` ("" when absent).
     """
     if name not in seq.frame_names:
         raise InputError(f"{seq.path}: has no frame named {name} (frames are matched by name across sequences)")
@@ -147,6 +205,7 @@ def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_
     image = _frame_image(image_dir, name) if image_dir is not None else None
     P = frame.n_people
     layout = sequence_layout(seq, joints.shape[1]) if joints is not None else None
+    row_flags = None if flags is None else tuple(flags.get((name, int(pid)), "") for pid in frame.person_ids)
     return RowFrame(label, np.zeros((P, 0, 3)) if verts is None else verts,
                     np.zeros((0, 3), np.int64) if faces is None else faces, frame.person_ids,
-                    size, float(focal), pp, camera, image, joints, layout)
+                    size, float(focal), pp, camera, image, joints, layout, flags=row_flags)

@@ -7,7 +7,9 @@ gate first (:func:`rotavat_cli.alignment.check_fit`: an implausible calibration 
 ``accept_camera``; the warnings go to :attr:`FigureSummary.warnings`). One row may be the
 ground truth (``gt``): the other rows' captions then give their errors against it on the frame
 shown (W-MPJPE, lean, foot height: :func:`rotavat_cli.metrics.evaluate.evaluate` on that frame),
-and with ``ghost="gt"`` it is drawn faintly over them (docs/render.md, "Ground truth").
+and with ``ghost="gt"`` it is drawn faintly over them (docs/render.md, "Ground truth"). An aligned
+row's people carry the flags of its ``people.csv`` (:func:`.rows.people_flags`): the side/top windows
+are fitted on the unflagged people and the flagged ones are marked (:func:`.grid.person_label`).
 
 Defaults: the packaged configs/default.yaml, section ``render``, is their one source
 (``FigureOptions()`` is ``FigureOptions.from_config(default_config()["render"])``).
@@ -35,14 +37,14 @@ from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
 from .raster import RENDERERS, open_rasterizer
-from .rows import OWN, frame_names, no_camera, read_row, row_labels, sequence_camera_fit
+from .rows import OWN, frame_names, no_camera, people_flags, read_row, row_labels, sequence_camera_fit
 from .style import RenderStyle
 from .tracks import plot_tracks, sequence_tracks
 from .video import require_mp4, write_gif, write_mp4
 from .views import FITS, RowFrame, camera_numbers, parse_views, scene_extents, view_specs
 
 __all__ = ["FigureOptions", "FigureSummary", "SCALES", "GHOSTS", "render_sequences", "figure_steps", "ground_truth_row",
-           "metrics_caption"]
+           "metrics_caption", "flagged_caption"]
 
 SCALES = ("row", "shared")  # side/top windows: each row its own, or one for every row
 GHOSTS = ("none", "gt")  # what is drawn faintly over the rows
@@ -122,6 +124,7 @@ class FigureSummary:
     gt: str | None = None  # the ground-truth row's label
     captions: dict[str, str] = dataclasses.field(default_factory=dict)  # row label -> its numbers (last frame)
     warnings: list[str] = dataclasses.field(default_factory=list)  # e.g. an implausible camera used (--accept-camera)
+    notes: list[str] = dataclasses.field(default_factory=list)  # e.g. a row drawn in its own camera, not --camera's
 
     def moved_to(self, out: str | Path) -> "FigureSummary":
         """The same summary once its folder was moved to ``out`` (a staging folder swapped in)."""
@@ -177,14 +180,19 @@ def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
     return f"vs gt: {' · '.join(shown) or 'no metric'} ({result.matched}/{result.people_gt} matched)"
 
 
-def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> tuple[list[Camera | None], list[str]]:
-    """Each sequence's camera (its own, else ``opts.camera_path``), each past the camera gate, and the gate's
-    warnings; an error naming what ``needs`` one if it is missing, or refusing an implausible camera."""
-    cameras, warnings = [], []
+def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> tuple[list[Camera | None], list[str], list[str]]:
+    """Each sequence's camera (its own, else ``opts.camera_path``), each past the camera gate, the gate's
+    warnings and notes (a row whose own camera is used although ``--camera`` was given); an error naming
+    what ``needs`` one if it is missing, or refusing an implausible camera."""
+    cameras, warnings, notes = [], [], []
     for seq in seqs:
         cam, fit, whence = sequence_camera_fit(seq, opts.camera_path, own_first=True)
         if cam is None and needs:
-            raise no_camera(seq, needs)
+            raise no_camera(seq, needs, opts.reader_flags if seq.origin is not None else (),
+                            tuple(s.label for s in seqs))
+        if whence == OWN and opts.camera_path is not None and not _same_file(seq.camera_label, opts.camera_path):
+            notes.append(f"{seq.label}: drawn in its own camera ({seq.camera_label}), not --camera {opts.camera_path} "
+                         "(--camera is for the rows without one)")
         if cam is not None:
             what = seq.camera_label if whence == OWN else f"{opts.camera_path} (--camera, for {seq.label})"
             remedies = render_remedies(seq.label, own=whence == OWN, aligned="aligned_from" in (seq.meta or {}),
@@ -193,7 +201,15 @@ def _cameras(seqs: list[Sequence], opts: FigureOptions, needs: str) -> tuple[lis
             if warning is not None and warning not in warnings:
                 warnings.append(warning)
         cameras.append(cam)
-    return cameras, warnings
+    return cameras, warnings, notes
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether two paths name one existing file."""
+    try:
+        return Path(a).samefile(b)
+    except OSError:
+        return False
 
 
 def _save_png(path: Path, image: np.ndarray) -> None:
@@ -230,8 +246,24 @@ def figure_steps(seqs: list[Sequence], opts: FigureOptions) -> int:
     return n + (sum(len(s) for s in seqs) if opts.plots else 0)
 
 
-def _captions(rows: list[RowFrame], seqs: list[Sequence], gt: int | None, name: str) -> list[str]:
-    """Per row: its camera's numbers and, against the ground-truth row, its errors on frame ``name``."""
+def flagged_caption(row: RowFrame, framed: bool = True) -> str:
+    """What a row's caption says of its flagged people (:attr:`RowFrame.flagged`): how many, what marks them
+    and, when the side/top windows are ``framed`` on the others, that they are left out of them; "" for none.
+
+    >>> row = RowFrame("a", np.zeros((3, 0, 3)), np.zeros((0, 3)), np.arange(3), (64, 48), 50.0, (32.0, 24.0),
+    ...                flags=("", "sitting", "implausible_stature"))
+    >>> flagged_caption(row)
+    '2 flagged in people.csv (outlined label: id and flag; not framed in side/top)'
+    """
+    n = len(row.flagged)
+    if not n:
+        return ""
+    return f"{n} flagged in people.csv (outlined label: id and flag{'; not framed in side/top' if framed else ''})"
+
+
+def _captions(rows: list[RowFrame], seqs: list[Sequence], gt: int | None, name: str, framed: bool) -> list[str]:
+    """Per row: its camera's numbers, against the ground-truth row its errors on frame ``name``, and its
+    flagged people (``framed``: the side/top windows are fitted on the others)."""
     out = []
     for i, (row, seq) in enumerate(zip(rows, seqs)):
         parts = ["ground truth"] if i == gt else []
@@ -239,6 +271,7 @@ def _captions(rows: list[RowFrame], seqs: list[Sequence], gt: int | None, name: 
             parts.append("camera " + camera_numbers(row.camera))
         if gt is not None and i != gt:
             parts.append(metrics_caption(seq, seqs[gt], name))
+        parts.append(flagged_caption(row, framed and bool(row.plausible.any())))  # nobody plausible: everyone framed
         out.append("   ".join(p for p in parts if p))
     return out
 
@@ -256,7 +289,8 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     placed = [view.name for view in view_specs(opts.views) if view.needs_camera]  # views placing rows in the world
     needs = [f"{'/'.join(placed)} views"] if placed else []
     needs += (["the GLB"] if opts.glb else []) + (["the track plots"] if opts.plots else [])
-    cameras, warnings = _cameras(seqs, opts, " and ".join(needs))
+    cameras, warnings, notes = _cameras(seqs, opts, " and ".join(needs))
+    flags = [people_flags(s, warnings) for s in seqs]  # aligned rows: people.csv's flags
     labels = row_labels([Path(s.label) for s in seqs])
     names = frame_names(seqs[0], opts.frames, opts.every)
     gt = ground_truth_row(opts.gt, labels)
@@ -265,7 +299,7 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
                          "or give a sequence folder named gt")
 
     def rows_of(name: str, image_dir: Path | None = None) -> list[RowFrame]:
-        rows = [read_row(s, name, lab, cam, image_dir) for s, lab, cam in zip(seqs, labels, cameras)]
+        rows = [read_row(s, name, lab, cam, image_dir, f) for s, lab, cam, f in zip(seqs, labels, cameras, flags)]
         if opts.ghost == "gt":
             rows = [r if i == gt else dataclasses.replace(r, ghost=rows[gt]) for i, r in enumerate(rows)]
         return rows
@@ -285,7 +319,7 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     with open_rasterizer(opts.renderer) as rasterizer:
         for name in names:
             rows = rows_of(name, opts.image_dir)
-            rows = [dataclasses.replace(r, caption=c) for r, c in zip(rows, _captions(rows, seqs, gt, name))]
+            rows = [dataclasses.replace(r, caption=c) for r, c in zip(rows, _captions(rows, seqs, gt, name, bool(placed)))]
             captions = {r.label: r.caption for r in rows}
             image = render_grid(rows, opts.views, opts.size, rasterizer.rasterize, opts.style, extents,
                                 title=f"frame {name}", labels=opts.labels)
@@ -309,4 +343,4 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     seconds = time.perf_counter() - start
     return FigureSummary(str(out), rasterizer.name, rasterizer.detail, rasterizer.note, labels, list(opts.views), names,
                          files, seconds, seconds / max(len(names), 1), None if gt is None else labels[gt], captions,
-                         warnings)
+                         warnings, notes)

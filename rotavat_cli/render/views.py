@@ -17,7 +17,9 @@ people. Adding a view = one entry here, its test and its row in docs/render.md's
   with the camera, its ground field of view and a metric grid ticked in metres.
 
 Windows (:meth:`View.window`) are fitted on the people of the rows given (every frame of a
-figure, so a GIF does not jump), or also on the camera with ``fit="camera"``.
+figure, so a GIF does not jump), or also on the camera with ``fit="camera"``. The side and top
+windows leave out the people align flagged (:attr:`RowFrame.flags`, from people.csv) unless nobody
+framed with them is unflagged: they are drawn and marked, with an :func:`edge_marker` when off the panel.
 """
 
 from __future__ import annotations
@@ -31,12 +33,13 @@ import numpy as np
 
 from ..camera import Camera, camera_parameters
 from .geometry import (UP_WORLD, FrontCrop, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
-                       fit_front_crop, fit_ortho_extent, horizontal_forward_world, nice_length_m, project_view_px, unit,
-                       world_from_cam_h)
+                       fit_front_crop, fit_ortho_extent, horizontal_forward_world, nice_length_m, paste_boxes_px,
+                       project_view_px, unit, world_from_cam_h)
 from .style import RenderStyle, font, mix, rgb8
 
 __all__ = ["RowFrame", "Ortho", "View", "REGISTRY", "VIEWS", "FITS", "view_specs", "parse_views", "ortho_basis_world",
-           "ortho_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers", "tick_marks", "side_fov_px"]
+           "ortho_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers", "tick_marks", "side_fov_px",
+           "edge_marker", "overlaps"]
 
 FITS = ("people", "camera")  # what windows are fitted on: the people, or also the camera (whole image, camera in view)
 _LIGHT_RAISE = 0.4  # the light sits this much above the eye (fraction of the viewing direction)
@@ -67,6 +70,20 @@ class RowFrame:
     joints_layout: str | None = None  # a formats.keypoints layout name (bones), None: joints drawn as points
     ghost: "RowFrame | None" = None
     caption: str = ""  # numbers shown after the label (camera, metrics)
+    flags: tuple[str, ...] | None = None  # (P,) people.csv's flag per person ("" = none: plausible); None: no flags
+
+    @property
+    def plausible(self) -> np.ndarray:
+        """(P,) bool: the people the side/top windows are fitted on: those whose flag is empty (every
+        person of a row without flags). Flagged people are drawn, marked, but may fall outside the window."""
+        if self.flags is None:
+            return np.ones(len(self.person_ids), dtype=bool)
+        return np.array([not flag for flag in self.flags], dtype=bool).reshape(len(self.person_ids))
+
+    @property
+    def flagged(self) -> dict[int, str]:
+        """{person index: flag} of the flagged people (empty for a row without flags)."""
+        return {} if self.flags is None else {i: flag for i, flag in enumerate(self.flags) if flag}
 
     @property
     def kind(self) -> str:
@@ -88,7 +105,10 @@ class RowFrame:
         return np.zeros((len(self.person_ids), 0, 3))
 
 
-Draw = Callable[[Any, PanelView, RowFrame, RenderStyle], None]  # (PIL image, panel, row, style): draws in place
+Box = tuple[float, float, float, float]  # x0, y0, x1, y1 panel px
+# (PIL image, panel, row, style): draws in place; an ``over`` returns the boxes of the labels it wrote, which
+# the flagged people's edge markers keep clear of
+Draw = Callable[[Any, PanelView, RowFrame, RenderStyle], "list[Box] | None"]
 
 
 @dataclass(frozen=True)
@@ -122,9 +142,11 @@ class View:
         the camera's view a :class:`FrontCrop` (None: the whole image)."""
         if self.ortho is None:
             return _front_window(rows, size, margin, fit)
-        bounds = [ortho_bounds(self.name, r.camera, _with_ghost(r), fit) for r in rows if r.camera is not None]
-        if not bounds:
+        placed = [r for r in rows if r.camera is not None]
+        if not placed:
             raise ValueError(f"the {self.name} view needs a camera")
+        plausible_only = any(r.plausible.any() for r in placed)  # else nobody is plausible: frame everyone
+        bounds = [ortho_bounds(self.name, r.camera, _with_ghost(r, plausible_only), fit) for r in placed]
         stacked = np.stack(bounds)
         union = np.stack([stacked[:, 0].min(axis=0), stacked[:, 1].max(axis=0)])
         return fit_ortho_extent(union, size, margin, self.ortho.floor_room)
@@ -138,9 +160,11 @@ class View:
         return ortho_view(self.name, row.camera, extents[self.name], size)
 
 
-def _with_ghost(row: RowFrame) -> np.ndarray:
-    """(N, 3) finite camera-frame points of a row's people and its ghost's."""
-    parts = [row.points_cam.reshape(-1, 3)] + ([row.ghost.points_cam.reshape(-1, 3)] if row.ghost is not None else [])
+def _with_ghost(row: RowFrame, plausible_only: bool = False) -> np.ndarray:
+    """(N, 3) finite camera-frame points of a row's people (``plausible_only``: of its :attr:`RowFrame.plausible`
+    people) and its ghost's."""
+    people = row.points_cam[row.plausible] if plausible_only else row.points_cam
+    parts = [people.reshape(-1, 3)] + ([row.ghost.points_cam.reshape(-1, 3)] if row.ghost is not None else [])
     pts = np.concatenate(parts)
     return pts[np.isfinite(pts).all(axis=1)]
 
@@ -249,12 +273,57 @@ def _font_px(view: PanelView) -> int:
     return max(10, min(view.size) // 28)
 
 
-def _label(draw: Any, xy: tuple[float, float], text: str, ink: tuple, font_px: int, anchor: str = "la") -> None:
-    """Text on a translucent white box (readable over people, grid and ground)."""
+def _label(draw: Any, xy: tuple[float, float], text: str, ink: tuple, font_px: int, anchor: str = "la",
+           outline: tuple | None = None) -> Box:
+    """Text on a translucent white box (readable over people, grid and ground), the box outlined in
+    ``outline`` if given; returns the box (panel px)."""
     face = font(font_px)
     box = draw.textbbox(xy, text, font=face, anchor=anchor)
-    draw.rectangle([box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1], fill=(255, 255, 255, 190))
+    frame = (box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1)
+    draw.rectangle(list(frame), fill=(255, 255, 255, 190), outline=outline, width=1 if outline else 0)
     draw.text(xy, text, fill=ink, font=face, anchor=anchor)
+    return frame
+
+
+def overlaps(a: Box, b: Box) -> bool:
+    """Whether two (x0, y0, x1, y1) boxes overlap."""
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def edge_marker(draw: Any, view: PanelView, target_px: np.ndarray, fill: tuple, ink: tuple, text: str, radius_px: int,
+                font_px: int, outline: tuple | None = None, taken: list[Box] | None = None) -> Box:
+    """Something off an orthographic panel at ``target_px`` (2,) panel px: a triangle in ``fill`` on the
+    nearest edge pointing to it, and ``text`` with its distance beyond the edge (metres) in ``ink``. Its
+    label slides along the edge past the boxes in ``taken`` (to which it is added); returns the label's box."""
+    W, H = view.size
+    c, r = np.asarray(target_px, dtype=np.float64), radius_px
+    m = 2 * r + 2
+    edge = np.array([min(max(c[0], m), W - m), min(max(c[1], m), H - m)])
+    d = c - edge
+    dist_m = float(np.linalg.norm(d) / view.px_per_m)
+    d = d / max(np.linalg.norm(d), 1e-9)
+    anchor = ("l" if d[0] <= 0 else "r") + ("t" if d[1] <= 0 else "b")
+    along = np.array([0.0, 1.0]) if abs(d[0]) >= abs(d[1]) else np.array([1.0, 0.0])  # the edge's direction
+    along *= 1.0 if edge @ along < 0.5 * (H if along[1] else W) else -1.0  # toward the panel's middle
+    face, label = font(font_px), f"{text} {dist_m:.1f} m"
+    anchor_pil = {"lt": "la", "rt": "ra", "lb": "ld", "rb": "rd"}[anchor]
+    n = np.array([-d[1], d[0]])
+    for _ in range(12):  # slide along the edge past the boxes taken (earlier labels and markers)
+        text_xy = (edge[0] - (r + 3) * np.sign(d[0] or -1),  # toward the panel's inside; below the axis name at the top
+                   edge[1] - (r + 3) * np.sign(d[1] or -1) + (font_px + 4 if edge[1] < 3 * font_px else 0))
+        box = draw.textbbox(text_xy, label, font=face, anchor=anchor_pil)
+        tri = np.stack([edge + 2 * r * d, edge - r * d + 1.4 * r * n, edge - r * d - 1.4 * r * n])
+        tri_box = (*tri.min(axis=0), *tri.max(axis=0))
+        label_box = (box[0] - 2, box[1] - 1, box[2] + 2, box[3] + 1)
+        if not any(overlaps(b, t) for b in (label_box, tri_box) for t in taken or ()):
+            break
+        step = box[3] - box[1] + 4 if along[1] else box[2] - box[0] + 6
+        edge = np.clip(edge + step * along, m, [W - m, H - m])
+    draw.polygon([tuple(p) for p in tri], fill=fill, outline=(255, 255, 255))
+    frame = _label(draw, text_xy, label, ink, font_px, anchor_pil, outline)
+    if taken is not None:
+        taken.extend([frame, tri_box])
+    return frame
 
 
 def _tick_step_m(view: PanelView) -> float:
@@ -275,27 +344,29 @@ def tick_marks(view: PanelView) -> tuple[list[tuple[float, float]], list[tuple[f
     return [(u, W / 2 + (u - uc) * s) for u in xs], [(v, H / 2 - (v - vc) * s) for v in ys]
 
 
-def _ticks(draw: Any, view: PanelView, style: RenderStyle, x_name: str, y_name: str) -> None:
+def _ticks(draw: Any, view: PanelView, style: RenderStyle, x_name: str, y_name: str) -> list[Box]:
     """Metre tick labels along the bottom (panel right axis) and left (panel up axis) edges (:func:`tick_marks`)."""
     W, H = view.size
     f_px = _font_px(view)
     ink = rgb8(style.text)
     xs, ys = tick_marks(view)
+    boxes = []
     for u, x in xs:
         if f_px < x < W - 3 * f_px:
             draw.line([(x, H - 4), (x, H)], fill=ink, width=1)
-            _label(draw, (x, H - 5), f"{u:g}", ink, f_px - 2, "md")
+            boxes.append(_label(draw, (x, H - 5), f"{u:g}", ink, f_px - 2, "md"))
     for v, y in ys:
         if 2 * f_px < y < H - 2 * f_px:
             draw.line([(0, y), (4, y)], fill=ink, width=1)
-            _label(draw, (6, y), f"{v:g}", ink, f_px - 2, "lm")
-    _label(draw, (W - 4, H - 5), f"{x_name} (m)", ink, f_px - 2, "rd")
-    _label(draw, (6, 4), f"{y_name} (m)", ink, f_px - 2, "la")
+            boxes.append(_label(draw, (6, y), f"{v:g}", ink, f_px - 2, "lm"))
+    boxes.append(_label(draw, (W - 4, H - 5), f"{x_name} (m)", ink, f_px - 2, "rd"))
+    boxes.append(_label(draw, (6, 4), f"{y_name} (m)", ink, f_px - 2, "la"))
+    return boxes
 
 
-def _camera_glyph(draw: Any, view: PanelView, camera: Camera, style: RenderStyle, at_world: np.ndarray) -> None:
+def _camera_glyph(draw: Any, view: PanelView, camera: Camera, style: RenderStyle, at_world: np.ndarray) -> Box:
     """The camera as a dot with its viewing direction at ``at_world`` (3,), or when that is off the
-    panel a triangle on the nearest edge pointing to it, labelled with its distance."""
+    panel a triangle on the nearest edge pointing to it, labelled with its distance; returns its label's box."""
     W, H = view.size
     c = project_view_px(view.clip_from_world, at_world, view.size)
     axis_world = camera.R_cam_from_world.T @ np.array([0.0, 0.0, 1.0])
@@ -306,20 +377,8 @@ def _camera_glyph(draw: Any, view: PanelView, camera: Camera, style: RenderStyle
     if 0 <= c[0] < W and 0 <= c[1] < H:
         draw.line([tuple(c), tuple(tip)], fill=ink, width=3)
         draw.ellipse([c[0] - r, c[1] - r, c[0] + r, c[1] + r], fill=ink, outline=(255, 255, 255))
-        _label(draw, (c[0] + r + 3, c[1] + r + 1), "camera", ink, f_px, "la")
-        return
-    m = 2 * r + 2
-    edge = np.array([min(max(c[0], m), W - m), min(max(c[1], m), H - m)])
-    d = c - edge
-    d = d / max(np.linalg.norm(d), 1e-9)
-    n = np.array([-d[1], d[0]])
-    tri = [tuple(edge + 2 * r * d), tuple(edge - r * d + 1.4 * r * n), tuple(edge - r * d - 1.4 * r * n)]
-    draw.polygon(tri, fill=ink, outline=(255, 255, 255))
-    dist_m = float(np.linalg.norm((c - edge)) / view.px_per_m)
-    anchor = ("l" if d[0] <= 0 else "r") + ("t" if d[1] <= 0 else "b")
-    text_xy = (edge[0] - (r + 3) * np.sign(d[0] or -1),  # toward the panel's inside; below the axis name at the top
-               edge[1] - (r + 3) * np.sign(d[1] or -1) + (f_px + 4 if edge[1] < 3 * f_px else 0))
-    _label(draw, text_xy, f"camera {dist_m:.1f} m", ink, f_px, {"lt": "la", "rt": "ra", "lb": "ld", "rb": "rd"}[anchor])
+        return _label(draw, (c[0] + r + 3, c[1] + r + 1), "camera", ink, f_px, "la")
+    return edge_marker(draw, view, c, ink, ink, "camera", r, f_px)
 
 
 def _front_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
@@ -327,23 +386,20 @@ def _front_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -
     from PIL import Image
 
     W, H = view.size
-    x0, y0, x1, y1 = view.image_rect
     draw = _draw(img)
     draw.rectangle([0, 0, W, H], fill=rgb8(mix(style.background, (0.0, 0.0, 0.0), 0.15)))
-    vis = (max(x0, 0.0), max(y0, 0.0), min(x1, float(W)), min(y1, float(H)))  # image area inside the panel
-    box = tuple(int(round(v)) for v in vis)
-    if box[2] <= box[0] or box[3] <= box[1]:
+    frame = None if row.image is None else Image.fromarray(np.asarray(row.image, dtype=np.uint8)).convert("RGB")
+    boxes = paste_boxes_px(view.image_rect, view.size, row.image_size if frame is None else frame.size)
+    if boxes is None:  # no whole panel pixel of the image
         return
-    if row.image is None:
+    box, source = boxes  # panel pixels (inside the panel), the picture's part filling them (inside the picture)
+    if frame is None:
         draw.rectangle([box[0], box[1], box[2] - 1, box[3] - 1], fill=rgb8(style.background))
         return
-    frame = Image.fromarray(np.asarray(row.image, dtype=np.uint8)).convert("RGB")
-    s = (x1 - x0) / frame.width  # panel px per image px
-    source = ((box[0] - x0) / s, (box[1] - y0) / s, (box[2] - x0) / s, (box[3] - y0) / s)
     img.paste(frame.resize((box[2] - box[0], box[3] - box[1]), Image.BILINEAR, box=source), box[:2])
 
 
-def _front_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
+def _front_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> list[Box]:
     """The image's border, and "crop" when the panel shows part of the image."""
     x0, y0, x1, y1 = view.image_rect
     W, H = view.size
@@ -353,8 +409,9 @@ def _front_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) ->
         s = (x1 - x0) / row.image_size[0]  # panel px per image px
         u0, u1 = (max(x0, 0.0) - x0) / s, (min(x1, W) - x0) / s
         v0, v1 = (max(y0, 0.0) - y0) / s, (min(y1, H) - y0) / s
-        _label(draw, (W - 4, 4), f"image x {u0:.0f}-{u1:.0f}, y {v0:.0f}-{v1:.0f} px", rgb8(style.text),
-               _font_px(view) - 2, "ra")
+        return [_label(draw, (W - 4, 4), f"image x {u0:.0f}-{u1:.0f}, y {v0:.0f}-{v1:.0f} px", rgb8(style.text),
+                       _font_px(view) - 2, "ra")]
+    return []
 
 
 def _side_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
@@ -412,7 +469,7 @@ def side_fov_px(view: PanelView, camera: Camera) -> np.ndarray:
     return project_view_px(view.clip_from_world, np.stack(pts), view.size)
 
 
-def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
+def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> list[Box]:
     """Ticks, the camera (edges of its field of view, viewing direction, position) and its numbers."""
     camera = row.camera
     draw = _draw(img)
@@ -420,9 +477,10 @@ def _side_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     ink = rgb8(style.camera)
     for end in (wedge[1], wedge[-1]):  # the edges of the field of view
         draw.line([tuple(wedge[0]), tuple(end)], fill=(*ink, 150), width=1)
-    _ticks(draw, view, style, "ahead of the camera", "height")
-    _camera_glyph(draw, view, camera, style, camera.center_world)
-    _label(draw, (view.size[0] - 4, 4), "camera: " + camera_numbers(camera), ink, _font_px(view) - 2, "ra")
+    boxes = _ticks(draw, view, style, "ahead of the camera", "height")
+    boxes.append(_camera_glyph(draw, view, camera, style, camera.center_world))
+    boxes.append(_label(draw, (view.size[0] - 4, 4), "camera: " + camera_numbers(camera), ink, _font_px(view) - 2, "ra"))
+    return boxes
 
 
 def _ground_fov_world(camera: Camera, far_m: float, n_per_edge: int = 24) -> np.ndarray:
@@ -454,11 +512,12 @@ def _top_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> 
     draw.line([tuple(p) for p in outline], fill=rgb8(mix(style.background, style.camera, 0.5)), width=1)
 
 
-def _top_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
+def _top_over(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> list[Box]:
     """The camera (dot + viewing direction, or an edge marker) and the ticks."""
     draw = _draw(img)
-    _ticks(draw, view, style, "right of the camera", "ahead")
-    _camera_glyph(draw, view, row.camera, style, row.camera.center_world * [1.0, 0.0, 1.0])
+    boxes = _ticks(draw, view, style, "right of the camera", "ahead")
+    boxes.append(_camera_glyph(draw, view, row.camera, style, row.camera.center_world * [1.0, 0.0, 1.0]))
+    return boxes
 
 
 # ---- the registry ------------------------------------------------------------------------------------
