@@ -16,7 +16,7 @@ from ..errors import input_errors
 from ..outputs import beside, check_output_dir
 from ..render import FITS, GHOSTS, SCALES, VIEWS, FigureOptions, figure_steps, render_sequences
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
-                      input_sequence, print_json, progress_bar, progress_enabled, report)
+                      input_sequence, print_json, progress_bar, progress_enabled, report, warn)
 
 
 def render(
@@ -64,8 +64,8 @@ def render(
                 staged_directory(out, "render") as stage:  # the folder is replaced whole: no stale pictures
             summary = render_sequences(sequences, stage, options, advance)
     summary = summary.moved_to(out)
-    for warning in summary.warnings if not (quiet or as_json) else ():  # one line each, never wrapped
-        console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
+    for warning in summary.warnings:  # one line each, never wrapped; on stderr even under --quiet
+        warn(warning)
     for note in summary.notes if not (quiet or as_json) else ():  # e.g. a row's own camera used, not --camera's
         console.print(f"note: {escape(note)}", highlight=False, soft_wrap=True)
     if as_json:
