@@ -87,18 +87,32 @@ def hybrik_row(person: F.Person, image_size, depth_factor_m: float = 2.2) -> dic
     }
 
 
-def write_hybrik(path: Path, scene, image_size, depth_factor_m: float = 2.2, drop=()) -> Path:
-    """demo_video.py --save-pk: pickle.dump of res_db, one stacked row per (image, person); images
-    with nobody are skipped, as the demo skips images without a detection. ``drop``: keys left out."""
+def hybrik_res_db(scene, image_size, depth_factor_m: float = 2.2, drop=(), video: str = "walk") -> dict:
+    """res_db of demo_video.py on one video: one stacked row per (image, person); images with nobody are
+    skipped, as the demo skips images without a detection; the images are ffmpeg's
+    ``<out-dir>/raw_images/<video>-%06d.png``. ``drop``: keys left out."""
     rows: dict[str, list] = {}
     for i, frame in enumerate(scene):
         for person in frame:
             row = hybrik_row(person, image_size, depth_factor_m)
-            row["img_path"] = f"res_walk/raw_images/walk-{i + 1:06d}.png"
+            row["img_path"] = f"res_walk/raw_images/{video}-{i + 1:06d}.png"
             for key, value in row.items():
                 rows.setdefault(key, []).append(value)
-    res_db = {key: np.stack(values) for key, values in rows.items() if key not in drop}
-    path.write_bytes(pickle.dumps(res_db))
+    return {key: np.stack(values) for key, values in rows.items() if key not in drop}
+
+
+def write_hybrik(path: Path, scene, image_size, depth_factor_m: float = 2.2, drop=(), video: str = "walk") -> Path:
+    """demo_video.py --save-pk: pickle.dump of res_db (:func:`hybrik_res_db`)."""
+    path.write_bytes(pickle.dumps(hybrik_res_db(scene, image_size, depth_factor_m, drop, video)))
+    return path
+
+
+def write_hybrik_videos(path: Path, videos) -> Path:
+    """demo_video.py run on several videos with one --out-dir: ``raw_images/`` keeps the earlier videos'
+    frames, and the demo processes every file there, sorted by name, so res.pk holds each video's rows one
+    video after the other. ``videos``: (video name, scene, image size) in that (name) order."""
+    parts = [hybrik_res_db(scene, size, video=name) for name, scene, size in videos]
+    path.write_bytes(pickle.dumps({key: np.concatenate([part[key] for part in parts]) for key in parts[0]}))
     return path
 
 

@@ -294,8 +294,10 @@ def _hybrik_damaged(path: Path, scene, damage: str) -> Path:
     elif damage == "hybrik-x":
         del data["pred_xyz_29"]
         data["f"] = np.full(len(data["transl"]), 1000.0)
-    elif damage == "two sizes":
-        data["width"][0] = 800
+    elif damage == "two sizes in one image":
+        data["width"][0] = 800  # the first image's first person only
+    elif damage == "zero width":
+        data["width"][:] = 0
     elif damage == "bad thetas":
         data["pred_thetas"] = data["pred_thetas"][:, :100]
     path.write_bytes(pickle.dumps(data))
@@ -308,7 +310,8 @@ def _hybrik_damaged(path: Path, scene, damage: str) -> Path:
     ("flat box", "'bbox' must hold boxes"),
     ("moved uvd", "does not reproject onto pred_uvd"),
     ("hybrik-x", "HybrIK-X (SMPL-X, demo_video_x.py)"),
-    ("two sizes", "expected one positive image size"),
+    ("two sizes in one image", "the rows of image 'res_walk/raw_images/walk-000001.png' state different image sizes"),
+    ("zero width", "'width'/'height' must be image sizes of 1 to 100000 px, got [0, 480]"),
     ("bad thetas", "'pred_thetas' must be 24 rotation matrices"),
 ])
 def test_hybrik_malformed_files_are_refused_in_one_line(damage, needle, tmp_path, scene, model_path, runner):
@@ -354,6 +357,89 @@ def test_hybrik_feeds_calibrate_and_align(tmp_path, model, camera, model_path, r
     assert sum(f.n_people for f in open_sequence(aligned).frames()) == 20
 
 
+# ---- HybrIK: one res.pk, several videos ----------------------------------------------------------
+def _videos(model, camera, sizes=((384, 640), (1280, 720)), names=("IMG_6412", "dance")) -> list:
+    """Two videos' (name, scene, image size), in the name order demo_video.py processes them: five people
+    per image (rows of one image are its people), 4 and 3 images."""
+    rng = np.random.default_rng(7)
+
+    def scene(n_frames):
+        return [[F.standing_person(model, camera, rng.uniform(-3, 3), -rng.uniform(6, 14), pid) for pid in range(5)]
+                for _ in range(n_frames)]
+    return [(names[0], scene(4), sizes[0]), (names[1], scene(3), sizes[1])]
+
+
+def test_hybrik_two_videos_import_as_one_sequence_each_frame_with_its_size(tmp_path, model, camera, runner):
+    """demo_video.py run on two videos with one --out-dir: one sequence, frame names keeping each video's
+    name, each frame its own image_size and principal_point, and a note naming --video; calibrate and
+    align refuse the mix of cameras in one line (was: the import refused, 'expected one positive image size')."""
+    videos = _videos(model, camera)
+    src = WH.write_hybrik_videos(tmp_path / "res.pk", videos)
+    summary = import_sequence(src, tmp_path / "seq", "hybrik")
+    seq = open_sequence(tmp_path / "seq")
+    assert summary["frames"] == 7 and summary["people"] == 35 and summary["image_size"] is None
+    assert "image_size" not in seq.meta and "principal_point" not in seq.meta
+    assert seq.frame_names == ("IMG_6412-000001", "IMG_6412-000002", "IMG_6412-000003", "IMG_6412-000004",
+                               "dance-000001", "dance-000002", "dance-000003")
+    truths = [(frame, size) for _, scene, size in videos for frame in scene]
+    for frame, (truth, size) in zip(seq.frames(), truths):
+        assert frame.data["image_size"].tolist() == list(size)
+        assert frame.data["principal_point"].tolist() == [size[0] / 2, size[1] / 2]
+        np.testing.assert_allclose(frame.data["joints"], np.stack([p.joints_cam for p in truth]), atol=TOL_M)
+        focals = frame.intrinsics.focals_px(5)
+        assert focals == pytest.approx([1000 / 256 * WH.hybrik_box_width(p) for p in truth], rel=1e-9)
+        expected_px = F.project(np.stack([WH.hybrik_joints29(p) for p in truth]), focals[:, None, None],
+                                (size[0] / 2, size[1] / 2))
+        np.testing.assert_allclose(frame.data["keypoints_2d"], expected_px, atol=TOL_PX)
+    assert seq.meta["import"]["videos"] == {"IMG_6412": "4 frames, 384x640", "dance": "3 frames, 1280x720"}
+    (note,) = [w for w in summary["warnings"] if "videos" in w]
+    assert note.startswith(f"{src}: holds 2 videos (IMG_6412: 4 frames, 384x640; dance: 3 frames, 1280x720; ")
+    assert note.endswith(f"rotavat import {src} OUT --video NAME (IMG_6412, dance)")
+    text = _one_line_error(invoke(runner, "calibrate", tmp_path / "seq", "--out", tmp_path / "cam.yaml"))
+    assert "dance-000001.npz: image size 1280x720 differs from 384x640" in text
+    text = _one_line_error(invoke(runner, "calibrate", src, "--from", "hybrik", "--out", tmp_path / "cam.yaml"))
+    assert "[res_walk/raw_images/dance-000001.png]: image size 1280x720 differs from 384x640" in text
+
+
+def test_hybrik_video_option_gives_each_video_a_sequence_that_calibrates(tmp_path, model, camera, runner):
+    videos = _videos(model, camera)
+    src = WH.write_hybrik_videos(tmp_path / "res.pk", videos)
+    for index, (name, scene, size) in enumerate(videos):
+        out = tmp_path / name
+        result = invoke(runner, "import", src, out, "--video", name, "--json")
+        assert result.exit_code == 0, result.output
+        seq = open_sequence(out)
+        assert seq.intrinsics.image_size == size and seq.intrinsics.principal_point == (size[0] / 2, size[1] / 2)
+        assert len(seq) == len(scene) and all(n.startswith(f"{name}-") for n in seq.frame_names)
+        assert seq.meta["import"]["video"] == name and not any("videos" in w for w in seq.meta["import"]["warnings"])
+        np.testing.assert_allclose(next(seq.frames()).data["joints"], np.stack([p.joints_cam for p in scene[0]]),
+                                   atol=TOL_M)
+        result = invoke(runner, "calibrate", out, "--out", tmp_path / f"{name}.yaml", "--quiet")
+        assert result.exit_code == 0, result.output
+        assert read_camera_yaml(tmp_path / f"{name}.yaml")[0].image_size == size
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "none", "--video", "IMG"))
+    assert ("res.pk: holds no video named 'IMG' (--video); its videos: IMG_6412: 4 frames, 384x640; "
+            "dance: 3 frames, 1280x720") in text
+
+
+def test_hybrik_two_videos_of_one_size_are_named_too(tmp_path, model, camera):
+    """Same image size: no per-frame keys, but the note still says two cameras and how to split them."""
+    src = WH.write_hybrik_videos(tmp_path / "res.pk", _videos(model, camera, sizes=((W, H), (W, H)), names=("a", "b")))
+    summary = import_sequence(src, tmp_path / "seq", "hybrik")
+    seq = open_sequence(tmp_path / "seq")
+    assert seq.intrinsics.image_size == (W, H) and "image_size" not in next(seq.frames()).data
+    assert any("holds 2 videos" in w and "--video NAME (a, b)" in w for w in summary["warnings"])
+    assert len(open_sequence(import_sequence(src, tmp_path / "b", "hybrik", video="b")["out"])) == 3
+
+
+def test_video_option_is_refused_where_a_file_holds_one_video(tmp_path, scene, runner):
+    src = WH.write_wham(tmp_path / "wham_output.pkl", scene)
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "wham", "--image-size", W, H,
+                                  "--video", "a"))
+    assert "--video selects one video of a file that holds several (hybrik); a WHAM output holds one" in text
+    assert "--video" in invoke(runner, "import", "--help").output
+
+
 def test_hybrik_real_output_imports(tmp_path, runner):
     """HybrIK demo_video.py on a 384x640 walking video (135 frames, one person)."""
     src = _real("hybrik/res.pk")
@@ -379,6 +465,35 @@ def test_hybrik_real_output_imports(tmp_path, runner):
     assert seq.meta["import"]["feet_heads_from"].startswith("keypoints_2d, hybrik29")
     heads = np.stack([f.data["heads_2d"][0] for f in frames])
     np.testing.assert_allclose(heads, kp[:, 24], atol=1e-3)
+    assert seq.meta["import"]["videos"] == {"IMG_6412": "135 frames, 384x640"}  # one video (frames IMG_6412-*)
+    assert not any("videos" in w for w in summary["warnings"])
     result = invoke(runner, "calibrate", out, "--out", tmp_path / "cam.yaml")
     assert result.exit_code == 0, result.output
     assert read_camera_yaml(tmp_path / "cam.yaml")[0].focal_px > 0
+
+
+def test_hybrik_real_video_and_another_in_one_res_pk(tmp_path, model, camera, runner):
+    """The real 384x640 video (IMG_6412-*) and a 1280x720 one (dance-*) in one res.pk, as demo_video.py writes
+    it when run on both with one --out-dir: one sequence with per-frame sizes, and --video IMG_6412 gives
+    exactly the import of the real file alone."""
+    real_src = _real("hybrik/res.pk")
+    real = safe_pickle.load_file(real_src)
+    dance = WH.hybrik_res_db(_videos(model, camera)[1][1], (1280, 720), video="dance")
+    src = tmp_path / "res.pk"
+    src.write_bytes(pickle.dumps({key: np.concatenate([np.asarray(real[key]), dance[key]]) for key in real}))
+    summary = import_sequence(src, tmp_path / "both", "hybrik")
+    assert summary["frames"] == 138 and summary["image_size"] is None
+    assert any(w.startswith(f"{src}: holds 2 videos (IMG_6412: 135 frames, 384x640; dance: 3 frames, 1280x720")
+               for w in summary["warnings"])
+    both = open_sequence(tmp_path / "both")
+    sizes = {tuple(both.read_frame(n).data["image_size"].tolist()) for n in both.frame_names if n.startswith("dance")}
+    assert sizes == {(1280, 720)} and both.read_frame("IMG_6412-000135").data["image_size"].tolist() == [384, 640]
+    one = invoke(runner, "import", src, tmp_path / "one", "--video", "IMG_6412", "--quiet")
+    assert one.exit_code == 0, one.output
+    import_sequence(real_src, tmp_path / "alone", "hybrik")
+    one, alone = open_sequence(tmp_path / "one"), open_sequence(tmp_path / "alone")
+    assert one.frame_names == alone.frame_names and one.intrinsics == alone.intrinsics
+    for a, b in zip(one.frames(), alone.frames()):
+        assert sorted(a.data) == sorted(b.data)
+        for key in a.data:
+            np.testing.assert_array_equal(a.data[key], b.data[key])

@@ -6,12 +6,13 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 
 from ..errors import InputError
 from ..formats import available_formats, detect_format, import_sequence
-from ._common import (ConfigOpt, JsonOpt, QuietOpt, info, print_json, progress_bar, progress_enabled, report,
-                      use_config)
+from ..formats._common import wrong_kind
+from ..words import count
+from ._common import (ConfigOpt, JsonOpt, QuietOpt, print_json, progress_bar, progress_enabled, report,
+                      use_config, warn)
 
 _FORMATS = ", ".join(available_formats())
 
@@ -23,6 +24,7 @@ def import_(
     image_size: Annotated[tuple[int, int] | None, typer.Option(help="Original image width and height (px), for formats that do not store it.")] = None,
     smpl_model: Annotated[Path | None, typer.Option(help="SMPL/SMPL-X .npz model you downloaded, to pose parameter-only formats (CLIFF, 4D-Humans, BEDLAM, AGORA params).", dir_okay=False)] = None,
     fov: Annotated[float | None, typer.Option("--fov", help="Field of view (deg) the method ran with (multihmr: its --fov, default 60).")] = None,
+    video: Annotated[str | None, typer.Option("--video", metavar="NAME", help="Import only this video of a file that holds several (hybrik: a res.pk of demo runs sharing one --out-dir; NAME is the image names' prefix, IMG_6412 for IMG_6412-000001.png).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a non-empty OUT that rotavat did not write (never SRC).")] = False,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
@@ -32,20 +34,21 @@ def import_(
     use_config(config)  # its limits
     fmt = from_ or detect_format(src)
     if fmt is None:
-        raise InputError(f"{src}: cannot tell its format; pass --from ({_FORMATS})")
+        raise wrong_kind(src, None) or InputError(f"{src}: cannot tell its format; pass --from ({_FORMATS})")
     if fmt not in available_formats():
         raise InputError(f"unknown format '{fmt}' (known: {_FORMATS})")
     with progress_bar(f"importing {fmt}", None, progress_enabled(quiet, as_json)) as advance:
         summary = import_sequence(src, out, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov,
-                                  progress=advance, overwrite=force)
+                                  video=video, progress=advance, overwrite=force)
     if as_json:
         print_json(summary)
         return
     for warning in summary["warnings"]:
-        info(f"[yellow]warning:[/] {escape(str(warning))}", quiet)
+        warn(str(warning))
     size = summary["image_size"]
     focal = summary["focal_px"]
-    report(f"imported {summary['frames']} frames ({summary['people']} people, {summary['empty_frames']} empty) "
+    report(f"imported {count(summary['frames'], 'frame')} ({count(summary['people'], 'person', 'people')}, "
+           f"{summary['empty_frames']} empty) "
          f"from {fmt} into {out}: {'meshes' if summary['has_vertices'] else 'no meshes'}, "
          f"joints {summary['joints_layout'] or 'none'}, image {f'{size[0]}x{size[1]}' if size else 'size unknown'}, "
          f"focal {f'{focal:.1f} px' if focal else 'per frame'}"

@@ -39,24 +39,32 @@ are SMPL vertices 411 (head top), 2445 / 5905 (middle fingertips), 3216 / 6617 (
 - HybrIK-X (``scripts/demo_video_x.py``, SMPL-X) writes a ``res.pk`` too, without
   ``pred_xyz_29``: refused (its SMPL-X pose needs HybrIK-X's own kid shape space).
 - Rows sharing an ``img_path`` are people of one frame (the demo writes one per image); with
-  one person per frame the demo's single tracked person gets ``person_ids`` 0.
+  one person per frame the demo's single tracked person gets ``person_ids`` 0 (its video's index
+  when the file holds several).
+- Several videos: the demo extracts ``<out-dir>/raw_images/<video>-%06d.png`` and processes every
+  image in that folder, so runs sharing an ``--out-dir`` write one ``res.pk`` of several videos
+  (several cameras, perhaps of several image sizes). They import as one sequence (frame names keep
+  the video's name; each frame its own ``image_size`` and ``principal_point`` when the sizes differ)
+  with a warning naming ``--video NAME``, which imports one video's rows only.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from .. import safe_pickle
+from ..camera import MAX_IMAGE_SIDE_PX
 from ..focal import ASSUMED, hybrik_focal_px
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
                       feet_heads_from, frame_names, get, model_faces, no_model_warning, people_frame, project_px)
 from .smpl import lbs, pose_to_matrices
 
-__all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px"]
+__all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px", "video_of"]
 
 # SMPL_layer.JOINT_NAMES: SMPL's 24 in SMPL's order, named HybrIK's way (15 'jaw' is SMPL's 'head' joint,
 # 22/23 'left_thumb'/'right_thumb' SMPL's 'left_hand'/'right_hand'), then the 5 leaves (24 'head' = head top).
@@ -106,15 +114,17 @@ def joints_cam(xyz_rel: np.ndarray, root_cam: np.ndarray, depth_factor_m: float)
 
 
 def fitted_depth_factor_m(xyz_rel: np.ndarray, uv_px: np.ndarray, root_cam: np.ndarray, focal_px: np.ndarray,
-                          principal_point: tuple[float, float]) -> float:
+                          principal_point: tuple[float, float] | np.ndarray) -> float:
     """The depth factor s (m) for which ``xyz_rel * s + root_cam`` projects onto ``uv_px``.
 
-    xyz_rel: (N, K, 3); uv_px: (N, K, 2); root_cam: (N, 3) m; focal_px: (N,). Linear least squares
-    of ``(u - c) (Z s + R_z) = f (X s + R_x)`` (and the same in v) over every joint.
+    xyz_rel: (N, K, 3); uv_px: (N, K, 2); root_cam: (N, 3) m; focal_px: (N,); principal_point: (2,)
+    or (N, 2) px (one per row: rows of images of different sizes). Linear least squares of
+    ``(u - c) (Z s + R_z) = f (X s + R_x)`` (and the same in v) over every joint.
     """
+    centre = np.broadcast_to(np.asarray(principal_point, np.float64), (len(xyz_rel), 2))
     rows, rhs = [], []
     for axis in (0, 1):
-        offset = uv_px[..., axis] - principal_point[axis]  # (N, K)
+        offset = uv_px[..., axis] - centre[:, None, axis]  # (N, K)
         rows.append(offset * xyz_rel[..., 2] - focal_px[:, None] * xyz_rel[..., axis])
         rhs.append(focal_px[:, None] * root_cam[:, None, axis] - offset * root_cam[:, None, 2])
     a, b = np.concatenate(rows).ravel(), np.concatenate(rhs).ravel()
@@ -124,8 +134,10 @@ def fitted_depth_factor_m(xyz_rel: np.ndarray, uv_px: np.ndarray, root_cam: np.n
 
 
 def reprojection_rms_px(xyz_rel, uv_px, root_cam, focal_px, principal_point, depth_factor_m: float) -> float:
-    """RMS (px) between ``uv_px`` (N, K, 2) and the camera-frame joints projected with ``focal_px`` (N,)."""
-    projected = project_px(joints_cam(xyz_rel, root_cam, depth_factor_m), focal_px[:, None], principal_point)
+    """RMS (px) between ``uv_px`` (N, K, 2) and the camera-frame joints projected with ``focal_px`` (N,)
+    and ``principal_point`` (2,) or (N, 2)."""
+    centre = np.broadcast_to(np.asarray(principal_point, np.float64), (len(xyz_rel), 2))
+    projected = project_px(joints_cam(xyz_rel, root_cam, depth_factor_m), focal_px[:, None], centre[:, None])
     return float(np.sqrt(np.nanmean(np.sum((projected - uv_px) ** 2, axis=-1))))
 
 
@@ -147,23 +159,75 @@ def choose_depth_factor_m(xyz_rel, uv_px, root_cam, focal_px, principal_point) -
 
 
 # ---- reading ---------------------------------------------------------------------------------
-def _image_size(data: Mapping, n_rows: int, src: Path, opts: ImportOptions, warnings: list[str]) -> tuple[int, int]:
-    """(W, H) from 'width' / 'height' (one size for the whole file): HybrIK's camera (principal point,
-    box) lives on that image, so a different --image-size is ignored, with a warning."""
+_VIDEO_FRAME = re.compile(r"^(?P<video>.+)-\d+$")  # demo_video.py: ffmpeg writes <video basename>-%06d.png
+
+
+def video_of(img_path: str) -> str:
+    """The video an image of HybrIK's demo was extracted from: ``raw_images/IMG_6412-000001.png`` ->
+    ``IMG_6412`` (``demo_video.py`` extracts ``<video basename>-%06d.png``); '' for other names."""
+    match = _VIDEO_FRAME.match(Path(img_path).stem)
+    return match["video"] if match else ""
+
+
+def _image_sizes(data: Mapping, n_rows: int, src: Path) -> np.ndarray:
+    """(N, 2) int (W, H) px of each row's image, from 'width' / 'height'."""
     widths = as_array(get(data, "width", src), "width", src, ndim=1).reshape(-1)
     heights = as_array(get(data, "height", src), "height", src, ndim=1).reshape(-1)
     if len(widths) != n_rows or len(heights) != n_rows:
         raise fail(src, f"'width'/'height' must have one entry per row ({n_rows})")
-    if not (np.all(np.isfinite(widths)) and np.all(np.isfinite(heights))):
-        raise fail(src, "'width'/'height' must be finite image sizes (px)")
-    sizes = {(int(w), int(h)) for w, h in zip(widths.tolist(), heights.tolist())}
-    if len(sizes) != 1 or min(next(iter(sizes))) <= 0:
-        raise fail(src, f"expected one positive image size for all rows, got {sorted(sizes)[:3]}")
-    stored = next(iter(sizes))
-    if opts.image_size is not None and opts.image_size != stored:
-        warnings.append(f"{src}: --image-size {opts.image_size[0]}x{opts.image_size[1]} ignored: HybrIK ran on "
-                        f"{stored[0]}x{stored[1]} images (its stored 'width'/'height')")
-    return stored
+    sizes = np.stack([widths, heights], axis=1)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(sizes) & (sizes >= 1) & (sizes <= MAX_IMAGE_SIDE_PX)
+    if not valid.all():
+        bad = sizes[np.argmin(valid.all(axis=1))].tolist()
+        raise fail(src, f"'width'/'height' must be image sizes of 1 to {MAX_IMAGE_SIDE_PX} px, got {bad}")
+    return sizes.astype(np.int64)
+
+
+def _videos(videos: list[str], sizes: np.ndarray, frames: list[tuple[str, list[int]]]) -> dict[str, str]:
+    """Each video's description, in file order: ``'IMG_6412': '135 frames, 384x640'``."""
+    found: dict[str, list] = {}
+    for path, picks in frames:
+        entry = found.setdefault(videos[picks[0]], [0, set()])
+        entry[0] += 1
+        entry[1].add(tuple(sizes[picks[0]].tolist()))
+    return {video: f"{n} frames, {', '.join(f'{w}x{h}' for w, h in sorted(shapes))}"
+            for video, (n, shapes) in found.items()}
+
+
+def _listed(described: dict[str, str]) -> str:
+    """'IMG_6412: 135 frames, 384x640; dance: 80 frames, 1280x720' (messages, meta.yaml)."""
+    return "; ".join(f"{name or '(no video name)'}: {what}" for name, what in described.items())
+
+
+def _select_video(videos: list[str], video: str | None, src: Path, described: dict[str, str]) -> np.ndarray:
+    """Indices of the rows to import: every row, or those of ``video`` (``--video``)."""
+    if video is None:
+        return np.arange(len(videos))
+    picked = np.flatnonzero(np.asarray(videos) == video)
+    if not picked.size:
+        raise fail(src, f"holds no video named '{video}' (--video); its videos: {_listed(described)}")
+    return picked
+
+
+def _several_videos_warning(src: Path, described: dict[str, str], per_frame_sizes: bool) -> str:
+    """The import note for a res.pk holding several videos: what was done and how to get one sequence each."""
+    listed = _listed(described)
+    named = [name for name in described if name]
+    how = (f"import each as a sequence of its own: rotavat import {src} OUT --video NAME "
+           f"({', '.join(named)})" if named else "split its frames into one sequence per video")
+    return (f"{src}: holds {len(described)} videos ({listed}; demo_video.py run on each with one --out-dir): "
+            f"{len(described)} cameras imported as one sequence, frame names keeping each video's name"
+            + (", each frame its own image_size and principal_point" if per_frame_sizes else "")
+            + f"; calibrate and align need one camera: {how}")
+
+
+def _person_ids_note(video_ids: dict[str, int]) -> str:
+    """meta.yaml ``import.person_ids`` for the demo's one tracked person (one per video)."""
+    if len(video_ids) == 1:
+        return "0: the demo's one tracked person"
+    ids = ", ".join(f"{name or '(no video name)'}: {i}" for name, i in video_ids.items())
+    return f"the demo's one tracked person of each video: the video's index in res.pk ({ids})"
 
 
 def _rows(data: Mapping, src: Path) -> dict[str, np.ndarray]:
@@ -229,14 +293,35 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     n_rows = len(rows["xyz"])
     if n_rows == 0:
         raise fail(src, "holds no detections")
+    sizes = _image_sizes(data, n_rows, src)  # (N, 2)
+    videos = [video_of(path) for path in rows["img_path"].tolist()]
+    described = _videos(videos, sizes, _frames(rows["img_path"]))
+    keep = _select_video(videos, opts.video, src, described)
+    video_ids = {name: i for i, name in enumerate(described)}  # person id of the demo's one tracked person
+    row_video = np.asarray([video_ids[v] for v in videos], np.int64)[keep]
+    rows, sizes = {key: value[keep] for key, value in rows.items()}, sizes[keep]
+    frames = _frames(rows["img_path"])
+    for path, picks in frames:
+        if len(np.unique(sizes[picks], axis=0)) > 1:
+            raise fail(src, f"the rows of image '{path}' state different image sizes ('width'/'height')")
     warnings: list[str] = []
-    image_size = _image_size(data, n_rows, src, opts, warnings)
-    principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
+    stored = sorted({tuple(size) for size in sizes.tolist()})
+    per_frame_sizes = len(stored) > 1  # images of several sizes: each frame states its own (contract keys)
+    if opts.image_size is not None and [tuple(opts.image_size)] != stored:
+        warnings.append(f"{src}: --image-size {opts.image_size[0]}x{opts.image_size[1]} ignored: HybrIK ran on "
+                        f"{', '.join(f'{w}x{h}' for w, h in stored)} images (its stored 'width'/'height')")
+    if len(np.unique(row_video)) > 1:
+        warnings.append(_several_videos_warning(src, described, per_frame_sizes))
+    elif per_frame_sizes:
+        warnings.append(f"{src}: the images differ in size ({', '.join(f'{w}x{h}' for w, h in stored)}): each frame "
+                        "carries its own image_size and principal_point; a static-camera calibration needs the "
+                        "frames of one size")
+    centres = sizes / 2.0  # (N, 2) principal point of each row: its image's centre
     focal_px = hybrik_focal_px(box_geometry(rows["bbox"])[1])  # (N,)
     if "uvd" in rows:
         uv_px = uvd_to_px(rows["uvd"], rows["bbox"])
         try:
-            depth_factor, rms = choose_depth_factor_m(rows["xyz"], uv_px, rows["root"], focal_px, principal_point)
+            depth_factor, rms = choose_depth_factor_m(rows["xyz"], uv_px, rows["root"], focal_px, centres)
         except ValueError as exc:
             raise fail(src, str(exc)) from None
         depth_from = f"fitted to pred_uvd (reprojection rms {rms:.2g} px)"
@@ -249,17 +334,17 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
                         "used as fitted")
     joints29 = joints_cam(rows["xyz"], rows["root"], depth_factor)
     if uv_px is None:
-        uv_px = project_px(joints29, focal_px[:, None], principal_point)
+        uv_px = project_px(joints29, focal_px[:, None], centres[:, None])
     model = opts.body_model
     pose = None
     if model is not None:
         check_model_kind(model, src, "HybrIK", "smpl")
         pose = _pose_params(data, n_rows, src, warnings)
+        pose = None if pose is None else (pose[0][keep], pose[1][keep])
     elif "pred_thetas" in data:
         warnings.append(no_model_warning("HybrIK"))
-    frames = _frames(rows["img_path"])
     names = frame_names([Path(path).stem for path, _ in frames], warnings)
-    tracked = all(len(picks) == 1 for _, picks in frames)  # the demo's single IoU-tracked person
+    tracked = all(len(picks) == 1 for _, picks in frames)  # the demo's single IoU-tracked person (per video)
     faces = model_faces(model, None if pose is None else model.n_verts)
 
     def posed(picks: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -277,16 +362,22 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
         kept = np.isfinite(joints).reshape(len(picks), -1).all(axis=1)
         if verts is not None:
             kept &= np.isfinite(verts).reshape(len(picks), -1).all(axis=1)
+        extra = {"focal_length": focal_px[picks][kept]} if kept.any() else {}
+        if per_frame_sizes:  # images of several sizes: each frame states its own (contract frame keys)
+            extra.update(image_size=sizes[picks[0]].copy(), principal_point=centres[picks[0]].copy())
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=joints,
                             keypoints_2d=uv_px[picks], faces=faces,
-                            person_ids=np.zeros(1, np.int64) if tracked else None,
-                            extra={"focal_length": focal_px[picks][kept]} if kept.any() else None,
-                            keypoints_layout=_KEYPOINTS_LAYOUT)
+                            person_ids=row_video[picks] if tracked else None,
+                            extra=extra or None, keypoints_layout=_KEYPOINTS_LAYOUT)
 
-    meta = base_meta("hybrik", src, opts, image_size, None, principal_point, focal_kind=ASSUMED)
+    size, centre = (None, None) if per_frame_sizes else (stored[0], (stored[0][0] / 2.0, stored[0][1] / 2.0))
+    meta = base_meta("hybrik", src, opts, size, None, centre, focal_kind=ASSUMED)
+    read = set(row_video.tolist())
     meta["import"].update({
         "source_frames": [Path(path).name for path, _ in frames],
-        "image_size_from": "HybrIK 'width'/'height'",
+        "image_size_from": "HybrIK 'width'/'height'" + (", per image (the images differ in size)" if per_frame_sizes else ""),
+        "videos": {name: what for name, what in described.items() if video_ids[name] in read},
+        "video": opts.video,
         "joints_layout": "smpl24",
         "root_joint": 0,
         "keypoints_2d_layout": _KEYPOINTS_LAYOUT,
@@ -294,7 +385,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
         "focal_per_person": "1000 / 256 * bbox width (frame key focal_length, one per person)",
         "depth_factor_m": float(depth_factor),
         "depth_factor_from": depth_from,
-        "person_ids": "0: the demo's one tracked person" if tracked else None,
+        "person_ids": _person_ids_note(video_ids) if tracked else None,
         "conventions": "camera frame = OpenCV, metres; joints = pred_xyz_29 * depth factor + pred_cam_root"
                        + ("; vertices = SMPL(pred_thetas, pred_betas), pelvis joint at transl" if pose is not None else "")
                        + "; principal point = image centre",

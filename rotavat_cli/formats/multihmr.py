@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import re
 import zipfile
+from collections import Counter
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -39,7 +40,8 @@ from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
-                      feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame, project_px)
+                      feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame, project_px,
+                      wrong_kind)
 from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24
 
@@ -76,12 +78,17 @@ def image_stem(path: Path) -> str:
 def _files(src: Path) -> list[Path]:
     files = [src] if src.is_file() else [p for p in src.iterdir() if p.suffix in _SUFFIXES and not p.name.startswith(".")]
     if not files:
-        raise fail(src, "no Multi-HMR result files (.npy, .npz or .pkl) found")
+        others = Counter(p.suffix or p.name for p in src.iterdir() if p.is_file() and not p.name.startswith("."))
+        held = ", ".join(f"{n} {suffix}" for suffix, n in sorted(others.items())) or "no files"
+        raise fail(src, f"no Multi-HMR result files (.npy, .npz or .pkl) found (it holds {held})")
     return sorted(files, key=lambda p: natural_key(p.name))
 
 
 def _humans(path: Path) -> dict[str, np.ndarray | None]:
     """verts (P, V, 3) and j3d (P, J, 3) or None from one per-image file."""
+    wrong = wrong_kind(path, "multihmr")  # a JSON file named .pkl, ...: said as such, not as a broken pickle
+    if wrong is not None:
+        raise wrong
     if path.suffix == ".npy":
         content: object = safe_pickle.load_npy(path)
     elif path.suffix == ".npz":
