@@ -1,4 +1,9 @@
-"""Atomic file writing: write to a temporary file beside the target, then rename over it."""
+"""Atomic file writing: write to a temporary file beside the target, then rename over it.
+
+Temporary files and staging folders are locked by their writer for their whole life
+(:mod:`rotavat_cli.outputs`), so whatever a killed run leaves is recognised and removed by the next
+write of the same output, and a live writer's never is.
+"""
 
 from __future__ import annotations
 
@@ -10,17 +15,22 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-from .outputs import STAGING_OWNER, mark_output_dir, own_staging, remove_stale_staging
+from .outputs import (STAGING_OWNER, TEMP_TAG, in_own_staging, mark_output_dir, own_staging, own_temporary, release,
+                      remove_stale_staging)
 
 __all__ = ["atomic_open", "atomic_write_text", "staged_directory"]
 
 
 @contextlib.contextmanager
 def atomic_open(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
-    """Open a temporary file next to ``path``; on success rename it to ``path``, else delete it."""
+    """Open a temporary file next to ``path``; on success rename it to ``path``, else delete it.
+
+    The temporary, ``.<name>.rotavat-XXXXXXXX.tmp``, is locked until it is renamed; temporaries of
+    ``path`` that killed writers left are removed first (:func:`rotavat_cli.outputs.remove_stale_staging`).
+    """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    fd, tmp = _temporary(target)
     try:
         with os.fdopen(fd, mode) as handle:
             yield handle
@@ -30,6 +40,25 @@ def atomic_open(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    finally:
+        release(tmp)
+
+
+def _temporary(target: Path) -> tuple[int, str]:
+    """A new temporary file beside ``target`` (descriptor, path), locked. In a staging folder this
+    process builds there is nothing to clean and nothing to lock: the folder is removed whole."""
+    options = {"prefix": f".{target.name}.{TEMP_TAG}", "suffix": ".tmp", "dir": target.parent}
+    if in_own_staging(target.parent):
+        return tempfile.mkstemp(**options)
+    remove_stale_staging(target)
+    for _ in range(100):
+        fd, tmp = tempfile.mkstemp(**options)
+        if own_temporary(tmp):
+            return fd, tmp
+        os.close(fd)  # another run's cleaner took it in the instant before our lock: make another
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+    raise OSError(f"{target}: cannot lock a temporary file beside it")
 
 
 def _umask() -> int:
@@ -53,14 +82,14 @@ def staged_directory(path: str | os.PathLike, command: str | None = None) -> Ite
     the new one is complete. The caller has checked that ``path`` may be replaced
     (:func:`rotavat_cli.outputs.check_output_dir`). With ``command``, the new folder carries
     rotavat's output marker. Staging folders left by killed runs are removed first; while this one
-    is built it names its owner (host, pid), so a later run can tell it is stale.
+    is built its owner file (host, pid) stays locked, so a later run can tell when it is abandoned.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_staging(target)
     stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-", dir=target.parent))
-    own_staging(stage)
     try:
+        own_staging(stage)
         yield stage
         (stage / STAGING_OWNER).unlink()
         if command is not None:
@@ -68,12 +97,17 @@ def staged_directory(path: str | os.PathLike, command: str | None = None) -> Ite
         os.chmod(stage, 0o777 & ~_umask())
         if target.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
-            own_staging(old)
-            os.replace(target, old / target.name)
-            os.replace(stage, target)
-            shutil.rmtree(old, ignore_errors=True)
+            try:
+                own_staging(old)
+                os.replace(target, old / target.name)
+                os.replace(stage, target)
+                shutil.rmtree(old, ignore_errors=True)
+            finally:
+                release(old)
         else:
             os.replace(stage, target)
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
+    finally:
+        release(stage)

@@ -11,8 +11,10 @@ The rules (README "What rotavat promises", SECURITY.md):
   :class:`~rotavat_cli.errors.InputError` (exit 2) saying why, and ``--force`` replaces it anyway
   (but never an input);
 - outputs are checked before any work (writable place, not an input), so a refusal costs nothing;
-- a run killed half-way leaves at most hidden staging folders, which the next run removes
-  (:func:`remove_stale_staging`): never a half-written output presented as complete.
+- a run killed half-way leaves at most hidden staging folders and temporary files, which the next
+  write of the same output removes (:func:`remove_stale_staging`): never a half-written output
+  presented as complete. Each one is locked by its writer for its whole life (``flock``, which the
+  kernel releases when the writer dies, zombie or not): one that can be locked is abandoned.
 
 Examples
 --------
@@ -28,23 +30,33 @@ rotavat_cli.errors.InputError: ...seq/out: the output would be inside the input 
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
+import re
 import shutil
 import socket
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["MARKER", "TEXT_HEADER", "STAGING_OWNER", "check_output_dir", "check_output_file", "mark_output_dir",
-           "is_rotavat_dir", "written_by_rotavat", "remove_stale_staging", "own_staging", "beside"]
+try:
+    import fcntl
+except ImportError:  # not a POSIX system: no locks; staging folders fall back to their owner's pid
+    fcntl = None
+
+__all__ = ["MARKER", "TEXT_HEADER", "STAGING_OWNER", "TEMP_TAG", "check_output_dir", "check_output_file",
+           "mark_output_dir", "is_rotavat_dir", "written_by_rotavat", "remove_stale_staging", "own_staging",
+           "own_temporary", "release", "in_own_staging", "beside"]
 
 MARKER = ".rotavat-output"  # written into every output folder rotavat creates
 TEXT_HEADER = "# written by rotavat"  # first line of the YAML files rotavat writes
-STAGING_OWNER = ".rotavat-staging"  # inside a staging folder: the host and pid building it
-_STALE_FOREIGN_HOST_S = 24 * 3600  # a staging folder of another host is removed after a day
+STAGING_OWNER = ".rotavat-staging"  # inside a staging folder: the host and pid building it, locked by it
+TEMP_TAG = "rotavat-"  # a temporary file of <name>: .<name>.rotavat-XXXXXXXX.tmp, locked by its writer
+_STALE_FOREIGN_HOST_S = 24 * 3600  # an unlocked staging folder of another host is removed after a day
 
 
 def beside(path: str | os.PathLike, suffix: str) -> Path:
@@ -204,45 +216,184 @@ def _glb_generator(path: Path) -> str:
     return str(asset.get("generator", "")) if isinstance(asset, dict) else ""
 
 
-def remove_stale_staging(target: str | os.PathLike) -> list[Path]:
-    """Remove rotavat's hidden staging siblings of ``target`` left by killed runs; returns what was removed.
+# ---- staging folders and temporary files: locked by their writer, removed once abandoned ----------
+# The lock is an exclusive flock(2) on a file the writer opened (a staging folder's owner file, the
+# temporary file itself), held for as long as the folder or file is being written. The kernel releases
+# it when the writer dies, by any signal, before its parent reaps it; a pid is no proof (a zombie's pid
+# answers kill(pid, 0), and pids are reused). flock belongs to the open file: forked workers would
+# share it, so they close their copies at once (_forget_in_child) and the lock dies with the writer;
+# they still know the staging folders they write into for it (nothing to clean or lock there).
+_HELD: dict[Path, int] = {}  # folder or temporary file -> the descriptor holding its lock
+_INHERITED: set[Path] = set()  # what the process that forked this one held
+_OPEN_FLAGS = getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NOFOLLOW", 0)
 
-    A staging folder (``.<name>.partial-*``, ``.<name>.old-*``, ``.<name>.import-*``) is removed when
-    its owner file names a process of this host that no longer runs, or another host more than a day
-    ago. Folders without an owner file are left alone (not provably rotavat's).
-    """
-    target = Path(target)
-    removed = []
-    if not target.parent.is_dir():
-        return removed
-    for entry in target.parent.glob(f".{target.name}.*-*"):
-        owner = entry / STAGING_OWNER
-        if entry.is_symlink() or not entry.is_dir() or not owner.is_file():
-            continue
-        try:
-            host, pid, started = owner.read_text(encoding="utf-8").split()[:3]
-            stale = (not _alive(int(pid))) if host == socket.gethostname() else \
-                time.time() - float(started) > _STALE_FOREIGN_HOST_S
-        except (OSError, ValueError):
-            continue
-        if stale:
-            shutil.rmtree(entry, ignore_errors=True)
-            removed.append(entry)
-    return removed
+
+def _forget_in_child() -> None:
+    """In a forked child: close the copies of the parent's locks (they must die with the parent)."""
+    _INHERITED.update(_HELD)
+    for fd in _HELD.values():
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_in_child)
+
+
+def _try_lock(fd: int) -> bool | None:
+    """Take ``fd``'s exclusive lock without waiting: True; False when another open file holds it; None
+    where the file system has no locks."""
+    if fcntl is None:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError as exc:
+        if exc.errno in (errno.EAGAIN, errno.EACCES):
+            return False
+        return None
+    return True
+
+
+def release(path: str | os.PathLike) -> None:
+    """Release the lock this process holds on a staging folder or temporary file (no-op if none)."""
+    fd = _HELD.pop(Path(path), None)
+    if fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
 
 def own_staging(folder: str | os.PathLike) -> None:
-    """Write the owner file of a staging folder (this host, this pid, now)."""
-    Path(folder, STAGING_OWNER).write_text(f"{socket.gethostname()} {os.getpid()} {time.time():.0f}\n",
-                                           encoding="utf-8")
+    """Claim a new staging folder for this process until :func:`release`: its owner file (this host,
+    this pid, now), locked before it says anything, so a reader sees an owner only once it is locked."""
+    folder = Path(folder)
+    fd = os.open(folder / STAGING_OWNER, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _OPEN_FLAGS, 0o644)
+    _try_lock(fd)  # no lock support (some network file systems): the owner's pid is checked instead
+    _HELD[folder] = fd
+    os.write(fd, f"{socket.gethostname()} {os.getpid()} {time.time():.0f}\n".encode())
+
+
+def own_temporary(tmp: str | os.PathLike) -> bool:
+    """Lock the temporary file ``tmp`` this process just created, until :func:`release`. False when a
+    cleaner removed it in the moment before the lock (the caller makes another); the lock is taken on a
+    second open file, so forked workers, which close it, never hold it."""
+    tmp = Path(tmp)
+    try:
+        fd = os.open(tmp, os.O_RDONLY | _OPEN_FLAGS)
+    except FileNotFoundError:
+        return False
+    if _try_lock(fd) is False:  # a cleaner holds it: it is about to be removed
+        os.close(fd)
+        return False
+    if os.fstat(fd).st_nlink == 0:  # removed by a cleaner that held the lock before us
+        os.close(fd)
+        return False
+    _HELD[tmp] = fd
+    return True
+
+
+def in_own_staging(folder: str | os.PathLike) -> bool:
+    """True for a staging folder this process, or the one that forked it, is building (nothing in it
+    can be another run's: it is removed whole if the run fails)."""
+    folder = Path(folder)
+    return folder in _HELD or folder in _INHERITED
+
+
+@contextlib.contextmanager
+def _abandoned(lock_file: Path) -> Iterator[bool | None]:
+    """Whether the staging folder or temporary whose lock is on ``lock_file`` is abandoned, its lock
+    held meanwhile: True when it could be locked, False when a live writer holds it, None where it is
+    gone or locks are unsupported."""
+    try:
+        fd = os.open(lock_file, os.O_RDONLY | _OPEN_FLAGS)
+    except OSError:
+        fd, state = None, None
+    else:
+        state = _try_lock(fd)
+        if state:  # the name must still be that file: a finished temporary was renamed over its target
+            try:
+                state = True if os.path.samestat(os.fstat(fd), os.lstat(lock_file)) else None
+            except OSError:
+                state = None
+    try:
+        yield state
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
+def remove_stale_staging(target: str | os.PathLike) -> list[Path]:
+    """Remove rotavat's hidden staging siblings of ``target`` and temporary files of it left by killed
+    runs; returns what was removed.
+
+    Staging folders (``.<name>.partial-*``, ``.<name>.old-*``, ``.<name>.import-*``) hold an owner file
+    (host, pid, time) that their run keeps locked; temporary files (``.<name>.rotavat-XXXXXXXX.tmp``)
+    are locked by their writer. One rule: whatever can be locked is abandoned (its writer died: the
+    kernel released the lock) and is removed. A folder of another host is removed only a day after it
+    was started (network file systems may not share locks); where locks are unsupported the owner's
+    process is checked instead. Folders without an owner file and files not named as rotavat names
+    its temporaries are left alone (not provably rotavat's).
+    """
+    target = Path(target)
+    removed: list[Path] = []
+    if not target.parent.is_dir():
+        return removed
+    prefix = f".{target.name}."
+    temporary = re.compile(re.escape(prefix + TEMP_TAG) + r"[a-z0-9_]{8}\.tmp")
+    try:
+        entries = [e for e in os.scandir(target.parent) if e.name.startswith(prefix)]
+    except OSError:
+        return removed
+    for entry in entries:
+        path = Path(entry.path)
+        if entry.is_symlink() or in_own_staging(path):
+            continue
+        if entry.is_dir() and "-" in entry.name[len(prefix):]:
+            if _remove_abandoned_staging(path):
+                removed.append(path)
+        elif temporary.fullmatch(entry.name) and entry.is_file():
+            with _abandoned(path) as abandoned:
+                if abandoned:
+                    with contextlib.suppress(FileNotFoundError):
+                        path.unlink()
+                    removed.append(path)
+    return removed
+
+
+def _remove_abandoned_staging(folder: Path) -> bool:
+    """Remove the staging folder ``folder`` if its run is gone (:func:`remove_stale_staging`)."""
+    owner = folder / STAGING_OWNER
+    if owner.is_symlink() or not owner.is_file():
+        return False
+    try:
+        host, pid, started = owner.read_text(encoding="utf-8").split()[:3]
+        pid_number, started_s = int(pid), float(started)
+    except (OSError, ValueError):  # also an owner file not yet written (its run is starting)
+        return False
+    with _abandoned(owner) as abandoned:
+        if abandoned is False:
+            return False
+        if host != socket.gethostname():
+            stale = time.time() - started_s > _STALE_FOREIGN_HOST_S
+        else:
+            stale = bool(abandoned) or (abandoned is None and owner.exists() and not _alive(pid_number))
+        if stale:
+            shutil.rmtree(folder, ignore_errors=True)
+        return stale
 
 
 def _alive(pid: int) -> bool:
-    """True when a process with this pid runs on this host."""
+    """True when a process with this pid runs on this host (where locks are unsupported; a zombie is dead)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
+        pass
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
         return True
-    return True
+    return state not in ("Z", "X")

@@ -5,12 +5,16 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import TypeVar
 
-__all__ = ["ordered_map", "cap_workers", "cpu_count"]
+__all__ = ["ordered_map", "cap_workers", "cpu_count", "exit_with_parent"]
+
+_PARENT_POLL_S = 0.5  # how often a worker checks that the process that started it still runs
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -35,12 +39,33 @@ def cap_workers(requested: int, n_items: int) -> int:
     return max(1, min(want, cores, max(1, n_items)))
 
 
+def exit_with_parent(parent_pid: int) -> None:
+    """Worker initializer: end this process as soon as its parent ``parent_pid`` is gone.
+
+    A pool's workers wait for work from their parent; killed (out of memory, SIGKILL), it never
+    sends any, and each worker keeps the others' end of the queue open, so they would wait forever,
+    re-parented to init. A daemon thread compares ``os.getppid()`` with ``parent_pid`` every
+    half-second (the parent *process*, whichever of its threads started the pool: unlike Linux's
+    ``PR_SET_PDEATHSIG``, which fires when that thread ends) and ends the worker at once when it differs.
+    """
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(_PARENT_POLL_S)
+        os._exit(1)  # nothing left to report to: no cleanup that could wait on the dead parent
+
+    if os.getppid() != parent_pid:  # died before this worker got here
+        os._exit(1)
+    threading.Thread(target=watch, name="rotavat-exit-with-parent", daemon=True).start()
+
+
 def _executor(workers: int, processes: bool) -> Executor:
-    """A process pool (fork on Linux: cheap start, inherited imports) or a thread pool."""
+    """A process pool (fork on Linux: cheap start, inherited imports; workers end with this process)
+    or a thread pool."""
     if not processes:
         return ThreadPoolExecutor(max_workers=workers)
     method = "fork" if sys.platform.startswith("linux") else "spawn"
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method))
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                               initializer=exit_with_parent, initargs=(os.getpid(),))
 
 
 def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int = 2, window: int | None = None,

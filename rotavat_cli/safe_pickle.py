@@ -15,7 +15,7 @@ Supported containers:
 - ``joblib.dump`` files, uncompressed or zlib/gzip/bz2/xz/lzma-compressed: joblib writes each
   numpy array as a ``joblib.numpy_pickle.NumpyArrayWrapper`` placeholder followed by the raw array
   bytes (``joblib/numpy_pickle.py``); the placeholder is replaced here by an inert stand-in and the
-  bytes are read with their size checked against what is left of the file;
+  bytes are read into the array it declares, refused when fewer follow;
 - ``.npy``/``.npz`` files whose members may be object arrays (``np.savez(..., results=dict)``);
 - PyTorch files: ``torch.save`` archives (zip, or the legacy stream) through :func:`load_torch` or
   transparently through :func:`load_file`, and torch tensors inside plain pickles (``np.save`` of a
@@ -25,7 +25,11 @@ Supported containers:
 Sizes are checked before anything is allocated, against :mod:`rotavat_cli.limits` (the config's
 ``limits:`` section): files and decompressed streams (``max_file_mb``), every array a header or a
 pickle declares (``max_array_mb``), the objects a pickle builds and the items its shared
-references add when expanded (``max_pickle_items``). :func:`open_npz` is the one place that reads
+references add when expanded (``max_pickle_items``). A compressed pickle (joblib's, an ``.npz``
+member, a torch archive's ``data.pkl``) is unpickled as it inflates, never inflated whole first: a
+decompression bomb is refused at its first byte that is not a pickle's, or once ``max_file_mb`` came
+out, holding one chunk; a compressed file costs what the objects it holds cost, as an uncompressed
+one does. :func:`open_npz` is the one place that reads
 ``.npz`` members (declared zip sizes, ``.npy`` headers, then the data in bounded chunks); contract
 frames (``sequence.read_frame_npz``) use it too, with ``allow_pickle=False``.
 
@@ -74,7 +78,9 @@ from .limits import human_bytes
 __all__ = ["loads", "load_file", "load_torch", "load_npy", "load_npy_bytes", "load_npz", "open_npz", "NpzArchive", "unpickling_errors"]
 
 _MAX_NPY_HEADER = 10_000  # numpy's own default limit for .npy headers
-_CHUNK = 1 << 24  # bytes decompressed or copied at a time
+_CHUNK = 1 << 24  # bytes copied at a time
+_INFLATE_CHUNK = 1 << 20  # bytes a compressed stream inflates (or a zip member yields) at a time
+_MAX_FRAME = 1 << 24  # pickle writes frames of about 64 KiB (pickle._Framer, _pickle.c FRAME_SIZE_TARGET)
 _REFUSAL = "(only numpy arrays, numpy scalars and builtin containers are allowed)"
 
 
@@ -285,7 +291,7 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
 
     dispatch = pickle._Unpickler.dispatch.copy()  # noqa: SLF001
 
-    def __init__(self, file: io.BytesIO, budget: _Budget | None = None, depth: int = 0) -> None:
+    def __init__(self, file: BinaryIO, budget: _Budget | None = None, depth: int = 0) -> None:
         super().__init__(file, encoding="latin1")
         self._raw = file
         self._budget = budget or _Budget()
@@ -385,16 +391,24 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
         super()._instantiate(klass, args)
 
     def load_bytearray8(self) -> None:
-        """BYTEARRAY8 allocates its announced size before reading: check it against the stream first."""
+        """BYTEARRAY8 allocates its announced size before reading: read the bytes that are there first."""
         (size,) = struct.unpack("<Q", self.read(8))
-        if size > len(self._raw.getbuffer()):
+        data = _read_up_to(self.read, size)
+        if len(data) < size:
             raise _Refused(f"truncated pickle (a bytearray of {size:,} bytes announced)")
         self._budget.add_data(size)
-        buf = bytearray(size)
-        self.readinto(buf)
-        self.append(buf)
+        self.append(bytearray(data))
 
     dispatch[pickle.BYTEARRAY8[0]] = load_bytearray8
+
+    def load_frame(self) -> None:
+        """A FRAME is read whole before its opcodes run: one larger than any pickler writes is refused unread."""
+        (size,) = struct.unpack("<Q", self.read(8))
+        if size > _MAX_FRAME:
+            raise _Refused(f"malformed pickle (a frame of {size:,} bytes; pickle writes frames of about 64 KiB)")
+        self._unframer.load_frame(size)
+
+    dispatch[pickle.FRAME[0]] = load_frame
 
     def load_build(self) -> None:
         state, inst = self.stack[-1], self.stack[-2]
@@ -451,14 +465,19 @@ class _RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python un
             self._raw.read(pad[0])
         count = math.prod(wrapper.shape)
         nbytes = count * wrapper.dtype.itemsize
-        remaining = len(self._raw.getbuffer()) - self._raw.tell()
-        if nbytes > remaining:
-            raise _Refused(f"truncated joblib array ({nbytes} bytes announced, {remaining} left)")
+        if nbytes <= _CHUNK:  # one read (the usual small array): it holds what is there, at most a chunk
+            raw = self._raw.read(nbytes)
+            got = len(raw)
+            array = np.frombuffer(raw, wrapper.dtype, count).copy() if got == nbytes else None
+        else:  # memory is taken as the bytes arrive, never for what is missing
+            array = np.empty(count, wrapper.dtype)
+            got = _fill(self._raw.read, array.view(np.uint8))
+        if got < nbytes:
+            raise _Refused(f"truncated joblib array ({nbytes} bytes announced, {got} left)")
         self._budget.add_data(nbytes)
-        array = np.frombuffer(self._raw.read(nbytes), dtype=wrapper.dtype, count=count)
         if wrapper.order == "F":
             return array.reshape(wrapper.shape[::-1]).transpose().copy()
-        return array.reshape(wrapper.shape).copy()
+        return array.reshape(wrapper.shape)
 
 
 # ---- shared references ----------------------------------------------------------------------
@@ -577,11 +596,15 @@ def unpickling_errors(source: str, what: str = "") -> Iterator[None]:
         raise InputError(f"{prefix}not a readable pickle ({detail})") from None
 
 
-def _load_stream(file: io.BytesIO, source: str) -> Any:
-    """Unpickle one object from ``file``; every failure becomes a one-line InputError."""
+def _load_stream(file: BinaryIO, source: str, drain: bool = False) -> Any:
+    """Unpickle one object from ``file``; every failure becomes a one-line InputError. ``drain``: read
+    the rest of the stream too (a compressed stream's checksum and size are checked at its end)."""
     with unpickling_errors(source):
         unpickler = _RestrictedUnpickler(file)
         value = unpickler.load()
+        if drain:
+            while file.read(_INFLATE_CHUNK):
+                pass
         if unpickler.named_torch:  # torch tensors pickled by plain pickle (np.save of a dict of tensors)
             from .safe_torch import resolve
 
@@ -625,55 +648,96 @@ def _read_bytes(path: Path) -> bytes:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def _inflate(make: Any, data: bytes, source: str, keep: bool) -> bytes | int:
-    """Decompress ``data`` in bounded chunks; the bytes (``keep``) or just their number. InputError
-    as soon as the output passes ``max_file_mb``, so a bomb never holds more than one chunk."""
-    decompressor, limit = make(), _limits.current().max_file_bytes
-    parts, total = [], 0
-    out = decompressor.decompress(data, _CHUNK)
-    while True:
-        total += len(out)
-        if total > limit:
-            raise InputError(f"{source}: decompresses to more than {human_bytes(limit)} (limit: limits.max_file_mb)")
-        if keep:
-            parts.append(out)
-        if decompressor.eof:
-            break
-        if hasattr(decompressor, "unconsumed_tail"):  # zlib
-            if not decompressor.unconsumed_tail and len(out) < _CHUNK:
+class _Stream:
+    """A binary stream (``read``, ``readline``) over ``pull``, which returns the next chunk of bytes
+    (b'' at the end): a read of n bytes holds the bytes that are there, never a buffer of the n a file
+    announces, and nothing ahead of the reader but one chunk."""
+
+    def __init__(self, pull: Any) -> None:
+        self._pull, self._chunk, self._at = pull, b"", 0
+
+    def _next(self) -> bool:
+        self._chunk, self._at = self._pull(), 0
+        return bool(self._chunk)
+
+    def read(self, n: int = -1) -> bytes:
+        if n is None or n < 0:
+            n = sys.maxsize
+        if self._at + n <= len(self._chunk):
+            self._at += n
+            return self._chunk[self._at - n:self._at]
+        parts = []
+        while n > 0 and (self._at < len(self._chunk) or self._next()):
+            part = self._chunk[self._at:self._at + n]
+            self._at += len(part)
+            n -= len(part)
+            parts.append(part)
+        return b"".join(parts)
+
+    def readline(self) -> bytes:
+        parts = []
+        while self._at < len(self._chunk) or self._next():
+            end = self._chunk.find(b"\n", self._at)
+            stop = len(self._chunk) if end < 0 else end + 1
+            parts.append(self._chunk[self._at:stop])
+            self._at = stop
+            if end >= 0:
                 break
-            out = decompressor.decompress(decompressor.unconsumed_tail, _CHUNK)
-        else:  # bz2, lzma
-            if decompressor.needs_input:
-                break
-            out = decompressor.decompress(b"", _CHUNK)
-    return b"".join(parts) if keep else total
+        return b"".join(parts)
 
 
-def _bounded(make: Any, data: bytes, source: str) -> bytes:
-    """Decompress ``data`` with an output cap (compression bombs): measured first, then kept."""
-    _inflate(make, data, source, keep=False)
-    return _inflate(make, data, source, keep=True)
+def _chunked(stream: BinaryIO) -> _Stream:
+    """``stream`` (a zip member, a file) read a chunk at a time (see :class:`_Stream`)."""
+    return _Stream(lambda: stream.read(_INFLATE_CHUNK))
 
 
-def _decompress(data: bytes, source: str) -> bytes:
-    """Undo joblib's optional compression (detected from the magic bytes, as joblib does)."""
-    try:
-        if data[:2] == b"\x1f\x8b":
-            return _bounded(lambda: zlib.decompressobj(16 + zlib.MAX_WBITS), data, source)
-        if data[:3] == b"BZh":
-            return _bounded(bz2.BZ2Decompressor, data, source)
-        if data[:6] == b"\xfd7zXZ\x00":
-            return _bounded(lambda: lzma.LZMADecompressor(format=lzma.FORMAT_XZ), data, source)
-        if data[:5] == b"]\x00\x00\x80\x00":
-            return _bounded(lambda: lzma.LZMADecompressor(format=lzma.FORMAT_ALONE), data, source)
-        if data[:1] == b"x":  # zlib header (joblib's default compressor)
-            return _bounded(zlib.decompressobj, data, source)
-    except (zlib.error, OSError, lzma.LZMAError, EOFError, ValueError) as exc:
-        raise InputError(f"{source}: corrupt compressed data ({exc})") from None
+class _Inflater:
+    """The next decompressed chunk of ``data`` at each call (b'' at the end, or where the data is
+    truncated): _Refused as soon as more than ``limits.max_file_mb`` came out, or for corrupt data."""
+
+    def __init__(self, make: Any, data: bytes) -> None:
+        self._decompressor, self._data, self._fed = make(), memoryview(data), 0
+        self._out, self._limit, self._pending = 0, _limits.current().max_file_bytes, False
+
+    def __call__(self) -> bytes:
+        d = self._decompressor
+        try:
+            while not d.eof:
+                tail = getattr(d, "unconsumed_tail", b"")  # zlib: input the last call had no room for
+                if tail:
+                    given = tail
+                elif self._pending:  # the last call filled its chunk: more output may wait, with no new input
+                    given = b""
+                elif self._fed < len(self._data):
+                    given = self._data[self._fed:self._fed + _INFLATE_CHUNK]
+                    self._fed += len(given)
+                else:
+                    return b""
+                out = d.decompress(given, _INFLATE_CHUNK)
+                self._pending = len(out) == _INFLATE_CHUNK
+                if out:
+                    self._out += len(out)
+                    if self._out > self._limit:
+                        raise _Refused(f"decompresses to more than {human_bytes(self._limit)} "
+                                       "(limit: limits.max_file_mb)")
+                    return out
+        except (zlib.error, OSError, lzma.LZMAError, EOFError, ValueError) as exc:
+            raise _Refused(f"corrupt compressed data ({exc})") from None
+        return b""
+
+
+def _decompressed(data: bytes, source: str) -> BinaryIO:
+    """The pickle stream of a file's bytes: joblib's optional compression undone as it is read
+    (detected from the magic bytes, as joblib does)."""
+    for magic, make in ((b"\x1f\x8b", lambda: zlib.decompressobj(16 + zlib.MAX_WBITS)), (b"BZh", bz2.BZ2Decompressor),
+                        (b"\xfd7zXZ\x00", lambda: lzma.LZMADecompressor(format=lzma.FORMAT_XZ)),
+                        (b"]\x00\x00\x80\x00", lambda: lzma.LZMADecompressor(format=lzma.FORMAT_ALONE)),
+                        (b"x", zlib.decompressobj)):  # zlib header (joblib's default compressor)
+        if data.startswith(magic):
+            return _Stream(_Inflater(make, data))
     if data[:4] == b'\x04"M\x18':
         raise InputError(f"{source}: lz4-compressed joblib files are not supported; re-save with compress=3 (zlib)")
-    return data
+    return io.BytesIO(data)
 
 
 def load_file(path: str | Path) -> Any:
@@ -687,7 +751,8 @@ def load_file(path: str | Path) -> Any:
 
     if safe_torch.is_torch_zip(data) or safe_torch.is_legacy_torch(data):
         return safe_torch.load_torch_bytes(data, str(path))
-    return _load_stream(io.BytesIO(_decompress(data, str(path))), str(path))
+    stream = _decompressed(data, str(path))
+    return _load_stream(stream, str(path), drain=isinstance(stream, _Stream))
 
 
 def load_torch(path: str | Path) -> Any:
@@ -745,7 +810,7 @@ def _read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle:
     if dtype.hasobject:
         if not allow_pickle:
             raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
-        array = _load_stream(io.BytesIO(_read_exactly(stream, size - offset, source)), source)
+        array = _load_stream(_chunked(stream), source, drain=True)  # unpickled as it is read (a deflated member)
         if not isinstance(array, np.ndarray) or array.shape != shape:
             raise InputError(f"{source}: object array does not match its header")
         return array
@@ -755,15 +820,9 @@ def _read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle:
         raise InputError(f"{source}: corrupt or truncated array (its header declares {nbytes:,} bytes of data, "
                          f"{max(0, size - offset):,} follow)")
     array = np.empty(count, dtype)
-    if nbytes:
-        flat = array.view(np.uint8)
-        pos = 0
-        while pos < nbytes:
-            chunk = stream.read(min(_CHUNK, nbytes - pos))
-            if not chunk:
-                raise InputError(f"{source}: corrupt or truncated array (data ends after {pos:,} of {nbytes:,} bytes)")
-            flat[pos:pos + len(chunk)] = np.frombuffer(chunk, np.uint8)
-            pos += len(chunk)
+    pos = _fill(stream.read, array.view(np.uint8)) if nbytes else 0
+    if pos < nbytes:
+        raise InputError(f"{source}: corrupt or truncated array (data ends after {pos:,} of {nbytes:,} bytes)")
     _check_text(array, what)
     if fortran:
         return array.reshape(shape[::-1]).transpose()
@@ -785,16 +844,28 @@ def _check_text(array: np.ndarray, what: str) -> np.ndarray:
     return array
 
 
-def _read_exactly(stream: BinaryIO, n: int, source: str) -> bytes:
-    """The next ``n`` bytes (``n`` already checked against the limits), in chunks."""
+def _read_up_to(read: Any, n: int) -> bytes:
+    """The next ``n`` bytes from ``read`` (fewer where the data ends), in chunks: only what is there is held."""
     parts, left = [], max(0, n)
     while left:
-        chunk = stream.read(min(_CHUNK, left))
+        chunk = read(min(_CHUNK, left))
         if not chunk:
             break
         parts.append(chunk)
         left -= len(chunk)
     return b"".join(parts)
+
+
+def _fill(read: Any, out: np.ndarray) -> int:
+    """Fill the uint8 array ``out`` from ``read`` in chunks; how many bytes came (fewer where the data ends)."""
+    pos = 0
+    while pos < len(out):
+        chunk = read(min(_CHUNK, len(out) - pos))
+        if not chunk:
+            break
+        out[pos:pos + len(chunk)] = np.frombuffer(chunk, np.uint8)
+        pos += len(chunk)
+    return pos
 
 
 def load_npy_bytes(raw: bytes, source: str) -> np.ndarray:

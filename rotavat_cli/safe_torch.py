@@ -318,7 +318,7 @@ def torch_global(module: str, name: str, builder: _Builder) -> Any:
 class _TorchUnpickler(_sp._RestrictedUnpickler):
     """The restricted unpickler plus torch's storage persistent ids (``data.pkl``, legacy streams)."""
 
-    def __init__(self, file: io.BytesIO, budget: _sp._Budget, depth: int, storage: Any) -> None:
+    def __init__(self, file: Any, budget: _sp._Budget, depth: int, storage: Any) -> None:
         super().__init__(file, budget, depth)
         self._storage = storage  # pid tuple -> _Storage
 
@@ -361,9 +361,10 @@ def _storage_from_pid(pid: tuple, legacy: bool, registry: dict[str, _Storage]) -
     return registry[key]
 
 
-def _read_record(archive: zipfile.ZipFile, name: str, declared: int | None = None, at_most: int | None = None) -> bytes:
-    """One zip record, its declared size checked (and equal to ``declared`` when given, at most
-    ``at_most`` bytes for a small record) before reading."""
+def _open_record(archive: zipfile.ZipFile, name: str, declared: int | None = None,
+                 at_most: int | None = None) -> tuple[Any, int]:
+    """One zip record opened for reading (inflated as it is read) and its size, the declared size
+    checked (and equal to ``declared`` when given, at most ``at_most`` bytes for a small record) first."""
     try:
         info = archive.getinfo(name)
     except KeyError:
@@ -378,9 +379,29 @@ def _read_record(archive: zipfile.ZipFile, name: str, declared: int | None = Non
         raise _sp._Refused(f"record '{name}' holds {info.file_size:,} bytes, its storage declares {declared:,}")
     if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
         raise _sp._Refused(f"record '{name}' uses an unsupported compression method ({info.compress_type})")
-    data = archive.read(info)
-    if len(data) != info.file_size:
+    return archive.open(info), info.file_size
+
+
+def _read_record(archive: zipfile.ZipFile, name: str, at_most: int) -> bytes:
+    """A small zip record whole (see :func:`_open_record`)."""
+    stream, size = _open_record(archive, name, at_most=at_most)
+    with stream:
+        data = stream.read()
+    if len(data) != size:
         raise _sp._Refused(f"record '{name}' is truncated")
+    return data
+
+
+def _read_storage(archive: zipfile.ZipFile, name: str, found: _Storage, stored: np.dtype,
+                  budget: _sp._Budget) -> np.ndarray:
+    """A storage's elements from its record, read in chunks into their array: held once, never also
+    as the record's bytes (reading the record's last byte checks its CRC)."""
+    stream, size = _open_record(archive, name, declared=found.nbytes)
+    with stream:
+        budget.add_data(size)
+        data = np.empty(found.numel, stored)
+        if size and _sp._fill(stream.read, data.view(np.uint8)) != size:
+            raise _sp._Refused(f"record '{name}' is truncated")
     return data
 
 
@@ -402,7 +423,7 @@ def _load_zip(data: bytes, budget: _sp._Budget, depth: int) -> Any:
     archive = zipfile.ZipFile(io.BytesIO(data))
     prefix = _archive_prefix(archive)
     order_record = f"{prefix}/byteorder"
-    byteorder = _read_record(archive, order_record, at_most=16) if order_record in archive.namelist() else b"little"
+    byteorder = _read_record(archive, order_record, 16) if order_record in archive.namelist() else b"little"
     if byteorder not in (b"little", b"big"):
         raise _sp._Refused(f"unknown byte order {byteorder[:16]!r}")
     registry: dict[str, _Storage] = {}
@@ -410,14 +431,18 @@ def _load_zip(data: bytes, budget: _sp._Budget, depth: int) -> Any:
     def storage(pid: tuple) -> _Storage:
         found = _storage_from_pid(pid, False, registry)
         if found.data is None:
-            raw = _read_record(archive, f"{prefix}/data/{found.key}", found.nbytes)
-            budget.add_data(len(raw))
             stored = found.dtype.stored.newbyteorder(">" if byteorder == b"big" else "<")
-            found.data = np.frombuffer(raw, stored).copy() if found.numel else np.zeros(0, stored)
+            found.data = _read_storage(archive, f"{prefix}/data/{found.key}", found, stored, budget)
         return found
 
-    pickled = _read_record(archive, f"{prefix}/data.pkl")
-    return _TorchUnpickler(io.BytesIO(pickled), budget, depth, storage).load()
+    # data.pkl is unpickled as it inflates (a deflated record can hold a gigabyte in a megabyte)
+    pickled, _ = _open_record(archive, f"{prefix}/data.pkl")
+    with pickled:
+        stream = _sp._chunked(pickled)
+        value = _TorchUnpickler(stream, budget, depth, storage).load()
+        while stream.read(_sp._INFLATE_CHUNK):  # the end of the record: its CRC is checked there
+            pass
+    return value
 
 
 def _load_legacy(data: bytes, budget: _sp._Budget, depth: int) -> Any:

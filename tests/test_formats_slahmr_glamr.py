@@ -242,6 +242,18 @@ def test_glamr_keeps_detections_only_and_applies_the_root_scale(tmp_path, scene,
     np.testing.assert_allclose(frames[0].data["vertices"][0], scene[0][0].verts_cam, atol=TOL_M)
 
 
+@pytest.mark.parametrize("scale", [0.0, -1.1, float("nan")])
+def test_glamr_root_scale_that_collapses_the_meshes_is_refused(tmp_path, scene, model_path, runner, scale):
+    """scale = 0 would import every mesh collapsed onto its root (a negative one, turned inside out):
+    one line naming the file, the person, the key and the frame; without a model the scale is unused."""
+    src = G.write_glamr(tmp_path / "r_seed1.pkl", scene, scale={5: scale})
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "glamr",
+                                  "--smpl-model", model_path))
+    assert f"r_seed1.pkl [person 5]: 'scale' is {scale:g} in frame 0: GLAMR's root scale must be positive" in text
+    assert not (tmp_path / "out").exists()
+    assert import_sequence(src, tmp_path / "out", "glamr")["joints_layout"].startswith("pelvis")
+
+
 def test_glamr_without_a_model_gives_the_pelvis_and_its_2d(tmp_path, scene):
     src = G.write_glamr(tmp_path / "r_seed1.pkl", scene)
     summary = import_sequence(src, tmp_path / "out", "glamr")

@@ -315,11 +315,44 @@ def test_parameters_for_gigabytes_of_meshes_are_refused_before_posing(tmp_path):
 
 
 def test_compressed_pickle_bomb(tmp_path):
-    """A 2.3 MB zlib-compressed 'joblib' file inflating to 2.2 GiB: measured in chunks, refused, never held."""
+    """A 2.3 MB zlib-compressed 'joblib' file inflating to 2.2 GiB: unpickled as it inflates, refused at
+    its first byte that is no pickle's, never held; what follows a whole pickle is inflated (and
+    counted) to the end, a chunk at a time, and refused past limits.max_file_mb."""
     data, _ = deflated_zeros(b"\x80\x04", (2 << 30) + (1 << 28))
     (tmp_path / "phalp.pkl").write_bytes(b"\x78\xda" + data + b"\0\0\0\0")
     assert_refused(run("import", "--from", "4dhumans", tmp_path / "phalp.pkl", tmp_path / "out"),
-                   "phalp.pkl: decompresses to more than 2.0 GiB", "limits.max_file_mb")
+                   "phalp.pkl: not a readable pickle (invalid opcode)")
+    data, _ = deflated_zeros(b"\x80\x04N.", 64 << 20)
+    (tmp_path / "phalp.pkl").write_bytes(b"\x78\xda" + data + b"\0\0\0\0")
+    with limits.applied(Limits(16 << 20, 1 << 20, 1 << 20, 10_000, 10_000)), pytest.raises(
+            InputError, match=r"phalp\.pkl: decompresses to more than 16\.0 MiB \(limit: limits\.max_file_mb\)"):
+        safe_pickle.load_file(tmp_path / "phalp.pkl")
+
+
+@pytest.mark.parametrize("fmt", ["wham", "gvhmr", "bev"])
+def test_compressed_pickle_under_the_limit_is_refused_as_it_inflates(tmp_path, fmt):
+    """A 1 MB file whose pickle inflates to 1 GiB of zeros, under limits.max_file_mb: WHAM's zlib
+    joblib, a GVHMR torch archive whose data.pkl record is deflated, a BEV .npz whose object member
+    is. Unpickled as it inflates, it is refused at its first zero (inflated whole first, it took 2.1 GB
+    and 8-13 s). The checksums are right: the stream is sound to its end, only far too big."""
+    if fmt == "wham":
+        data, size = deflated_zeros(b"\x80\x02", 1 << 30)
+        src = tmp_path / "wham_output.pkl"
+        src.write_bytes(b"\x78\xda" + data + (0x5DC90083).to_bytes(4, "big"))  # zlib.adler32 of the whole
+        needle = "wham_output.pkl: not a readable pickle (invalid opcode)"
+    elif fmt == "gvhmr":
+        data, size = deflated_zeros(b"\x80\x02", 1 << 30)
+        src = write_zip(tmp_path / "hmr4d_results.pt", [("hmr4d_results/data.pkl", data, zipfile.ZIP_DEFLATED, size,
+                                                          0x7E71F856)])  # zlib.crc32 of the whole
+        needle = "hmr4d_results.pt: torch archive: not a readable pickle (invalid opcode)"
+    else:
+        data, size = deflated_zeros(npy_header("|O", ()) + b"\x80\x02", 1 << 30)
+        (tmp_path / "bev").mkdir()
+        src = write_zip(tmp_path / "bev" / "000000.npz", [("results.npy", data, zipfile.ZIP_DEFLATED, size,
+                                                             0x4870C032)])  # zlib.crc32 of the whole
+        needle = "000000.npz ['results']: not a readable pickle (invalid opcode)"
+    assert src.stat().st_size < 2 << 20
+    assert_refused(run("import", "--from", fmt, src, tmp_path / "out", "--image-size", 640, 480), needle)
 
 
 def test_grid_steps_from_config(tmp_path, npz_seq):
@@ -423,6 +456,8 @@ def _hand_made_pickles():
     reconstruct = b"cnumpy.core.multiarray\n_reconstruct\ncnumpy\nndarray\nK\x00\x85C\x01b\x87R"
     yield "object array", b"\x80\x02" + reconstruct + state + b"b.", "object array data does not match its shape"
     yield "bytearray8", b"\x80\x05\x96" + struct.pack("<Q", 10**12) + b"xx.", "a bytearray of 1,000,000,000,000 bytes"
+    # a FRAME is read whole before its opcodes run (pickle writes them of ~64 KiB): a 1 TB one is refused unread
+    yield "frame", b"\x80\x04\x95" + struct.pack("<Q", 10**12) + b"N.", "a frame of 1,000,000,000,000 bytes"
     rng = b"c__builtin__\nrange\n(K\x00J\x00\xca\x9a;tR"  # range(0, 10**9), lazy
     yield "copyreg", b"ccopy_reg\n_reconstructor\n(c__builtin__\ntuple\nc__builtin__\ntuple\n" + rng + b"tR.", \
         "tuple() would build 1,000,000,000 items"

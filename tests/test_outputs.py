@@ -85,7 +85,10 @@ def test_calibrate_writes_camera_yaml_only_where_it_may(scene, tmp_path, runner)
     (s / "pred" / "camera.yaml").write_text(known)  # a user's own known camera
     assert "did not write" in _one_line(invoke(runner, "calibrate", s / "pred", "-q"))
     assert (s / "pred" / "camera.yaml").read_text() == known
-    assert invoke(runner, "calibrate", s / "pred", "-q", "--force").exit_code == 0
+    assert "never replaces it" in _one_line(invoke(runner, "calibrate", s / "pred", "-q", "--force"))  # not even so
+    assert (s / "pred" / "camera.yaml").read_text() == known
+    (s / "pred" / "camera.yaml").unlink()
+    assert invoke(runner, "calibrate", s / "pred", "-q").exit_code == 0
     assert written_by_rotavat(s / "pred" / "camera.yaml")
     assert invoke(runner, "calibrate", s / "pred", "-q").exit_code == 0  # its own file: replaced
 

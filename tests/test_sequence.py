@@ -272,7 +272,7 @@ def test_info_warns_of_root_centred_and_behind_camera_people_and_of_several_imag
     result = invoke(runner, "info", pred)
     text = " ".join(result.stderr.split())  # the warnings are diagnostics (stderr); the console wraps lines
     assert result.exit_code == 0
-    assert "4 people are centred on the camera" in text and "1 people are partly at or behind" in text
+    assert "4 people are centred on the camera" in text and "1 person is partly at or behind" in text
     assert "frames of 2 image sizes (640x480, 1280x720)" in text
     summary = json.loads(invoke(runner, "info", pred, "--json").stdout)
     assert (summary["people_root_centred"], summary["people_behind_camera"]) == (4, 1)

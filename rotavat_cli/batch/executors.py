@@ -9,7 +9,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import InputError
-from ..parallel import cap_workers
+from ..parallel import cap_workers, exit_with_parent
 from .plan import BatchOptions
 from .tasks import one_line
 
@@ -44,7 +44,8 @@ POOL_WORKER_ENVIRON = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL
 
 
 class _PoolExecutor:
-    """A process pool on this machine (spawned workers: no state forked from the driver)."""
+    """A process pool on this machine (spawned workers: no state forked from the driver; they end
+    when the driver does, even killed: :func:`rotavat_cli.parallel.exit_with_parent`)."""
 
     name = "local"
 
@@ -56,7 +57,8 @@ class _PoolExecutor:
         self._pool = self._new()
 
     def _new(self) -> cf.ProcessPoolExecutor:
-        return cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"))
+        return cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                      initializer=exit_with_parent, initargs=(os.getpid(),))
 
     def submit(self, fn: Callable, *args: Any) -> cf.Future:
         try:

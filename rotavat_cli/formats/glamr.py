@@ -33,7 +33,8 @@ Conversion:
 - Frame ``t`` (named by its index: GLAMR extracts the video's frames as ``%06d.jpg``): every person
   detected there (``visible_orig``, else ``visible``; occluded, infilled frames are left out).
 - Meshes: SMPL(``smpl_orient_world``, ``smpl_pose``, ``smpl_beta``) moved so its pelvis joint is at
-  ``root_trans_world`` (scaled about it when ``scale`` is set), then ``cam_pose[t]``
+  ``root_trans_world`` (scaled about it when ``scale`` is set; a scale that is not positive where the
+  person is detected is refused), then ``cam_pose[t]``
   (``R X + t``): OpenCV camera frame, metres. Needs ``--smpl-model`` (SMPL_NEUTRAL.npz; GLAMR uses
   the neutral SMPL); without it: joints = the root (pelvis) only, and the 2D keypoints.
 - ``keypoints_2d``: ``kp_2d_pred``, layout body26fk (GLAMR ``get_ordered_joint_names``: pelvis
@@ -175,6 +176,19 @@ def _focal_rule(K: np.ndarray, image_size: tuple[int, int], source: Path, warnin
     return None
 
 
+def _check_root_scale(person: _Person, source: Path) -> None:
+    """A root scale must be positive where the person is detected: 0 collapses the mesh onto its root,
+    a negative one turns it inside out (InputError naming the person, the key and the first frame)."""
+    if person.scale is None:
+        return
+    bad = np.flatnonzero(person.present & ~(np.isfinite(person.scale) & (person.scale > 0)))
+    if len(bad):
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        raise fail(f"{source} [person {person.pid}]",
+                   f"'scale' is {person.scale[bad[0]]:g} in frame {bad[0]}{more}: GLAMR's root scale must be positive "
+                   "(the mesh would collapse onto its root)")
+
+
 def _check_model(model: BodyModel | None, source: Path, warnings: list[str]) -> BodyModel | None:
     if model is None:
         warnings.append(no_model_warning("GLAMR") + " (joints = the pelvis only)")
@@ -207,6 +221,9 @@ def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
         raise fail(path, "person ids repeat in 'person_data'")
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)
+    if model is not None:  # without a model only the roots are imported: the scale is not used
+        for person in people:
+            _check_root_scale(person, path)
     K = _intrinsics(people, path, warnings)
     image_size = opts.image_size or centre_image_size(K[0, 2], K[1, 2], path, "cam_K's principal point")
     rule = _focal_rule(K, image_size, path, warnings)

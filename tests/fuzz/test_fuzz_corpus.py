@@ -65,7 +65,7 @@ def test_every_class_has_cases_and_every_case_a_rule_to_keep() -> None:
     for case in CASES:
         assert case.expect in ("ok", "refuse", "either", "gate"), case.id
         assert case.expect != "ok" or case.checks or case.args[0] == "info", f"{case.id}: an ok case checks its result"
-    assert sum(c.subprocess for c in CASES) <= 20
+    assert sum(c.subprocess for c in CASES) <= 22
     assert {c.id for c in CASES if c.payload} >= {c.id for c in CASES if c.cls == "pickle-gadget"}
 
 
