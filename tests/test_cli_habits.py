@@ -71,3 +71,14 @@ def test_the_head_column_warning_keeps_quiet_on_a_clean_synthetic_scene(tmp_path
     write_synth_scene(tmp_path / "s", SynthOptions(seed=8, frames=20, people=8, image_size=(1280, 720)))
     result = calibrate_sequence(open_sequence(tmp_path / "s" / "pred", read_camera=False), CalibrateOptions()).result
     assert not any("head columns" in w for w in result.warnings) and result.determined_by["focal_px"] == "people"
+
+
+def test_help_at_80_columns_gives_each_option_a_readable_line(runner):
+    """At 80 columns rich's panel gave option help ~17 characters and cut it ('(bottom-/top-ce…'): a narrow
+    terminal now gets click's plain layout; a wide one keeps the panels."""
+    narrow = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "80"}).stdout
+    assert max(len(line) for line in narrow.splitlines()) <= 80 and "…" not in narrow
+    assert "The camera's known focal length (px)." in narrow  # one line, not 17-character shreds
+    assert "(bottom-/top-centre of person boxes; refine," in " ".join(narrow.split())
+    wide = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "200"}).stdout
+    assert "╭─ Options" in wide and "[default: 1.7]" in wide and "[default: 1.7]" in narrow

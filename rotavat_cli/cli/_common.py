@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
 import warnings
 from collections.abc import Iterator
@@ -60,6 +61,34 @@ def _default_text(value: Any, flag: str) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+# Below this terminal width, --help lists options click's plain way (name, then its help over the rest of
+# the line): rich's panel gives each option's help ~17 columns of 80 and cuts it.
+RICH_HELP_MIN_COLUMNS = 120
+
+
+def _plain_when_narrow(command: Any) -> None:
+    """Make ``command``'s --help plain text on a terminal narrower than :data:`RICH_HELP_MIN_COLUMNS`."""
+    rich_format = command.format_help
+
+    def format_help(ctx: Any, formatter: Any) -> None:
+        if shutil.get_terminal_size((80, 24)).columns >= RICH_HELP_MIN_COLUMNS:
+            return rich_format(ctx, formatter)
+        texts = [(p, p.help) for p in command.params if getattr(p, "help", None)]
+        help_text, mode = command.help, command.rich_markup_mode
+        try:  # the stored help is escaped for rich markup: plain text shows it as written
+            for p, text in texts:
+                p.help = text.replace("\\[", "[")
+            command.help = help_text.replace("\\[", "[") if help_text else help_text
+            command.rich_markup_mode = None  # typer then formats as click does
+            return rich_format(ctx, formatter)
+        finally:
+            for p, text in texts:
+                p.help = text
+            command.help, command.rich_markup_mode = help_text, mode
+
+    command.format_help = format_help
+
+
 def polish_help(command: Any, section: dict | None, choices: dict[str, tuple[str, ...]] | None = None) -> None:
     """Make a command's --help read as users expect (once per command).
 
@@ -72,6 +101,7 @@ def polish_help(command: Any, section: dict | None, choices: dict[str, tuple[str
     if getattr(command, "_rotavat_polished", False):
         return
     command._rotavat_polished = True
+    _plain_when_narrow(command)
     if command.help:
         command.help = escape(command.help)
     from_config, names = {}, {}
