@@ -82,3 +82,13 @@ def test_help_at_80_columns_gives_each_option_a_readable_line(runner):
     assert "(bottom-/top-centre of person boxes; refine," in " ".join(narrow.split())
     wide = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "200"}).stdout
     assert "╭─ Options" in wide and "[default: 1.7]" in wide and "[default: 1.7]" in narrow
+
+
+def test_calibrate_prints_its_summary_on_one_line_below_the_table(tmp_path, runner):
+    """The summary was the table's caption, wrapped to the table's width (five short lines)."""
+    from pathlib import Path
+
+    scene = Path(__file__).resolve().parents[1] / "sample_data" / "scene"
+    out = invoke(runner, "calibrate", scene / "pred", "--out", tmp_path / "c.yaml").stdout
+    (line,) = [line for line in out.splitlines() if "inliers over" in line]
+    assert "head rmse" in line and "meshes made with f" in line and line.startswith("19/20 pairs inliers")
