@@ -6,75 +6,39 @@ The command line (``rotavat``) is a thin layer over this API:
 >>> cam = Camera((640, 480), 500.0, None, 0.3, 0.0, 4.0)
 >>> round(cam.height_m, 1)
 4.0
+
+Each name below is imported from its module when first used (:mod:`rotavat_cli.lazy`), so
+``import rotavat_cli`` costs nothing and ``rotavat --help`` loads no numpy. Where each rule lives:
+docs/architecture.md.
 """
 
-from __future__ import annotations
+from .lazy import public_names
+from .version import __version__
 
-__version__ = "0.1.0"
-
-from .alignment import (AlignOptions, AlignSummary, AlignTransform, align_frame, align_sequence, apply_transforms,
-                        rotavat_transforms, track_statures)
-from .batch import BatchOptions, run_batch
-from .calibration import CalibrateOptions, CalibrationResult, calibrate_sequence, fit_camera
-from .calibration.pairs import gather_pairs
-from .camera import Camera, camera_from_yaml_dict, camera_to_yaml_dict
-from .config import default_config, load_config
-from .errors import DegenerateSceneError, GateError, InputError, RotavatError
-from .formats import available_formats, detect_format, import_sequence, imported_sequence
-from .landmarks import foot_head_points
-from .metrics import mpjpe, procrustes_align, pve
-from .metrics.evaluate import EvalOptions, EvalResult, evaluate
-from .render import FigureOptions, export_frame, render_sequences
-from .sequence import Frame, Intrinsics, Sequence, open_sequence, read_camera_yaml, write_camera_yaml, write_frame
-from .synth import SynthOptions, write_synth_scene
-
-__all__ = [
-    "__version__",
-    "AlignOptions",
-    "AlignSummary",
-    "AlignTransform",
-    "BatchOptions",
-    "CalibrateOptions",
-    "CalibrationResult",
-    "Camera",
-    "DegenerateSceneError",
-    "EvalOptions",
-    "EvalResult",
-    "FigureOptions",
-    "Frame",
-    "GateError",
-    "InputError",
-    "Intrinsics",
-    "RotavatError",
-    "Sequence",
-    "SynthOptions",
-    "align_frame",
-    "align_sequence",
-    "available_formats",
-    "calibrate_sequence",
-    "detect_format",
-    "import_sequence",
-    "imported_sequence",
-    "apply_transforms",
-    "camera_from_yaml_dict",
-    "camera_to_yaml_dict",
-    "default_config",
-    "evaluate",
-    "export_frame",
-    "fit_camera",
-    "foot_head_points",
-    "gather_pairs",
-    "load_config",
-    "mpjpe",
-    "open_sequence",
-    "procrustes_align",
-    "pve",
-    "read_camera_yaml",
-    "render_sequences",
-    "rotavat_transforms",
-    "run_batch",
-    "track_statures",
-    "write_camera_yaml",
-    "write_frame",
-    "write_synth_scene",
-]
+# Each public name and the module that defines it.
+_PUBLIC = {
+    ".alignment.align": ("AlignSummary", "align_frame", "align_sequence", "track_statures"),
+    ".alignment.options": ("AlignOptions",),
+    ".alignment.transform": ("AlignTransform", "apply_transforms", "rotavat_transforms"),
+    ".batch.driver": ("run_batch",),
+    ".batch.plan": ("BatchOptions",),
+    ".calibration.fit": ("CalibrationResult", "fit_camera"),
+    ".calibration.options": ("CalibrateOptions",),
+    ".calibration.pairs": ("gather_pairs",),
+    ".calibration.sequence": ("calibrate_sequence",),
+    ".camera": ("Camera", "camera_from_yaml_dict", "camera_to_yaml_dict"),
+    ".config": ("default_config", "load_config"),
+    ".errors": ("DegenerateSceneError", "GateError", "InputError", "RotavatError"),
+    ".formats": ("available_formats", "detect_format", "import_sequence", "imported_sequence"),
+    ".landmarks": ("foot_head_points",),
+    ".metrics.evaluate": ("EvalOptions", "EvalResult", "evaluate"),
+    ".metrics.points": ("mpjpe", "procrustes_align", "pve"),
+    ".render.export": ("export_frame",),
+    ".render.sequences": ("FigureOptions", "render_sequences"),
+    ".sequence": (
+        "Frame", "Intrinsics", "Sequence", "open_sequence", "read_camera_yaml", "write_camera_yaml", "write_frame"
+    ),
+    ".synth.scene": ("SynthOptions", "write_synth_scene"),
+}
+__getattr__, __dir__, _names = public_names(__name__, _PUBLIC)
+__all__ = ["__version__", *_names]

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .errors import InputError
-from .sequence import read_yaml
+from .yaml_io import read_yaml
 
 __all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default", "config_choices"]
 
@@ -100,10 +100,11 @@ def _choices() -> dict[str, tuple[str, ...]]:
     from .alignment.options import HEIGHT_FROM
     from .alignment.transform import UPRIGHT
     from .batch.plan import EXECUTORS
-    from .calibration import FOCAL_PRIORS, METHODS, POINTS, RESIDUALS
-    from .metrics import ENGINES
+    from .calibration.options import FOCAL_PRIORS, METHODS, POINTS
+    from .calibration.residuals import RESIDUALS
+    from .metrics.fused import ENGINES
     from .metrics.evaluate import MATCHES, PROTOCOL_NAMES
-    from .render import RENDERERS
+    from .render.raster import RENDERERS
     from .render.sequences import GHOSTS, SCALES
     from .render.views import FITS
     from .synth.layouts import LAYOUTS

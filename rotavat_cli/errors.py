@@ -6,7 +6,7 @@ import contextlib
 from collections.abc import Iterator
 
 __all__ = ["RotavatError", "InputError", "DegenerateSceneError", "GateError", "TaskError", "BatchFailedError",
-           "input_errors"]
+           "file_error", "input_errors"]
 
 
 class RotavatError(Exception):
@@ -43,6 +43,15 @@ class BatchFailedError(RotavatError):
     """``rotavat batch`` finished, but some sequences failed (the others' outputs are complete); exit 1."""
 
     exit_code = 1
+
+
+def file_error(source: object, message: str) -> InputError:
+    """The one-line refusal of a file: ``"{source}: {message}"`` (every reader's errors start with the file).
+
+    >>> str(file_error("scene/meta.yaml", "image_size must be [W, H]"))
+    'scene/meta.yaml: image_size must be [W, H]'
+    """
+    return InputError(f"{source}: {message}")
 
 
 @contextlib.contextmanager

@@ -42,6 +42,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from .errors import InputError
+from .version import WRITTEN_BY
 
 try:
     import fcntl
@@ -161,9 +162,7 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
 
 def mark_output_dir(folder: str | os.PathLike, command: str) -> None:
     """Write the marker that says rotavat wrote this output folder (and may replace it later)."""
-    from . import __version__
-
-    info = {"written_by": f"rotavat {__version__}", "command": command}  # no time: reruns stay byte-identical
+    info = {"written_by": WRITTEN_BY, "command": command}  # no time: reruns stay byte-identical
     Path(folder, MARKER).write_text(json.dumps(info) + "\n", encoding="utf-8")
 
 

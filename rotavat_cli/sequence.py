@@ -20,15 +20,14 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-import yaml
 
 from . import limits
 from .atomic import atomic_open, atomic_write_text
 from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict, people_not_in_front
-from .errors import InputError, input_errors
+from .errors import InputError, file_error, input_errors
 from .focal import focal_kind_or_default
-from .outputs import TEXT_HEADER
 from .safe_pickle import load_npz
+from .yaml_io import read_yaml, write_yaml
 
 __all__ = [
     "Frame",
@@ -142,11 +141,6 @@ class Frame:
 
 
 # ---- validation ------------------------------------------------------------------------------
-def _fail(source: str, message: str) -> InputError:
-    """An InputError whose message starts with the file name."""
-    return InputError(f"{source}: {message}")
-
-
 _KEY_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]{0,127}")  # a frame key: a plain name, never a path
 
 
@@ -154,42 +148,42 @@ def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
     """Check contract keys for shape, dtype, finiteness and a consistent people count; every key a plain name."""
     for key in data:
         if not _KEY_NAME.fullmatch(str(key)):
-            raise _fail(source, f"member name {str(key)[:60]!r} is not a plain key name (letters, digits, _ . -)")
+            raise file_error(source, f"member name {str(key)[:60]!r} is not a plain key name (letters, digits, _ . -)")
     counts: dict[str, int] = {}
     for key, trailing in PER_PERSON_KEYS.items():
         if key not in data:
             continue
         arr = data[key]
         if arr.dtype.kind not in "fiu":
-            raise _fail(source, f"key '{key}' must be numeric, got dtype {arr.dtype}")
+            raise file_error(source, f"key '{key}' must be numeric, got dtype {arr.dtype}")
         if arr.ndim != 1 + len(trailing):
-            raise _fail(source, f"key '{key}' must have {1 + len(trailing)} dimensions (P, ...), got shape {list(arr.shape)}")
+            raise file_error(source, f"key '{key}' must have {1 + len(trailing)} dimensions (P, ...), got shape {list(arr.shape)}")
         for dim, allowed in zip(arr.shape[1:], trailing):
             if isinstance(allowed, tuple) and dim not in allowed and arr.shape[0] > 0:
-                raise _fail(source, f"key '{key}' has shape {list(arr.shape)}; expected last axis in {list(allowed)}")
+                raise file_error(source, f"key '{key}' has shape {list(arr.shape)}; expected last axis in {list(allowed)}")
         if key == "person_ids":
             if arr.dtype.kind == "f" and arr.size and not np.all(arr == np.round(arr)):
-                raise _fail(source, "key 'person_ids' must hold integers")
+                raise file_error(source, "key 'person_ids' must hold integers")
             if arr.size and (np.any(arr > np.iinfo(np.int64).max) if arr.dtype.kind in "uf" else False):
-                raise _fail(source, "key 'person_ids' has ids beyond the int64 range")
+                raise file_error(source, "key 'person_ids' has ids beyond the int64 range")
             if arr.dtype.kind == "f" and arr.size and np.any(np.abs(arr) > 2.0**53):
-                raise _fail(source, "key 'person_ids' has ids too large to be stored exactly as floats")
+                raise file_error(source, "key 'person_ids' has ids too large to be stored exactly as floats")
             if len(np.unique(arr)) != len(arr):
-                raise _fail(source, "key 'person_ids' has duplicate ids in one frame")
+                raise file_error(source, "key 'person_ids' has duplicate ids in one frame")
         if key not in _NAN_ALLOWED and arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-            raise _fail(source, f"key '{key}' has non-finite values (NaN or inf)")
+            raise file_error(source, f"key '{key}' has non-finite values (NaN or inf)")
         counts[key] = arr.shape[0]
     if len(set(counts.values())) > 1:
         detail = ", ".join(f"{k}={v}" for k, v in counts.items())
-        raise _fail(source, f"inconsistent people counts between keys ({detail})")
+        raise file_error(source, f"inconsistent people counts between keys ({detail})")
     n_people = next(iter(counts.values()), 0)
     if "faces" in data:
         faces = data["faces"]
         if faces.dtype.kind not in "iu" or faces.ndim != 2 or faces.shape[1] != 3:
-            raise _fail(source, f"key 'faces' must be an (F, 3) integer array, got {faces.dtype} {list(faces.shape)}")
+            raise file_error(source, f"key 'faces' must be an (F, 3) integer array, got {faces.dtype} {list(faces.shape)}")
         verts = data.get("vertices")
         if verts is not None and faces.size and verts.shape[0] and (faces.min() < 0 or faces.max() >= verts.shape[1]):
-            raise _fail(source, f"key 'faces' indexes vertices outside 0..{verts.shape[1] - 1}")
+            raise file_error(source, f"key 'faces' indexes vertices outside 0..{verts.shape[1] - 1}")
     _intrinsics_from_mapping(data, source, n_people)
 
 
@@ -207,39 +201,39 @@ def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int
             arr = np.zeros(0)
         if arr.shape != (2,) or arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)) or np.any(arr <= 0) \
                 or np.any(arr > MAX_IMAGE_SIDE_PX):
-            raise _fail(source, f"key 'image_size' must be [W, H] with positive values up to {MAX_IMAGE_SIDE_PX}, "
+            raise file_error(source, f"key 'image_size' must be [W, H] with positive values up to {MAX_IMAGE_SIDE_PX}, "
                                 f"got {str(data['image_size'])[:60]}")
         size = (int(arr[0]), int(arr[1]))
     if data.get("K") is not None:
         try:
             K = np.asarray(data["K"], dtype=np.float64)
         except (TypeError, ValueError):
-            raise _fail(source, "key 'K' must be a finite 3x3 matrix of numbers") from None
+            raise file_error(source, "key 'K' must be a finite 3x3 matrix of numbers") from None
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
-            raise _fail(source, "key 'K' must be a finite 3x3 matrix with positive focal lengths")
+            raise file_error(source, "key 'K' must be a finite 3x3 matrix with positive focal lengths")
         focal = float(0.5 * (K[0, 0] + K[1, 1]))
         pp = (float(K[0, 2]), float(K[1, 2]))
     if data.get("focal_length") is not None:
         try:
             arr = np.asarray(data["focal_length"], dtype=np.float64).reshape(-1)
         except (TypeError, ValueError):
-            raise _fail(source, f"key 'focal_length' must be a number, got {data['focal_length']!r}") from None
+            raise file_error(source, f"key 'focal_length' must be a number, got {data['focal_length']!r}") from None
         if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-            raise _fail(source, f"key 'focal_length' must hold positive numbers, got {data['focal_length']!r}")
+            raise file_error(source, f"key 'focal_length' must hold positive numbers, got {data['focal_length']!r}")
         if arr.size == 1 or (n_people is None and arr.size == 2):
             focal = float(arr.mean())
         elif n_people is not None and arr.size == n_people and np.ndim(data["focal_length"]) == 1:
             person_focal = tuple(float(v) for v in arr)
         else:
             expected = "one number" if n_people is None else f"one number or one per person ({n_people},)"
-            raise _fail(source, f"key 'focal_length' must be {expected}, got shape {list(np.shape(data['focal_length']))}")
+            raise file_error(source, f"key 'focal_length' must be {expected}, got shape {list(np.shape(data['focal_length']))}")
     if data.get("principal_point") is not None:
         try:
             arr = np.asarray(data["principal_point"], dtype=np.float64)
         except (TypeError, ValueError):
-            raise _fail(source, "key 'principal_point' must be [cx, cy] in pixels") from None
+            raise file_error(source, "key 'principal_point' must be [cx, cy] in pixels") from None
         if arr.shape != (2,) or not np.all(np.isfinite(arr)):
-            raise _fail(source, "key 'principal_point' must be [cx, cy]")
+            raise file_error(source, "key 'principal_point' must be [cx, cy]")
         pp = (float(arr[0]), float(arr[1]))
     return Intrinsics(size, focal, pp, person_focal)
 
@@ -265,19 +259,19 @@ def read_frame_obj(folder: str | Path) -> Frame:
         try:
             text = file.read_bytes().decode("utf-8")
         except UnicodeDecodeError:
-            raise _fail(str(file), "not a text OBJ file (not UTF-8)") from None
+            raise file_error(str(file), "not a text OBJ file (not UTF-8)") from None
         try:
             mesh = trimesh.load(io.StringIO(text), file_type="obj", process=False, maintain_order=True, force="mesh")
         except Exception as exc:  # trimesh raises many types on broken files
-            raise _fail(str(file), f"not a readable OBJ file ({exc})") from None
+            raise file_error(str(file), f"not a readable OBJ file ({exc})") from None
         v = np.asarray(mesh.vertices, dtype=np.float64)
         f = np.asarray(mesh.faces, dtype=np.int64)
         if v.ndim != 2 or v.shape[0] == 0:
-            raise _fail(str(file), "OBJ has no vertices")
+            raise file_error(str(file), "OBJ has no vertices")
         if not np.all(np.isfinite(v)):
-            raise _fail(str(file), "OBJ has non-finite vertices (NaN or inf)")
+            raise file_error(str(file), "OBJ has non-finite vertices (NaN or inf)")
         if verts and v.shape != verts[0].shape:
-            raise _fail(str(file), f"has {v.shape[0]} vertices but {files[0].name} has {verts[0].shape[0]}: "
+            raise file_error(str(file), f"has {v.shape[0]} vertices but {files[0].name} has {verts[0].shape[0]}: "
                         "one frame must share one topology")
         if faces is None:
             faces = f
@@ -378,38 +372,6 @@ def _obj_text(verts: np.ndarray, faces: np.ndarray) -> str:
 
 
 # ---- YAML helpers --------------------------------------------------------------------------
-def read_yaml(path: str | Path) -> dict:
-    """Load a YAML mapping with the safe loader; errors name the file."""
-    path = Path(path)
-    if path.exists() and not path.is_file():
-        raise _fail(str(path), "not a regular file")
-    try:
-        with open(path, encoding="utf-8") as handle:
-            data = yaml.safe_load(handle)
-    except FileNotFoundError:
-        raise _fail(str(path), "file not found") from None
-    except yaml.YAMLError as exc:
-        raise _fail(str(path), f"invalid YAML ({str(exc).splitlines()[0]})") from None
-    except RecursionError:
-        raise _fail(str(path), "YAML nested too deeply to read") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise _fail(str(path), f"cannot read ({exc})") from None
-    if data is None:
-        return {}
-    if not isinstance(data, dict):
-        raise _fail(str(path), "must hold a YAML mapping (key: value)")
-    return data
-
-
-def write_yaml(path: str | Path, data: dict) -> None:
-    """Dump plain-typed data with ``yaml.safe_dump`` atomically, under rotavat's header line (which
-    says rotavat wrote the file and may replace it: :func:`rotavat_cli.outputs.written_by_rotavat`)."""
-    from . import __version__
-
-    header = f"{TEXT_HEADER} {__version__}\n"
-    atomic_write_text(path, header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
-
-
 def read_camera_yaml(path: str | Path, image_size: tuple[int, int] | None = None) -> tuple[Camera, dict]:
     """Read ``camera.yaml`` -> (Camera, fit block or {})."""
     data = read_yaml(path)
@@ -672,7 +634,7 @@ def _check_meta(meta: dict, source: Path) -> None:
     for key, kind in _META_TYPES.items():
         value = meta.get(key)
         if value is not None and (not isinstance(value, kind) or isinstance(value, bool)):
-            raise _fail(str(source), f"key '{key}' must be a {'name' if kind is str else 'number'}, got {value!r:.60}")
+            raise file_error(str(source), f"key '{key}' must be a {'name' if kind is str else 'number'}, got {value!r:.60}")
 
 
 def people_not_placed(frame: Frame) -> tuple[np.ndarray, np.ndarray]:

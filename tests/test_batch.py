@@ -396,7 +396,7 @@ def _implausible_calibration_of(rel: str, monkeypatch) -> None:
     """Calibrating ``rel`` (in this process: --jobs 1) finds the camera implausible; the others as they are."""
     from dataclasses import replace
 
-    import rotavat_cli.calibration as calibration
+    import rotavat_cli.calibration.sequence as calibration
     from _camera_gate import FINDINGS
 
     real = calibration.calibrate_sequence

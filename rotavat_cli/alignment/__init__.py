@@ -3,19 +3,20 @@ application to frames and whole sequences (:mod:`.align`: re-expression into the
 which camera a sequence is aligned into (:mod:`.camera_choice`) and the gate every camera passes before
 align, render or batch use it (:mod:`.camera_gate`); its options (:mod:`.options`)."""
 
-from .align import (IMPLAUSIBLE_STATURE, PEOPLE_COLUMNS, AlignSummary, MeshIntrinsics, align_frame, align_sequence,
-                    aligned_meta, frame_foot_head_cam, summarize_people_csv, track_statures)
-from .camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
-from .camera_gate import (ImplausibleCameraError, Remedies, accepted_fit, align_remedies, batch_remedies,
-                          check_align_camera, check_fit, implausible_findings, is_accepted, reader_flags,
-                          render_remedies)
-from .options import HEIGHT_FROM, AlignOptions
-from .transform import FLAGS, UPRIGHT, AlignTransform, apply_transforms, method_rays_cam, rotavat_transforms
+from ..lazy import public_names
 
-__all__ = ["HEIGHT_FROM", "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignOptions", "AlignSummary", "MeshIntrinsics",
-           "align_frame", "align_sequence", "aligned_meta", "frame_foot_head_cam", "summarize_people_csv",
-           "track_statures", "FLAGS", "UPRIGHT",
-           "AlignTransform", "apply_transforms", "method_rays_cam", "rotavat_transforms", "CALIBRATED", "GIVEN",
-           "AlignCamera", "camera_for_align", "ImplausibleCameraError", "Remedies", "accepted_fit", "align_remedies",
-           "batch_remedies", "check_align_camera", "check_fit", "implausible_findings", "is_accepted", "reader_flags",
-           "render_remedies"]
+# Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
+_PUBLIC = {
+    ".align": (
+        "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignSummary", "MeshIntrinsics", "align_frame", "align_sequence",
+        "aligned_meta", "frame_foot_head_cam", "summarize_people_csv", "track_statures"
+    ),
+    ".camera_choice": ("CALIBRATED", "GIVEN", "AlignCamera", "camera_for_align"),
+    ".camera_gate": (
+        "ImplausibleCameraError", "Remedies", "accepted_fit", "align_remedies", "batch_remedies",
+        "check_align_camera", "check_fit", "implausible_findings", "is_accepted", "reader_flags", "render_remedies"
+    ),
+    ".options": ("HEIGHT_FROM", "AlignOptions"),
+    ".transform": ("FLAGS", "UPRIGHT", "AlignTransform", "apply_transforms", "method_rays_cam", "rotavat_transforms"),
+}
+__getattr__, __dir__, __all__ = public_names(__name__, _PUBLIC)

@@ -22,13 +22,16 @@ workers), :mod:`.executors` (inline, process pool, Dask), :mod:`.driver` (:func:
 with a one-line reason.
 """
 
+from ..lazy import public_names
 
-from ..errors import TaskError
-from .discover import discover_sequences, fingerprint
-from .driver import Progress, run_batch
-from .plan import MARKER, STEPS, BatchOptions, completed_marker, parse_steps
-from .report import REPORT_JSON, REPORT_MD, BatchReport, aggregate_rows, markdown_batch_report, write_batch_report
-
-__all__ = ["STEPS", "MARKER", "REPORT_JSON", "REPORT_MD", "BatchOptions", "BatchReport", "Progress", "TaskError",
-           "parse_steps", "discover_sequences", "fingerprint", "completed_marker", "run_batch", "aggregate_rows",
-           "markdown_batch_report", "write_batch_report"]
+# Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
+_PUBLIC = {
+    "..errors": ("TaskError",),
+    ".discover": ("discover_sequences", "fingerprint"),
+    ".driver": ("Progress", "run_batch"),
+    ".plan": ("MARKER", "STEPS", "BatchOptions", "completed_marker", "parse_steps"),
+    ".report": (
+        "REPORT_JSON", "REPORT_MD", "BatchReport", "aggregate_rows", "markdown_batch_report", "write_batch_report"
+    ),
+}
+__getattr__, __dir__, __all__ = public_names(__name__, _PUBLIC)

@@ -14,8 +14,8 @@ from ..config import default_config
 from ..errors import InputError, input_errors
 from ..metrics.evaluate import MATCHES
 from ..plain import to_plain
-from ..render import FigureOptions
-from ..sequence import read_yaml
+from ..render.sequences import FigureOptions
+from ..yaml_io import read_yaml
 from .discover import discover_sequences, fingerprint, frames_hint
 
 __all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "BatchOptions", "parse_steps",

@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
+from ..version import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
 from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from ..alignment.camera_gate import (ImplausibleCameraError, batch_remedies, check_align_camera, implausible_findings,
@@ -134,7 +134,8 @@ def task_prepare(job: dict, plan: dict) -> dict:
     result["frames"] = len(seq)
 
     def calibrate(s: Sequence) -> AlignCamera:
-        from ..calibration import CalibrateOptions, calibrate_sequence
+        from ..calibration.options import CalibrateOptions
+        from ..calibration.sequence import calibrate_sequence
 
         start = time.perf_counter()
         calib = calibrate_sequence(s, CalibrateOptions.from_config(plan["config"]["calibrate"]))
@@ -186,7 +187,8 @@ def _chunk_dir(job: dict, index: int) -> Path:
 def task_align_chunk(job: dict, plan: dict, camera_yaml: dict, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
     _apply_limits(plan)
-    from ..alignment import AlignOptions, align_sequence
+    from ..alignment.options import AlignOptions
+    from ..alignment.align import align_sequence
 
     seq = open_sequence(job["seq"], read_camera=False)
     camera, fit = camera_from_yaml_dict(camera_yaml), camera_yaml.get("fit") or {}
@@ -222,7 +224,7 @@ def task_align_merge(job: dict, plan: dict, n_chunks: int) -> dict:
 
 def _people_summary(people_csv: Path) -> dict:
     """What align did, from its people.csv (the same numbers whatever the chunking)."""
-    from ..alignment import summarize_people_csv
+    from ..alignment.align import summarize_people_csv
 
     summary = summarize_people_csv(people_csv)
     return {k: v for k, v in vars(summary).items() if k not in ("out", "frames") and not k.startswith("_")}
@@ -274,7 +276,7 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
     if row["people"] is None and state["camera"] and state["camera"].get("pairs") is not None:
         row["people"] = state["camera"]["pairs"]  # calibrate only: the foot/head pairs offered
     if "render" in steps:
-        from ..render import FigureOptions, render_sequences
+        from ..render.sequences import FigureOptions, render_sequences
 
         start = time.perf_counter()
         paths = [Path(job["seq"])] + ([out / "aligned"] if "align" in steps else []) + ([Path(job["gt"])] if job["gt"] else [])

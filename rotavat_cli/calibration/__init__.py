@@ -18,6 +18,7 @@ Modules, from the model up:
 - :mod:`.sequence`: :func:`calibrate_sequence`, a whole sequence: the focal policy, who stands, who stands still.
 
 >>> import numpy as np
+>>> from rotavat_cli.calibration import CalibrateOptions, fit_camera, predict_heads_px
 >>> feet = np.array([[100.0, 300.0], [320.0, 400.0], [500.0, 350.0], [250.0, 460.0], [600.0, 420.0]])
 >>> heads = predict_heads_px(feet, 500.0, np.deg2rad(30.0), 0.0, 5.0, (320.0, 240.0), 1.7)
 >>> res = fit_camera(feet, heads, (640, 480), CalibrateOptions(focal_px=500.0, residual="vertical"))
@@ -25,40 +26,16 @@ Modules, from the model up:
 (5.0, 'vertical')
 """
 
-from __future__ import annotations
+from ..lazy import public_names
 
-from .fit import CalibrationResult, PerFrameSummary, calibrate, fit_camera, fit_per_frame
-from .grid import GridFit, GridSpec, grid_costs, paper_grid_search, reference_cell_costs
-from .inputs import BOX_COLUMN_TOL_PX, box_derived
-from .model import predict_heads_px
-from .options import FOCAL_PRIORS, METHODS, POINTS, CalibrateOptions
-from .residuals import RESIDUAL_KINDS, RESIDUALS, ResidualKind, residual_kind
-from .sequence import FOCAL_POLICIES, SequenceCalibration, calibrate_sequence, declared_focal
-
-__all__ = [
-    "BOX_COLUMN_TOL_PX",
-    "FOCAL_PRIORS",
-    "FOCAL_POLICIES",
-    "METHODS",
-    "POINTS",
-    "RESIDUALS",
-    "RESIDUAL_KINDS",
-    "CalibrateOptions",
-    "CalibrationResult",
-    "GridFit",
-    "GridSpec",
-    "PerFrameSummary",
-    "ResidualKind",
-    "SequenceCalibration",
-    "box_derived",
-    "calibrate",
-    "calibrate_sequence",
-    "declared_focal",
-    "fit_camera",
-    "fit_per_frame",
-    "grid_costs",
-    "paper_grid_search",
-    "predict_heads_px",
-    "reference_cell_costs",
-    "residual_kind",
-]
+# Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
+_PUBLIC = {
+    ".fit": ("CalibrationResult", "PerFrameSummary", "calibrate", "fit_camera", "fit_per_frame"),
+    ".grid": ("GridFit", "GridSpec", "grid_costs", "paper_grid_search", "reference_cell_costs"),
+    ".inputs": ("BOX_COLUMN_TOL_PX", "box_derived"),
+    ".model": ("predict_heads_px",),
+    ".options": ("FOCAL_PRIORS", "METHODS", "POINTS", "CalibrateOptions"),
+    ".residuals": ("RESIDUAL_KINDS", "RESIDUALS", "ResidualKind", "residual_kind"),
+    ".sequence": ("FOCAL_POLICIES", "SequenceCalibration", "calibrate_sequence", "declared_focal"),
+}
+__getattr__, __dir__, __all__ = public_names(__name__, _PUBLIC)

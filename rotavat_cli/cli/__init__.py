@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from .. import __version__
+from ..version import WRITTEN_BY
 from . import align, batch, calibrate, eval, export, import_, info, measure, render, synth
 from ._common import RotavatGroup
 
@@ -28,7 +28,7 @@ app = typer.Typer(
 def _version(value: bool) -> None:
     """Print the version and exit."""
     if value:
-        typer.echo(f"rotavat {__version__}")
+        typer.echo(WRITTEN_BY)
         raise typer.Exit()
 
 

@@ -7,8 +7,10 @@ from typing import Annotated
 
 import typer
 
-from ..alignment import (CALIBRATED, GIVEN, AlignCamera, AlignOptions, align_remedies, align_sequence, camera_for_align,
-                         check_align_camera, implausible_findings, reader_flags)
+from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
+from ..alignment.options import AlignOptions
+from ..alignment.camera_gate import align_remedies, check_align_camera, implausible_findings, reader_flags
+from ..alignment.align import align_sequence
 from ..calibration.plausibility import MEAN_STATURE_RANGE_M
 from ..errors import InputError, input_errors
 from ..outputs import check_output_dir

@@ -11,7 +11,9 @@ import typer
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from ..batch import REPORT_JSON, REPORT_MD, BatchOptions, run_batch
+from ..batch.report import REPORT_JSON, REPORT_MD
+from ..batch.plan import BatchOptions
+from ..batch.driver import run_batch
 from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count

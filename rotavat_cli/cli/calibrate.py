@@ -10,12 +10,15 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..calibration import RESIDUAL_KINDS, CalibrateOptions, SequenceCalibration, calibrate_sequence
+from ..calibration.residuals import RESIDUAL_KINDS
+from ..calibration.options import CalibrateOptions
+from ..calibration.sequence import SequenceCalibration, calibrate_sequence
 from ..camera import camera_parameters
 from ..errors import InputError
 from ..focal import CAMERA
 from ..outputs import check_output_file
-from ..sequence import Sequence, read_yaml, write_camera_yaml
+from ..sequence import Sequence, write_camera_yaml
+from ..yaml_io import read_yaml
 from ..words import count
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
                       input_sequence, print_json, report, warn)

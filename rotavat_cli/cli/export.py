@@ -9,7 +9,8 @@ import typer
 
 from ..errors import InputError, input_errors
 from ..outputs import check_output_file
-from ..render import RenderStyle, export_frame
+from ..render.style import RenderStyle
+from ..render.export import export_frame
 from ..words import count
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
                       default_output, input_sequence, print_json, report)

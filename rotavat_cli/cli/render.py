@@ -14,7 +14,8 @@ from ..alignment.camera_gate import reader_flags
 from ..atomic import staged_directory
 from ..errors import input_errors
 from ..outputs import beside, check_output_dir
-from ..render import FITS, GHOSTS, SCALES, VIEWS, FigureOptions, figure_steps, render_sequences
+from ..render.views import FITS, VIEWS
+from ..render.sequences import GHOSTS, SCALES, FigureOptions, figure_steps, render_sequences
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
                       input_sequence, print_json, progress_bar, progress_enabled, report, warn)
 

@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from ..errors import input_errors
-from ..synth import SynthOptions, hps_focal_px, random_camera, write_synth_scene
+from ..synth.scene import SynthOptions, hps_focal_px, random_camera, write_synth_scene
 from ..words import count
 from ._common import ConfigOpt, JsonOpt, QuietOpt, config_for, print_json, progress_bar, progress_enabled, report
 

@@ -26,36 +26,21 @@ jitter, foot sliding, GVHMR's chunked W-/WA-MPJPE and RTE of tracks), :mod:`.pro
 benchmark's root, joint set, matching, units and rounding: ``evaluate(..., protocol=...)``).
 """
 
-from ._common import ALIGNMENTS, CAMERA_KEYS, Alignment
-from .fused import ENGINES, JOINT_ERROR_KEYS, VERTEX_ERROR_KEYS, compiled_kernels, person_errors_mm, resolve_engine
-from .points import (mpjpe, point_errors_mm, procrustes_align, pve, to_gravity_frame, umeyama, w_spec_errors_mm,
-                     w_spec_mpjpe, w_spec_pve)
-from .scene import camera_errors, detection_scores, lean_deg, normalize_by_f1, root_err_mm, stature_err_mm, stature_m
+from ..lazy import public_names
 
-__all__ = [
-    "ALIGNMENTS",
-    "Alignment",
-    "CAMERA_KEYS",
-    "ENGINES",
-    "JOINT_ERROR_KEYS",
-    "VERTEX_ERROR_KEYS",
-    "camera_errors",
-    "compiled_kernels",
-    "detection_scores",
-    "lean_deg",
-    "mpjpe",
-    "normalize_by_f1",
-    "person_errors_mm",
-    "point_errors_mm",
-    "procrustes_align",
-    "pve",
-    "resolve_engine",
-    "root_err_mm",
-    "stature_err_mm",
-    "stature_m",
-    "to_gravity_frame",
-    "umeyama",
-    "w_spec_errors_mm",
-    "w_spec_mpjpe",
-    "w_spec_pve",
-]
+# Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
+_PUBLIC = {
+    "._common": ("ALIGNMENTS", "CAMERA_KEYS", "Alignment"),
+    ".fused": (
+        "ENGINES", "JOINT_ERROR_KEYS", "VERTEX_ERROR_KEYS", "compiled_kernels", "person_errors_mm", "resolve_engine"
+    ),
+    ".points": (
+        "mpjpe", "point_errors_mm", "procrustes_align", "pve", "to_gravity_frame", "umeyama", "w_spec_errors_mm",
+        "w_spec_mpjpe", "w_spec_pve"
+    ),
+    ".scene": (
+        "camera_errors", "detection_scores", "lean_deg", "normalize_by_f1", "root_err_mm", "stature_err_mm",
+        "stature_m"
+    ),
+}
+__getattr__, __dir__, __all__ = public_names(__name__, _PUBLIC)

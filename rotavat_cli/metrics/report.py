@@ -13,6 +13,7 @@ from pathlib import Path
 from ..atomic import atomic_write_text
 from ..errors import InputError
 from ..plain import to_plain
+from ..version import WRITTEN_BY
 from .evaluate import PERSON_METRICS, EvalResult
 
 __all__ = ["REPORT_COLUMNS", "GATE_METRICS", "Gate", "parse_gate", "check_gate_rows", "check_gate_metrics",
@@ -174,14 +175,12 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
 
 def write_reports(out_dir: str | Path, results: Sequence[EvalResult], gt: str, options: dict) -> tuple[Path, Path]:
     """Write metrics.json and metrics.md atomically into ``out_dir``."""
-    from .. import __version__
-
     json_path, md_path = report_paths(out_dir)
-    payload = {"written_by": f"rotavat {__version__}", "gt": gt, "options": options,
+    payload = {"written_by": WRITTEN_BY, "gt": gt, "options": options,
                "protocol": _protocol_field(results), "metric_names": list(PERSON_METRICS),
                "predictions": [r.as_dict() for r in results]}
     atomic_write_text(json_path, json.dumps(to_plain(payload), indent=2) + "\n")
-    atomic_write_text(md_path, f"<!-- written by rotavat {__version__} -->\n" + markdown_report(results, gt))
+    atomic_write_text(md_path, f"<!-- written by {WRITTEN_BY} -->\n" + markdown_report(results, gt))
     return json_path, md_path
 
 

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
+from ..version import WRITTEN_BY
 from ..atomic import atomic_open
 from ..camera import Camera
 from ..sequence import Sequence
@@ -169,7 +169,7 @@ def glb_bytes(scene: Any, camera: Camera) -> bytes:
     def fix_camera(tree: dict) -> None:
         if tree.get("cameras"):
             tree["cameras"][0] = gltf_camera(camera, tree["cameras"][0].get("name", "camera"))
-        tree.setdefault("asset", {})["generator"] = f"rotavat {__version__} (trimesh)"  # says rotavat wrote it
+        tree.setdefault("asset", {})["generator"] = f"{WRITTEN_BY} (trimesh)"  # says rotavat wrote it
 
     return export_glb(scene, tree_postprocessor=fix_camera)
 

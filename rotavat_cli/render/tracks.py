@@ -26,9 +26,9 @@ import numpy as np
 
 from ..atomic import atomic_open
 from ..camera import Camera
-from ..alignment import MeshIntrinsics, frame_foot_head_cam
+from ..alignment.align import MeshIntrinsics, frame_foot_head_cam
 from ..formats.keypoints import feet_heads_cam
-from ..metrics import lean_deg, stature_m
+from ..metrics.scene import lean_deg, stature_m
 from ..sequence import Frame, Sequence, can_align
 from .geometry import nice_length_m
 from .rows import sequence_layout

@@ -32,7 +32,8 @@ from ..focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from ..landmarks import foot_head_points
 from ..outputs import check_output_dir
 from ..rotations import axis_angle_to_matrix, rotation_between
-from ..sequence import Frame, write_camera_yaml, write_frame, write_meta, write_yaml
+from ..sequence import Frame, write_camera_yaml, write_frame, write_meta
+from ..yaml_io import write_yaml
 from .bodies import BodyLibrary, load_bodies
 from .layouts import FPS, LAYOUTS, place_people, sample_walks
 
