@@ -31,13 +31,14 @@ tasks from their plan's config; worker processes are forked and inherit it, and 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import InputError
+from .config import default_config
+from .errors import InputError, input_errors
+from .option_rules import Rule, check_rules
 
 __all__ = ["Limits", "current", "configure", "applied", "human_bytes"]
 
@@ -50,6 +51,7 @@ _KEYS = {
     "max_pickle_items": ("max_pickle_items", 1),
     "max_grid_cells": ("max_grid_cells", 1),
 }
+RULES = {key: Rule(low=0, open_low=True) for key in _KEYS}  # every limit is a positive number: option_rules.py
 
 
 @dataclass(frozen=True)
@@ -73,16 +75,14 @@ class Limits:
         values = {}
         for key, (name, scale) in _KEYS.items():
             value = section[key] if key in section else _packaged_section()[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise InputError(f"limits.{key} must be a positive number, got {value!r}")
+            with input_errors():
+                check_rules({key: value}, RULES, prefix="limits.")
             values[name] = max(1, int(value * scale))
         return cls(**values)
 
 
 def _packaged_section() -> dict:
-    """The ``limits`` section of the packaged defaults (read lazily: config imports the readers)."""
-    from .config import default_config
-
+    """The ``limits`` section of the packaged defaults."""
     return default_config().get("limits", {})
 
 

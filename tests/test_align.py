@@ -265,7 +265,7 @@ def test_align_options_read_their_config_section_and_refuse_bad_values():
     assert (options.upright, options.height_from, options.jobs, options.stature_range_m) == ("full", "track", 3, (0.5, 2.5))
     for bad, message in [({"upright": "tilted"}, "upright must be one of paper, full"),
                          ({"height_from": "mean"}, "height_from must be one of frame, track"),
-                         ({"jobs": -1}, "jobs must be a whole number"),
+                         ({"jobs": -1}, "jobs must be >= 0, got -1"),
                          ({"stature_range_m": (2.0, 1.0)}, "stature_range_m must be [low, high]")]:
         with pytest.raises(ValueError, match=re.escape(message)):
             AlignOptions(**bad)

@@ -426,9 +426,9 @@ def test_the_registry_holds_the_residual_kinds():
     with pytest.raises(ValueError, match=r"residual must be one of \('full', 'vertical'\), got 'sideways'"):
         residual_kind("sideways")
     from rotavat_cli.cli.calibrate import _RESIDUAL_HELP
-    from rotavat_cli.config import _choices
+    from rotavat_cli.calibration.options import CalibrateOptions
 
-    assert _choices()["calibrate.residual"] == RESIDUALS  # the config's choices are the registry's
+    assert CalibrateOptions.RULES["residual"].names == RESIDUALS  # the option's choices are the registry's
     assert all(f"{name} (" in _RESIDUAL_HELP for name in RESIDUALS)  # and so is --residual's help
 
 

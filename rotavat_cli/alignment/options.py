@@ -9,17 +9,18 @@ a test checks it).
 >>> AlignOptions(stature_range_m=(2.0, 1.0))
 Traceback (most recent call last):
 ...
-ValueError: stature_range_m must be [low, high] metres with 0 <= low < high, got [2.0, 1.0]
+ValueError: stature_range_m must be [low, high] with low < high, got [2.0, 1.0]
 """
 
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 from ..config import packaged_default
+from ..option_rules import Rule, check_fields
 from .transform import UPRIGHT
 
 __all__ = ["HEIGHT_FROM", "AlignOptions"]
@@ -44,17 +45,16 @@ class AlignOptions:
     jobs: int = packaged_default(_packaged_options, "jobs")  # worker processes; 0 = one per core (never more than the cores)
     stature_range_m: tuple[float, float] = packaged_default(_packaged_options, "stature_range_m")  # plausible aligned statures
 
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``align`` keys' bounds and names (rotavat_cli/option_rules.py)
+        "upright": Rule(names=UPRIGHT), "height_from": Rule(names=HEIGHT_FROM), "jobs": Rule(low=0),
+        "stature_range_m": Rule(low=0, high=10, ordered="<", unit="m"),
+    }
+
     def __post_init__(self) -> None:
-        if self.upright not in UPRIGHT:
-            raise ValueError(f"upright must be one of {', '.join(UPRIGHT)}, got {self.upright!r}")
-        if self.height_from not in HEIGHT_FROM:
-            raise ValueError(f"height_from must be one of {', '.join(HEIGHT_FROM)}, got {self.height_from!r}")
-        if not isinstance(self.jobs, int) or isinstance(self.jobs, bool) or self.jobs < 0:
+        if not isinstance(self.jobs, int) or isinstance(self.jobs, bool):
             raise ValueError(f"jobs must be a whole number >= 0, got {self.jobs!r}")
-        lo, hi = (float(v) for v in self.stature_range_m)
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-            raise ValueError(f"stature_range_m must be [low, high] metres with 0 <= low < high, got {[lo, hi]}")
-        object.__setattr__(self, "stature_range_m", (lo, hi))
+        check_fields(self, self.RULES)
+        object.__setattr__(self, "stature_range_m", tuple(float(v) for v in self.stature_range_m))
 
     @classmethod
     def from_config(cls, section: Mapping) -> "AlignOptions":

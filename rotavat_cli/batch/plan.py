@@ -7,12 +7,13 @@ import json
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from ..camera import camera_from_yaml_dict
 from ..config import default_config
 from ..errors import InputError, input_errors
 from ..metrics.evaluate import MATCHES
+from ..option_rules import Rule, check_fields
 from ..plain import to_plain
 from ..render.sequences import FigureOptions
 from ..yaml_io import read_yaml
@@ -47,6 +48,13 @@ class BatchOptions:
     camera: Path | None = None  # --camera: a camera.yaml for every sequence (the calibrate step copies it, fits none)
     accept_camera: bool = False  # --accept-camera: use cameras whose calibration is implausible (with a warning)
     config: dict = field(default_factory=default_config)
+
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``batch`` keys' bounds and names (rotavat_cli/option_rules.py)
+        "executor": Rule(names=EXECUTORS), "jobs": Rule(low=0), "chunk_frames": Rule(low=1),
+    }
+
+    def __post_init__(self) -> None:
+        check_fields(self, self.RULES)
 
     @classmethod
     def from_config(cls, config: dict, **fields: Any) -> "BatchOptions":

@@ -28,11 +28,13 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from ..camera import up_vector_cam
 from ..limits import current as current_limits
+from ..option_rules import Rule, check_fields
 from .model import RAY_EPS, foot_terms, head_errors
 from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector
 from .residuals import ResidualKind, residual_kind
@@ -61,19 +63,21 @@ class GridSpec:
     height_range_m: tuple[float, float] = (0.5, 40.0)
     steps: tuple[int, int, int] = (50, 50, 50)  # focal, pitch, height
 
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``calibrate.grid`` keys' bounds (rotavat_cli/option_rules.py)
+        "focal_range_h": Rule(low=1e-3, high=1e3, ordered="<=", unit="H"),
+        "pitch_range_deg": Rule(low=-90, high=90, ordered="<=", unit="deg"),
+        "height_range_m": Rule(low=1e-2, high=1e5, ordered="<=", unit="m"),
+        "steps": Rule(low=1, high=100_000),
+    }
+
     def __post_init__(self) -> None:
         for name in ("focal_range_h", "pitch_range_deg", "height_range_m"):
-            lo, hi = (float(v) for v in getattr(self, name))
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-                raise ValueError(f"grid {name} must be [low, high] with low <= high, got {getattr(self, name)}")
-            object.__setattr__(self, name, (lo, hi))
-        steps = tuple(int(s) for s in self.steps)
-        if len(steps) != 3 or min(steps) < 1:
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        if len(self.steps) != 3:
             raise ValueError(f"grid steps must be three positive integers, got {self.steps}")
-        object.__setattr__(self, "steps", steps)
+        check_fields(self, self.RULES, prefix="grid ")
+        object.__setattr__(self, "steps", tuple(int(s) for s in self.steps))
         self._check_size()
-        if self.focal_range_h[0] <= 0 or self.height_range_m[0] <= 0:
-            raise ValueError("grid focal and height ranges must be positive")
 
     def _check_size(self) -> None:
         """ValueError naming ``calibrate.grid.steps`` when a search over this grid would be larger than

@@ -17,37 +17,26 @@ ValueError: distortion and points='boxes' need method 'refine' (the grid is the 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
+from typing import ClassVar
 
 import numpy as np
 
 from ..errors import InputError
+from ..option_rules import Rule, check_fields
 from .grid import GridSpec
 from .priors import FOCAL_PRIORS
-from .residuals import residual_kind
+from .residuals import RESIDUALS
 
 __all__ = ["METHODS", "POINTS", "FOCAL_PRIORS", "CalibrateOptions"]
 
 METHODS = ("grid", "refine")
 POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
 _NOT_IN_CONFIG = {"config": False}  # field metadata: an option Python sets, absent from configs/default.yaml
-# Numeric options: (test, what the value must be); each is stored as a float.
-_NUMBERS = {
-    **{name: (lambda x: x > 0, "a positive number") for name in ("person_height_m", "noise_px", "fov_prior_sd_deg")},
-    **{name: (lambda x: x >= 0, ">= 0")
-       for name in ("person_height_sd_m", "distortion_sd", "person_height_mean_sd_m", "principal_point_sd_px")},
-    "focal_px": (lambda x: x > 0, "a positive number of pixels"),
-    "camera_height_m": (lambda x: x > 0, "a positive number of metres"),
-    "fov_prior_deg": (lambda x: 0 < x < 180, "in (0, 180) with a positive sd"),
-    "pitch_deg": (lambda x: -90 < x < 90, "in (-90, 90) degrees"),
-    "body_axis_sd_deg": (lambda x: 0 < x < 90, "in (0, 90) degrees"),
-    "body_engage_pitch_sd_deg": (lambda x: x >= 0, ">= 0 degrees"),
-    "box_depth_m": (lambda x: True, "finite"),
-    "box_depth_sd_m": (lambda x: x >= 0, ">= 0"),
-}
 _OPTIONAL = {"focal_px", "camera_height_m", "principal_point_sd_px", "fov_prior_deg", "pitch_deg"}  # None: not given
+_POSITIVE = Rule(low=0, open_low=True)
+_NON_NEGATIVE = Rule(low=0)
 
 
 @dataclass(frozen=True)
@@ -98,28 +87,37 @@ class CalibrateOptions:
     body_axis_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
     body_engage_pitch_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
 
+    RULES: ClassVar[dict[str, Rule]] = {  # every option's bounds and names (rotavat_cli/option_rules.py)
+        "method": Rule(names=METHODS), "residual": Rule(names=RESIDUALS), "points": Rule(names=POINTS),
+        "focal_prior": Rule(names=FOCAL_PRIORS),
+        "person_height_m": Rule(low=0.5, high=3.0, unit="m"), "person_height_sd_m": Rule(low=0, high=1.0, unit="m"),
+        "box_depth_m": Rule(low=-1.0, high=2.0, unit="m"), "focal_px": Rule(low=1e-3, high=1e7, unit="px"),
+        "camera_height_m": Rule(low=0.01, high=1e5, unit="m"), "pitch_deg": Rule(low=-89.9, high=89.9, unit="deg"),
+        "fov_prior_deg": Rule(low=0.1, high=179.9, unit="deg"), "principal_point": Rule(low=-1e6, high=1e6, unit="px"),
+        # not in the config
+        "noise_px": _POSITIVE, "fov_prior_sd_deg": _POSITIVE, "distortion_sd": _NON_NEGATIVE,
+        "person_height_mean_sd_m": _NON_NEGATIVE, "principal_point_sd_px": _NON_NEGATIVE,
+        "body_axis_sd_deg": Rule(low=0, high=90, open_low=True, unit="deg"), "body_engage_pitch_sd_deg": _NON_NEGATIVE,
+        "box_depth_sd_m": _NON_NEGATIVE,
+    }
+
     def __post_init__(self) -> None:
         """Normalise numbers to float, flags to bool, the principal point to a tuple; ValueError for a bad option."""
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
-        residual_kind(self.residual)  # ValueError listing the registered kinds
-        if self.points not in POINTS:
-            raise ValueError(f"points must be one of {POINTS}, got {self.points!r}")
-        if self.focal_prior not in FOCAL_PRIORS:
-            raise ValueError(f"focal_prior must be one of {FOCAL_PRIORS}, got {self.focal_prior!r}")
+        if self.principal_point is not None and (isinstance(self.principal_point, (str, bytes))
+                                                 or len(np.shape(self.principal_point)) != 1
+                                                 or len(self.principal_point) != 2):
+            raise ValueError(f"principal_point must be (cx, cy) in pixels, got {self.principal_point!r}")
+        check_fields(self, self.RULES)
         if self.method == "grid" and (self.distortion or self.points == "boxes"):
             raise ValueError("distortion and points='boxes' need method 'refine' (the grid is the paper's model)")
         if not isinstance(self.grid, GridSpec):
             raise TypeError(f"grid must be a GridSpec, got {type(self.grid).__name__}")
-        if not (_finite(self.box_depth_m) and _finite(self.box_depth_sd_m) and self.box_depth_sd_m >= 0):
-            raise ValueError(f"box_depth_m must be finite and box_depth_sd_m >= 0, got {self.box_depth_m}, "
-                             f"{self.box_depth_sd_m}")
-        for name, (ok, need) in _NUMBERS.items():
+        for name, rule in self.RULES.items():
             value = getattr(self, name)
-            if value is None and name in _OPTIONAL:
+            if rule.names or name == "principal_point" or (value is None and name in _OPTIONAL):
                 continue
-            if not (_finite(value) and ok(float(value))):
-                raise ValueError(f"{name} must be {need}, got {value}")
+            if value is None:
+                raise ValueError(f"{name} must be a number, got None")
             object.__setattr__(self, name, float(value))
         if self.principal_point is not None:
             try:
@@ -173,13 +171,3 @@ class CalibrateOptions:
             return cls(**{**section, "grid": grid})
         except (TypeError, ValueError) as exc:
             raise InputError(f"calibrate: {exc}") from None
-
-
-def _finite(value) -> bool:
-    """True for a finite real number (not a flag)."""
-    if isinstance(value, (bool, np.bool_)):
-        return False
-    try:
-        return math.isfinite(float(value))
-    except (TypeError, ValueError):
-        return False

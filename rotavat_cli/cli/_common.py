@@ -19,10 +19,11 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from typer.core import TyperGroup
 
-from ..config import config_choices, load_config, merge_config
+from ..config import load_config, merge_config
 from ..errors import InputError, RotavatError
 from ..limits import Limits
 from ..limits import configure as configure_limits
+from ..option_rules import Rule
 from ..outputs import beside
 from ..plain import to_plain
 from ..sequence import Sequence, open_sequence
@@ -89,12 +90,13 @@ def _plain_when_narrow(command: Any) -> None:
     command.format_help = format_help
 
 
-def polish_help(command: Any, section: dict | None, choices: dict[str, tuple[str, ...]] | None = None) -> None:
+def polish_help(command: Any, section: dict | None, rules: dict[str, Rule] | None = None) -> None:
     """Make a command's --help read as users expect (once per command).
 
     Help text is plain text (``pip install 'rotavat[fast]'`` keeps its brackets), flags show no
-    type, arguments show their name (SEQ), an option of a few names lists them (``choices``: config
-    key -> names), and every option shows its default: the packaged
+    type, arguments show their name (SEQ), an option of a few names lists them and a bounded one its
+    range (``rules``: config key -> :class:`~rotavat_cli.option_rules.Rule`, the options class's own),
+    and every option shows its default: the packaged
     config's value for options read from ``section`` (a flag left unset takes it), else the
     command's own default.
     """
@@ -104,13 +106,16 @@ def polish_help(command: Any, section: dict | None, choices: dict[str, tuple[str
     _plain_when_narrow(command)
     if command.help:
         command.help = escape(command.help)
-    from_config, names = {}, {}
+    from_config, names, spans = {}, {}, {}
     for key, value in (section or {}).items():
         if not isinstance(value, dict):
             flag = _flag_name(key)
             from_config[flag.split("/")[0]] = _default_text(value, flag)
-            if key in (choices or {}):
-                names[flag] = "|".join(choices[key])
+            rule = (rules or {}).get(key)
+            if rule is not None and rule.names:
+                names[flag] = "|".join(rule.names)
+            elif rule is not None and rule.describe():
+                spans[flag] = rule.describe()
     for param in command.params:
         if getattr(param, "help", None):
             param.help = escape(param.help)
@@ -129,6 +134,9 @@ def polish_help(command: Any, section: dict | None, choices: dict[str, tuple[str
             shown = _default_text(param.default, "")
         if shown in ("none", "False") or (shown == "True" and getattr(param, "is_flag", False)):
             shown = None  # unset means "not given" (its help says what then); a lone switch is off unless given
+        span = next((spans[opt] for opt in param.opts if opt in spans), None)
+        if span is not None and param.help is not None:
+            param.help = f"{param.help} \\[{escape(span)}]"
         if shown is not None and param.help is not None:
             param.help = f"{param.help} \\[default: {escape(shown)}]"
 
@@ -147,7 +155,7 @@ class RotavatGroup(TyperGroup):
         if command is not None:
             section = _SECTIONS.get(cmd_name)
             polish_help(command, load_config(None).get(section) if section else None,
-                        config_choices(section) if section else None)
+                        section_rules(section) if section else None)
             help_option = command.get_help_option(ctx)  # click adds --help itself (cached per command)
             if help_option is not None:
                 help_option.metavar = ""
@@ -225,9 +233,16 @@ def _flag_name(key: str) -> str:
 
 def use_config(config_file: Path | None, overrides: dict | None = None) -> dict:
     """The merged config (defaults < --config FILE < overrides: flags by section, None = unset), its
-    ``limits`` put in force for this process and the workers it forks. A flag's bad value is reported
-    under the flag's name (``--size``), not its config key."""
+    ``limits`` put in force for this process and the workers it forks.
+
+    Each value of the sections in use is checked against its options class's rules
+    (:func:`section_rules`): a file's bad value is reported under the file and its key, a flag's under
+    the flag's name (``--size``), not its config key."""
     config = load_config(config_file)
+    sections = [*(overrides or {}), "limits"]
+    if config_file is not None:
+        for section in sections:
+            _check_section(config[section], section_rules(section), f"{config_file}: key '{section}.", "'")
     for section, flags in (overrides or {}).items():
         for key, value in flags.items():
             if value is not None:
@@ -235,8 +250,54 @@ def use_config(config_file: Path | None, overrides: dict | None = None) -> dict:
                     config = merge_config(config, {section: {key: value}}, _flag_name(key))
                 except InputError as exc:
                     raise InputError(str(exc).replace(f" key '{section}.{key}'", "", 1)) from None
+                _check_section({key: value}, section_rules(section), f"{_flag_name(key)}:", "", name_key=False)
     configure_limits(Limits.from_config(config.get("limits")))
     return config
+
+
+def _check_section(values: dict, rules: dict[str, Rule], before: str, after: str, name_key: bool = True) -> None:
+    """InputError ``{before}{key}{after} {problem}`` for a value of ``values`` (nested: ``grid.steps``)
+    that its rule refuses; ``name_key=False`` leaves the key out (a flag names it already)."""
+    flat = {f"{key}.{sub}": v for key, value in values.items() if isinstance(value, dict) for sub, v in value.items()}
+    flat.update({key: value for key, value in values.items() if not isinstance(value, dict)})
+    for key, value in flat.items():
+        problem = rules[key].problem(value) if key in rules else None
+        if problem is not None:
+            raise InputError(f"{before}{key if name_key else ''}{after} {problem}")
+
+
+def section_rules(section: str) -> dict[str, Rule]:
+    """What each key of a config section may be: the rules of the options class that reads it."""
+    if section == "calibrate":
+        from ..calibration.grid import GridSpec
+        from ..calibration.options import CalibrateOptions
+
+        return {**CalibrateOptions.RULES, **{f"grid.{key}": rule for key, rule in GridSpec.RULES.items()}}
+    if section == "align":
+        from ..alignment.options import AlignOptions
+
+        return AlignOptions.RULES
+    if section == "eval":
+        from ..metrics.evaluate import EvalOptions
+
+        return EvalOptions.RULES
+    if section == "render":
+        from ..render.sequences import FigureOptions
+
+        return FigureOptions.RULES
+    if section == "synth":
+        from ..synth.scene import SynthOptions
+
+        return SynthOptions.RULES
+    if section == "batch":
+        from ..batch.plan import BatchOptions
+
+        return BatchOptions.RULES
+    if section == "limits":
+        from ..limits import RULES
+
+        return RULES
+    return {}
 
 
 @contextmanager

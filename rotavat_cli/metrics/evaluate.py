@@ -32,6 +32,7 @@ from collections.abc import Callable
 from collections.abc import Sequence as Seq
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -40,6 +41,7 @@ from ..atomic import atomic_open
 from ..camera import Camera, camera_parameters, project_cam_to_px
 from ..errors import InputError, input_errors
 from ..landmarks import SMPL_JOINT_NAMES, foot_head_points
+from ..option_rules import Rule, check_fields
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
 from .matching import match_agora, match_by_ids, match_hungarian
@@ -64,6 +66,14 @@ class EvalOptions:
     joints: tuple[int, ...] | None = None  # subset of joint indices (both sides)
     engine: str = "auto"  # vertex metrics: auto | numpy | numba (see metrics.ENGINES)
     protocol: str = "paper"  # whose definitions: paper | spec | agora | bedlam | wham (metrics.protocols)
+
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``eval`` keys' bounds and names (rotavat_cli/option_rules.py)
+        "match": Rule(names=MATCHES), "engine": Rule(names=M.ENGINES), "protocol": Rule(names=PROTOCOL_NAMES),
+        "threshold_px": Rule(low=0, open_low=True, unit="px"), "iou_threshold": Rule(low=0, high=1),
+    }
+
+    def __post_init__(self) -> None:
+        check_fields(self, self.RULES)
 
     @classmethod
     def from_config(cls, section: dict, joints: tuple[int, ...] | None = None) -> EvalOptions:

@@ -24,6 +24,7 @@ import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +34,7 @@ from ..atomic import atomic_open
 from ..camera import Camera
 from ..config import packaged_default
 from ..errors import InputError, RotavatError
+from ..option_rules import Rule, check_fields
 from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
@@ -56,14 +58,6 @@ def _packaged_options() -> "FigureOptions":
     from ..config import default_config
 
     return FigureOptions.from_config(default_config()["render"])
-
-
-def _choice(render: dict, key: str, choices: tuple[str, ...], flag: str) -> str:
-    """``render[key]`` if it is one of ``choices``; ValueError naming the flag and the choices."""
-    value = render[key]
-    if value not in choices:
-        raise ValueError(f"{flag} (render.{key}) must be one of {', '.join(choices)}, got {value!r}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -91,18 +85,21 @@ class FigureOptions:
     accept_camera: bool = False  # not a config key: --accept-camera (use cameras whose calibration is implausible)
     reader_flags: tuple[str, ...] = ()  # not a config key: how rows read with --from were read (the gate's advice)
 
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``render`` keys' bounds and names (rotavat_cli/option_rules.py)
+        "size": Rule(low=16, high=8192, unit="px"), "every": Rule(low=1), "renderer": Rule(names=RENDERERS),
+        "fit": Rule(names=FITS), "scale": Rule(names=SCALES), "ghost": Rule(names=GHOSTS),
+        "fps": Rule(low=0.01, high=1000), "margin": RenderStyle.RULES["margin"],
+    }
+
+    def __post_init__(self) -> None:
+        check_fields(self, self.RULES)
+
     @classmethod
     def from_config(cls, render: dict, camera_path: Path | None = None, image_dir: Path | None = None) -> "FigureOptions":
         """Options from a merged ``render`` config section; ValueError naming a bad option."""
-        _choice(render, "renderer", RENDERERS, "--renderer")
-        if min(render["size"]) < 16 or max(render["size"]) > 8192:
-            raise ValueError(f"--size (render.size) must be between 16 and 8192 px, got {render['size']}")
-        if render["fps"] <= 0:
-            raise ValueError(f"render.fps must be > 0, got {render['fps']}")
         return cls(parse_views(render["views"]), tuple(render["size"]),
                    None if render["frames"] is None else str(render["frames"]), render["every"], render["renderer"],
-                   camera_path, image_dir, _choice(render, "fit", FITS, "--fit"), _choice(render, "scale", SCALES, "--scale"),
-                   str(render["gt"]), _choice(render, "ghost", GHOSTS, "--ghost"), bool(render["labels"]), render["gif"],
+                   camera_path, image_dir, render["fit"], render["scale"], str(render["gt"]), render["ghost"], bool(render["labels"]), render["gif"],
                    bool(render["mp4"]), float(render["fps"]), render["glb"], bool(render["plots"]),
                    RenderStyle.from_config(render))
 

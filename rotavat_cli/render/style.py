@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ..config import packaged_default
+from ..option_rules import Rule, check_fields
 
 __all__ = ["RGB", "RenderStyle", "parse_color", "person_colors", "vertex_normals", "shade_vertices"]
 
@@ -54,14 +55,17 @@ class RenderStyle:
     palette: tuple[RGB, ...] = packaged_default(_packaged_style, "palette")
     margin: float = packaged_default(_packaged_style, "margin")  # orthographic views: fraction of the people's extent added
 
+    RULES: ClassVar[dict[str, Rule]] = {"margin": Rule(low=0, high=10)}  # rotavat_cli/option_rules.py
+
+    def __post_init__(self) -> None:
+        check_fields(self, self.RULES, prefix="render.")
+
     @classmethod
     def from_config(cls, opts: dict) -> "RenderStyle":
         """Style from a ``render:`` config section (hex colours, palette as comma-separated hex)."""
         palette = tuple(parse_color(c) for c in str(opts["palette"]).split(",") if c.strip())
         if not palette:
             raise ValueError("palette must list at least one colour")
-        if not 0.0 <= float(opts["margin"]) <= 10.0:
-            raise ValueError(f"render.margin must be in [0, 10], got {opts['margin']}")
         return cls(parse_color(opts["background"]), parse_color(opts["ground"]), parse_color(opts["grid"]),
                    parse_color(opts["camera_color"]), parse_color(opts["text"]), palette, float(opts["margin"]))
 

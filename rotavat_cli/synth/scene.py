@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,7 @@ from ..atomic import staged_directory
 from ..camera import MAX_HEIGHT_M, MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
 from ..focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
 from ..landmarks import foot_head_points
+from ..option_rules import Rule, check_fields
 from ..outputs import check_output_dir
 from ..rotations import axis_angle_to_matrix, rotation_between
 from ..sequence import Frame, write_camera_yaml, write_frame, write_meta
@@ -81,25 +83,23 @@ class SynthOptions:
                 values[key] = tuple(values[key])
         return cls(**values)
 
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``synth`` keys' bounds and names (rotavat_cli/option_rules.py)
+        "frames": Rule(low=1), "people": Rule(low=0), "layout": Rule(names=LAYOUTS),
+        "image_size": Rule(low=32, high=MAX_IMAGE_SIDE_PX, unit="px"),
+        "camera_height_range_m": Rule(low=1e-3, high=MAX_HEIGHT_M, ordered="<=", unit="m"),
+        "pitch_range_deg": Rule(low=-MAX_PITCH_DEG, high=MAX_PITCH_DEG, ordered="<=", unit="deg"),
+        "noise_px": Rule(low=0, unit="px"), "outliers": Rule(low=0, high=1), "depth_sd": Rule(low=0),
+        "lean": Rule(low=0, high=1), "hps_focal": Rule(names=HPS_FOCAL_CHOICES, or_number=True, low=0, open_low=True),
+    }
+
     def __post_init__(self) -> None:
-        width, height = self.image_size
-        if not (32 <= int(width) <= MAX_IMAGE_SIDE_PX and 32 <= int(height) <= MAX_IMAGE_SIDE_PX):
-            raise ValueError(f"--image-size (image_size) must be two sizes of 32 to {MAX_IMAGE_SIDE_PX} px, got "
-                             f"{list(self.image_size)}")
-        if self.frames < 1 or self.people < 0:
-            raise ValueError(f"frames must be >= 1 and people >= 0, got {self.frames} and {self.people}")
-        if self.layout not in LAYOUTS:
-            raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {self.layout!r}")
-        for name, flag, low, high in (("camera_height_range_m", "--camera-height-range", 1e-3, MAX_HEIGHT_M),
-                                      ("pitch_range_deg", "--pitch-range", -MAX_PITCH_DEG, MAX_PITCH_DEG)):
+        for name in ("image_size", "camera_height_range_m", "pitch_range_deg"):
             value = getattr(self, name)
-            try:
-                lo, hi = (float(v) for v in value)
-            except (TypeError, ValueError):
-                raise ValueError(f"{flag} ({name}) must be two numbers LO HI, got {value!r}") from None
-            if not (low <= lo <= hi <= high):  # False for NaN
-                raise ValueError(f"{flag} ({name}) must be LO <= HI within {low:g}..{high:g}, got {[lo, hi]}")
-            object.__setattr__(self, name, (lo, hi))
+            if isinstance(value, (str, bytes)) or len(np.shape(value)) != 1 or len(value) != 2:
+                raise ValueError(f"{name} must be two numbers, got {value!r}")
+        check_fields(self, self.RULES)
+        for name in ("camera_height_range_m", "pitch_range_deg"):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
 
 
 def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_deg: float | None = None,
