@@ -35,20 +35,21 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import metrics as M
 from ..atomic import atomic_open
 from ..camera import Camera, camera_parameters, project_cam_to_px
 from ..errors import InputError, input_errors
-from ..landmarks import SMPL_JOINT_NAMES, foot_head_points
+from ..landmarks import SMPL_JOINT_NAMES
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
+from .fused import resolve_engine
 from .matching import match_agora, match_by_ids, match_hungarian
+from .person_metrics import PERSON_METRIC_FAMILIES, PERSON_METRICS, MatchedPairs, concat_pairs
 from .protocols import (CONTACT_M, FOOT_JOINTS, GVHMR_FOOT_VERTICES, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES,
                         Protocol, aggregate, protocol, root_points)
+from .scene import camera_errors
 from .temporal import TrackSeries
 
-__all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PROTOCOL_NAMES", "PersonMetric", "EvalOptions", "EvalResult",
-           "evaluate", "merge_results", "parse_joints"]
+__all__ = ["EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
 
 MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
 MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
@@ -157,24 +158,6 @@ def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, o
     return match_hungarian(pred_px, gt_px, opts.threshold_px)
 
 
-@dataclass(frozen=True)
-class _Pairs:
-    """The matched people of one or more frames, gathered: joints (M, J, 3) (the protocol's joint
-    set), their roots (M, 3) float64 (the protocol's rule, from all the joints), vertices (M, V, 3); or None."""
-
-    pred_joints: np.ndarray | None
-    gt_joints: np.ndarray | None
-    pred_verts: np.ndarray | None
-    gt_verts: np.ndarray | None
-    pred_root: np.ndarray | None = None
-    gt_root: np.ndarray | None = None
-
-    def kind(self) -> tuple:
-        """What must agree for two gatherings to be scored in one call: which arrays, their point counts, dtypes."""
-        return tuple(None if a is None else (a.shape[1], a.dtype.str)
-                     for a in (self.pred_joints, self.gt_joints, self.pred_verts, self.gt_verts))
-
-
 def _check_joint_order(seq: Sequence, proto: Protocol) -> None:
     """InputError when a protocol that scores SMPL's joints by index (the first N, or the hips as root)
     meets a sequence whose meta.yaml says its joints are in another order (an import's own layout)."""
@@ -210,7 +193,7 @@ def _check_joints(frame: Frame, opts: EvalOptions) -> None:
                          f"(0..{n_joints - 1})")
 
 
-def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> _Pairs:
+def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> MatchedPairs:
     """The matched people's joints (the protocol's set or ``--joints``) with their roots (from all the
     joints, so ``--joints`` never moves the root) and vertices, checked for equal point counts."""
     pj, gj = pred.get("joints"), gt.get("joints")
@@ -233,67 +216,10 @@ def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: 
         pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
     else:
         pv = gv = None
-    return _Pairs(pj, gj, pv, gv, pr, gr)
+    return MatchedPairs(pj, gj, pv, gv, pr, gr)
 
 
-_PAIR_FIELDS = ("pred_joints", "gt_joints", "pred_verts", "gt_verts", "pred_root", "gt_root")
-
-
-def _concat_pairs(parts: Seq[_Pairs]) -> _Pairs:
-    """One gathering from several of the same kind, in order."""
-    if len(parts) == 1:
-        return parts[0]
-    return _Pairs(*(None if getattr(parts[0], f) is None else np.concatenate([getattr(p, f) for p in parts])
-                    for f in _PAIR_FIELDS))
-
-
-# ---- the per-person metrics: a registry (a new metric = one entry) -----------------------------------
-@dataclass(frozen=True)
-class PersonMetric:
-    """One family of per-person metrics: the names it reports and how to compute them from matched pairs.
-
-    ``compute(pairs, pred_cam, gt_cam, opts)`` returns a dict name -> (M,) values for the names it
-    can compute (a missing name stays NaN: e.g. no vertices, no ground-truth camera).
-    """
-
-    names: tuple[str, ...]
-    compute: Callable[[_Pairs, Camera | None, Camera | None, "EvalOptions"], dict[str, np.ndarray]]
-
-
-def _errors(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
-    """MPJPE, PA-MPJPE, W-MPJPE, PVE, PA-PVE, W-PVE and SPEC's pair, in one fused pass (:func:`metrics.person_errors_mm`)."""
-    rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
-    return M.person_errors_mm(pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts, *rotations,
-                              engine=opts.engine, pred_root=pairs.pred_root, gt_root=pairs.gt_root)
-
-
-def _root_error(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
-    """Pelvis position error, no alignment (scored where the ground truth has a camera, as the ground-aware ones)."""
-    if pairs.pred_root is None or gt_cam is None:
-        return {}
-    return {"root_err": M.root_err_mm(pairs.pred_root, pairs.gt_root)}
-
-
-def _ground_aware(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
-    """Foot height above the true ground, lean from the true vertical, stature error (meshes and a true camera)."""
-    if gt_cam is None or pairs.pred_verts is None:
-        return {}
-    feet_p, heads_p = foot_head_points(pairs.pred_verts)
-    feet_g, heads_g = foot_head_points(pairs.gt_verts)
-    return {"foot_height": np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0,
-            "lean_deg": M.lean_deg(feet_p, heads_p, gt_cam.up_cam),
-            "stature_err": M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)}
-
-
-PERSON_METRIC_FAMILIES: tuple[PersonMetric, ...] = (
-    PersonMetric(("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec"), _errors),
-    PersonMetric(("root_err",), _root_error),
-    PersonMetric(("foot_height", "lean_deg", "stature_err"), _ground_aware),
-)
-PERSON_METRICS = tuple(name for family in PERSON_METRIC_FAMILIES for name in family.names)  # report order
-
-
-def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
+def _pair_metrics(pairs: MatchedPairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
                   opts: EvalOptions) -> dict[str, np.ndarray]:
     """Every per-person metric of the protocol for ``n_pairs`` gathered pairs, (M,) each, under its report
     names (e.g. SPEC's ``w_mpjpe`` is the gravity-frame error); NaN where not computable or not reported."""
@@ -301,7 +227,7 @@ def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: 
     computed: dict[str, np.ndarray] = {}
     for family in PERSON_METRIC_FAMILIES:
         if any(source in family.names for source in proto.pair_metrics.values()):
-            computed.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts).items()
+            computed.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts.engine).items()
                              if k in family.names})
     out = {name: np.full(n_pairs, np.nan) for name in PERSON_METRICS}
     out.update({name: computed[source] for name, source in proto.pair_metrics.items() if source in computed})
@@ -322,9 +248,9 @@ class _ScoreBatch:
     gt_cam: Camera | None
     opts: EvalOptions
     columns: dict[str, list]
-    queue: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, _Pairs]] = field(default_factory=list)  # frame, pi, gi, ids
+    queue: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, MatchedPairs]] = field(default_factory=list)  # frame, pi, gi, ids
 
-    def add(self, frame: str, pi: np.ndarray, gi: np.ndarray, person_ids: np.ndarray, pairs: _Pairs) -> None:
+    def add(self, frame: str, pi: np.ndarray, gi: np.ndarray, person_ids: np.ndarray, pairs: MatchedPairs) -> None:
         """Queue one frame's matched pairs; score the queue when full or when the kind of arrays changes."""
         if self.queue and self.queue[0][4].kind() != pairs.kind():
             self.flush()
@@ -340,7 +266,7 @@ class _ScoreBatch:
         """Score the queued pairs in one call and append their rows to ``columns``."""
         if not self.queue:
             return
-        pairs = _concat_pairs([item[4] for item in self.queue])
+        pairs = concat_pairs([item[4] for item in self.queue])
         values = _pair_metrics(pairs, self._queued_people(), self.pred_cam, self.gt_cam, self.opts)
         for frame, pi, gi, person_ids, _ in self.queue:
             self.columns["frame"].extend([frame] * len(pi))
@@ -354,7 +280,7 @@ class _ScoreBatch:
 
 def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     """Camera errors under report names."""
-    err = M.camera_errors(camera_parameters(pred_cam), camera_parameters(gt_cam))
+    err = camera_errors(camera_parameters(pred_cam), camera_parameters(gt_cam))
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
@@ -369,7 +295,7 @@ def _effective(opts: EvalOptions) -> EvalOptions:
     if not (math.isfinite(opts.iou_threshold) and 0 <= opts.iou_threshold <= 1):
         raise InputError(f"--iou-threshold must be within 0..1, got {opts.iou_threshold}")
     with input_errors("--engine"):
-        M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
+        resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
     proto = protocol(opts.protocol)
     if proto.match and opts.match not in ("auto", proto.match):
         raise InputError(f"--protocol {proto.name} matches people its own way ({proto.match}); drop --match {opts.match}")
@@ -503,7 +429,7 @@ def _foot_points(frame: Frame, idx: np.ndarray, proto: Protocol) -> np.ndarray |
     return joints[idx][:, list(FOOT_JOINTS)] if joints is not None and joints.shape[1] > max(FOOT_JOINTS) else None
 
 
-def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pairs: _Pairs,
+def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pairs: MatchedPairs,
                    opts: EvalOptions) -> None:
     """Feed one frame's matched pairs to the tracks (keyed by the ground truth's person ids)."""
     proto = protocol(opts.protocol)

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..landmarks import SMPL_JOINT_NAMES
+from .person_metrics import PERSON_METRICS
 from .scene import detection_scores, normalize_by_f1
 from .temporal import WINDOWS, TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte
 
@@ -84,12 +85,10 @@ class Protocol:
 
     @property
     def pair_metrics(self) -> Mapping[str, str]:
-        """Report name -> per-pair metric (``evaluate.PERSON_METRICS``) it is. The paper reports every
+        """Report name -> per-pair metric (``person_metrics.PERSON_METRICS``) it is. The paper reports every
         registered per-person metric under its own name, so a new registry entry is reported at once."""
         if self.pairs is not None:
             return self.pairs
-        from .evaluate import PERSON_METRICS  # the registry lives beside evaluate (it imports this module)
-
         return {name: name for name in PERSON_METRICS}
 
     def unit(self, name: str) -> str:
