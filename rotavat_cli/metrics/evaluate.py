@@ -44,8 +44,8 @@ from ..sequence import Frame, Intrinsics, Sequence
 from .fused import resolve_engine
 from .matching import match_agora, match_by_ids, match_hungarian
 from .person_metrics import PERSON_METRIC_FAMILIES, PERSON_METRICS, MatchedPairs, concat_pairs
-from .protocols import (CONTACT_M, FOOT_JOINTS, GVHMR_FOOT_VERTICES, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES,
-                        Protocol, aggregate, protocol, root_points)
+from .protocols import (CONTACT_M, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES, Protocol, aggregate, protocol,
+                        root_points)
 from .scene import camera_errors
 from .temporal import TrackSeries
 
@@ -319,8 +319,8 @@ def _track_series(proto: Protocol) -> TrackSeries | None:
     """The temporal accumulator a protocol needs, or None."""
     if not proto.track_metrics:
         return None
-    keep_all = proto.name == "wham"  # W-MPJPE / WA-MPJPE / RTE need every frame's joints of a track
-    return TrackSeries(("accel", "jitter", "foot_sliding"), CONTACT_M, keep_all, accel_hips=proto.root == "hips")
+    return TrackSeries(("accel", "jitter", "foot_sliding"), CONTACT_M, keep_all=proto.whole_tracks,
+                       accel_hips=proto.root == "hips")
 
 
 def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None,
@@ -420,13 +420,14 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
 
 def _foot_points(frame: Frame, idx: np.ndarray, proto: Protocol) -> np.ndarray | None:
     """The matched people's foot points for foot sliding (M, 4, 3), or None when the frame lacks them:
-    SMPL ankle and foot joints (paper), GVHMR's four SMPL foot vertices (wham)."""
-    if proto.name == "wham":
+    the protocol's ``feet`` (SMPL ankle and foot joints; wham: GVHMR's four SMPL foot vertices)."""
+    feet = proto.feet
+    if feet.vertices:
         verts = frame.get("vertices")
         ok = verts is not None and verts.shape[1] == SMPL_VERTICES
-        return verts[idx][:, list(GVHMR_FOOT_VERTICES)] if ok else None
+        return verts[idx][:, list(feet.indices)] if ok else None
     joints = frame.get("joints")
-    return joints[idx][:, list(FOOT_JOINTS)] if joints is not None and joints.shape[1] > max(FOOT_JOINTS) else None
+    return joints[idx][:, list(feet.indices)] if joints is not None and joints.shape[1] > max(feet.indices) else None
 
 
 def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pairs: MatchedPairs,
@@ -435,7 +436,7 @@ def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, g
     proto = protocol(opts.protocol)
     feet_p, feet_g = _foot_points(pred, pi, proto), _foot_points(gt, gi, proto)
     if feet_p is None or feet_g is None:  # NaN feet are never in contact: left out of foot sliding
-        feet_p = feet_g = np.full((len(pi), len(FOOT_JOINTS), 3), np.nan)
+        feet_p = feet_g = np.full((len(pi), len(proto.feet.indices), 3), np.nan)
         result.track_pairs_without_feet += len(pi)
     result.track_pairs += len(pi)
     result.tracks.add(gt.person_ids[gi], {"pred": pairs.pred_joints, "gt": pairs.gt_joints,
@@ -448,22 +449,21 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
     counts = {"matched": result.matched, "missed": result.missed, "false_positives": result.false_positives}
     skipped = {}
     if result.track_pairs and result.track_pairs_without_feet == result.track_pairs:
-        skipped["foot_sliding"] = ("GVHMR's foot vertices 3216, 3387, 6617, 6787 need 6,890-vertex SMPL meshes on "
-                                   "both sides" if proto.name == "wham" else
-                                   "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
+        skipped["foot_sliding"] = proto.feet.missing
     tracks = result.tracks if result.track_pairs else None
     result.metrics, notes = aggregate(proto, columns, counts, tracks, result.fps or GVHMR_FPS, skipped)
     result.units = {name: proto.unit(name) for name in result.metrics}
-    if proto.name == "spec" and not result.camera:
-        notes.append("w_mpjpe: needs a camera.yaml on both sides (each side's gravity frame)")
+    if not result.camera:
+        notes += [f"{name}: {note}" for name, note in proto.camera_notes.items()]
     if proto.track_metrics and result.track_pairs_without_feet and "foot_sliding" not in skipped:
         notes.append(f"foot_sliding: {result.track_pairs_without_feet} of {result.track_pairs} matched pairs lack "
                      "the foot points and are left out")
-    if proto.name == "wham" and result.tracks is not None and result.fps is None:
+    if proto.per_second and result.tracks is not None and result.fps is None:
         notes.append(f"fps: the ground truth's meta.yaml gives none; GVHMR's {GVHMR_FPS:g} is used for accel_err "
                      "and jitter")
-    if proto.name == "agora" and result.frames_pred_only:
-        notes.append(f"{result.frames_pred_only} prediction frame(s) without ground truth ignored, as AGORA does")
+    if not proto.pred_only_frames_count and result.frames_pred_only:
+        notes.append(f"{result.frames_pred_only} prediction frame(s) without ground truth ignored, "
+                     f"{proto.pred_only_frames_note}")
     result.notes = notes
 
 
