@@ -455,13 +455,18 @@ def test_wham_rte_leaves_out_a_standing_track(tmp_path):
 def test_a_newly_registered_person_metric_is_reported_under_the_paper_protocol(tmp_path, monkeypatch):
     """CONTRIBUTING's recipe: one registry entry is enough; the paper reports every registered metric."""
     import rotavat_cli.metrics.evaluate as E
+    import rotavat_cli.metrics.person_metrics as PM
+    import rotavat_cli.metrics.protocols as P
 
-    def toy(pairs, pred_cam, gt_cam, opts):
+    def toy(pairs, pred_cam, gt_cam, engine):
         return {"toy_mm": np.full(len(pairs.gt_joints), 7.0)}
 
-    families = (*E.PERSON_METRIC_FAMILIES, E.PersonMetric(("toy_mm",), toy))
+    families = (*PM.PERSON_METRIC_FAMILIES, PM.PersonMetric(("toy_mm",), toy))
+    names = tuple(n for f in families for n in f.names)
+    # An entry added to the registry's source reaches every module that imports it; patched, each copy.
     monkeypatch.setattr(E, "PERSON_METRIC_FAMILIES", families)
-    monkeypatch.setattr(E, "PERSON_METRICS", tuple(n for f in families for n in f.names))
+    for module in (E, P):
+        monkeypatch.setattr(module, "PERSON_METRICS", names)
     result = run(tmp_path, {"000000": frame(body()[None])}, {"000000": frame(body((0.0, 0.0, 5.1))[None])})
     assert result.metrics["toy_mm"] == 7.0 and result.units["toy_mm"] == "mm"
 

@@ -22,8 +22,9 @@ pass runs compiled (numba, :mod:`._compiled`) when ``rotavat[fast]`` is installe
 Modules: :mod:`.points` (the single-metric functions, float64), :mod:`.fused`
 (:func:`person_errors_mm`, all of them at once for ``evaluate``; its precision note),
 :mod:`.scene` (ground-aware, detection and camera errors), :mod:`.temporal` (acceleration error,
-jitter, foot sliding, GVHMR's chunked W-/WA-MPJPE and RTE of tracks), :mod:`.protocols` (each
-benchmark's root, joint set, matching, units and rounding: ``evaluate(..., protocol=...)``).
+jitter, foot sliding, GVHMR's chunked W-/WA-MPJPE and RTE of tracks), :mod:`.person_metrics` (the
+registry of per-person metrics ``evaluate`` scores), :mod:`.protocols` (each benchmark's root, joint
+set, matching, units and rounding: ``evaluate(..., protocol=...)``).
 """
 
 from ..lazy import public_names

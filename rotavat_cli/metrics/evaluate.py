@@ -26,7 +26,6 @@ was skipped.
 from __future__ import annotations
 
 import csv
-import math
 import re
 from collections.abc import Callable
 from collections.abc import Sequence as Seq
@@ -36,21 +35,22 @@ from typing import ClassVar
 
 import numpy as np
 
-from .. import metrics as M
 from ..atomic import atomic_open
 from ..camera import Camera, camera_parameters, project_cam_to_px
 from ..errors import InputError, input_errors
-from ..landmarks import SMPL_JOINT_NAMES, foot_head_points
+from ..landmarks import SMPL_JOINT_NAMES
 from ..option_rules import Rule, check_fields
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
+from .fused import ENGINES, resolve_engine
 from .matching import match_agora, match_by_ids, match_hungarian
-from .protocols import (CONTACT_M, FOOT_JOINTS, GVHMR_FOOT_VERTICES, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES,
-                        Protocol, aggregate, protocol, root_points)
+from .person_metrics import PERSON_METRIC_FAMILIES, PERSON_METRICS, MatchedPairs, concat_pairs
+from .protocols import (CONTACT_M, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES, Protocol, aggregate, protocol,
+                        root_points)
+from .scene import camera_errors
 from .temporal import TrackSeries
 
-__all__ = ["PERSON_METRICS", "PERSON_METRIC_FAMILIES", "PROTOCOL_NAMES", "PersonMetric", "EvalOptions", "EvalResult",
-           "evaluate", "merge_results", "parse_joints"]
+__all__ = ["EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
 
 MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
 MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
@@ -68,7 +68,7 @@ class EvalOptions:
     protocol: str = "paper"  # whose definitions: paper | spec | agora | bedlam | wham (metrics.protocols)
 
     RULES: ClassVar[dict[str, Rule]] = {  # the ``eval`` keys' bounds and names (rotavat_cli/option_rules.py)
-        "match": Rule(names=MATCHES), "engine": Rule(names=M.ENGINES), "protocol": Rule(names=PROTOCOL_NAMES),
+        "match": Rule(names=MATCHES), "engine": Rule(names=ENGINES), "protocol": Rule(names=PROTOCOL_NAMES),
         "threshold_px": Rule(low=0, open_low=True, unit="px"), "iou_threshold": Rule(low=0, high=1),
     }
 
@@ -167,24 +167,6 @@ def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, o
     return match_hungarian(pred_px, gt_px, opts.threshold_px)
 
 
-@dataclass(frozen=True)
-class _Pairs:
-    """The matched people of one or more frames, gathered: joints (M, J, 3) (the protocol's joint
-    set), their roots (M, 3) float64 (the protocol's rule, from all the joints), vertices (M, V, 3); or None."""
-
-    pred_joints: np.ndarray | None
-    gt_joints: np.ndarray | None
-    pred_verts: np.ndarray | None
-    gt_verts: np.ndarray | None
-    pred_root: np.ndarray | None = None
-    gt_root: np.ndarray | None = None
-
-    def kind(self) -> tuple:
-        """What must agree for two gatherings to be scored in one call: which arrays, their point counts, dtypes."""
-        return tuple(None if a is None else (a.shape[1], a.dtype.str)
-                     for a in (self.pred_joints, self.gt_joints, self.pred_verts, self.gt_verts))
-
-
 def _check_joint_order(seq: Sequence, proto: Protocol) -> None:
     """InputError when a protocol that scores SMPL's joints by index (the first N, or the hips as root)
     meets a sequence whose meta.yaml says its joints are in another order (an import's own layout)."""
@@ -220,7 +202,7 @@ def _check_joints(frame: Frame, opts: EvalOptions) -> None:
                          f"(0..{n_joints - 1})")
 
 
-def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> _Pairs:
+def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> MatchedPairs:
     """The matched people's joints (the protocol's set or ``--joints``) with their roots (from all the
     joints, so ``--joints`` never moves the root) and vertices, checked for equal point counts."""
     pj, gj = pred.get("joints"), gt.get("joints")
@@ -243,67 +225,10 @@ def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: 
         pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
     else:
         pv = gv = None
-    return _Pairs(pj, gj, pv, gv, pr, gr)
+    return MatchedPairs(pj, gj, pv, gv, pr, gr)
 
 
-_PAIR_FIELDS = ("pred_joints", "gt_joints", "pred_verts", "gt_verts", "pred_root", "gt_root")
-
-
-def _concat_pairs(parts: Seq[_Pairs]) -> _Pairs:
-    """One gathering from several of the same kind, in order."""
-    if len(parts) == 1:
-        return parts[0]
-    return _Pairs(*(None if getattr(parts[0], f) is None else np.concatenate([getattr(p, f) for p in parts])
-                    for f in _PAIR_FIELDS))
-
-
-# ---- the per-person metrics: a registry (a new metric = one entry) -----------------------------------
-@dataclass(frozen=True)
-class PersonMetric:
-    """One family of per-person metrics: the names it reports and how to compute them from matched pairs.
-
-    ``compute(pairs, pred_cam, gt_cam, opts)`` returns a dict name -> (M,) values for the names it
-    can compute (a missing name stays NaN: e.g. no vertices, no ground-truth camera).
-    """
-
-    names: tuple[str, ...]
-    compute: Callable[[_Pairs, Camera | None, Camera | None, "EvalOptions"], dict[str, np.ndarray]]
-
-
-def _errors(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
-    """MPJPE, PA-MPJPE, W-MPJPE, PVE, PA-PVE, W-PVE and SPEC's pair, in one fused pass (:func:`metrics.person_errors_mm`)."""
-    rotations = (pred_cam.R_cam_from_world.T, gt_cam.R_cam_from_world.T) if pred_cam and gt_cam else (None, None)
-    return M.person_errors_mm(pairs.pred_joints, pairs.gt_joints, pairs.pred_verts, pairs.gt_verts, *rotations,
-                              engine=opts.engine, pred_root=pairs.pred_root, gt_root=pairs.gt_root)
-
-
-def _root_error(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
-    """Pelvis position error, no alignment (scored where the ground truth has a camera, as the ground-aware ones)."""
-    if pairs.pred_root is None or gt_cam is None:
-        return {}
-    return {"root_err": M.root_err_mm(pairs.pred_root, pairs.gt_root)}
-
-
-def _ground_aware(pairs: _Pairs, pred_cam: Camera | None, gt_cam: Camera | None, opts: "EvalOptions") -> dict[str, np.ndarray]:
-    """Foot height above the true ground, lean from the true vertical, stature error (meshes and a true camera)."""
-    if gt_cam is None or pairs.pred_verts is None:
-        return {}
-    feet_p, heads_p = foot_head_points(pairs.pred_verts)
-    feet_g, heads_g = foot_head_points(pairs.gt_verts)
-    return {"foot_height": np.abs(gt_cam.height_above_ground(feet_p)) * 1000.0,
-            "lean_deg": M.lean_deg(feet_p, heads_p, gt_cam.up_cam),
-            "stature_err": M.stature_err_mm(feet_p, heads_p, feet_g, heads_g)}
-
-
-PERSON_METRIC_FAMILIES: tuple[PersonMetric, ...] = (
-    PersonMetric(("mpjpe", "pa_mpjpe", "w_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec"), _errors),
-    PersonMetric(("root_err",), _root_error),
-    PersonMetric(("foot_height", "lean_deg", "stature_err"), _ground_aware),
-)
-PERSON_METRICS = tuple(name for family in PERSON_METRIC_FAMILIES for name in family.names)  # report order
-
-
-def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
+def _pair_metrics(pairs: MatchedPairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,
                   opts: EvalOptions) -> dict[str, np.ndarray]:
     """Every per-person metric of the protocol for ``n_pairs`` gathered pairs, (M,) each, under its report
     names (e.g. SPEC's ``w_mpjpe`` is the gravity-frame error); NaN where not computable or not reported."""
@@ -311,7 +236,7 @@ def _pair_metrics(pairs: _Pairs, n_pairs: int, pred_cam: Camera | None, gt_cam: 
     computed: dict[str, np.ndarray] = {}
     for family in PERSON_METRIC_FAMILIES:
         if any(source in family.names for source in proto.pair_metrics.values()):
-            computed.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts).items()
+            computed.update({k: v for k, v in family.compute(pairs, pred_cam, gt_cam, opts.engine).items()
                              if k in family.names})
     out = {name: np.full(n_pairs, np.nan) for name in PERSON_METRICS}
     out.update({name: computed[source] for name, source in proto.pair_metrics.items() if source in computed})
@@ -332,9 +257,9 @@ class _ScoreBatch:
     gt_cam: Camera | None
     opts: EvalOptions
     columns: dict[str, list]
-    queue: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, _Pairs]] = field(default_factory=list)  # frame, pi, gi, ids
+    queue: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, MatchedPairs]] = field(default_factory=list)  # frame, pi, gi, ids
 
-    def add(self, frame: str, pi: np.ndarray, gi: np.ndarray, person_ids: np.ndarray, pairs: _Pairs) -> None:
+    def add(self, frame: str, pi: np.ndarray, gi: np.ndarray, person_ids: np.ndarray, pairs: MatchedPairs) -> None:
         """Queue one frame's matched pairs; score the queue when full or when the kind of arrays changes."""
         if self.queue and self.queue[0][4].kind() != pairs.kind():
             self.flush()
@@ -350,7 +275,7 @@ class _ScoreBatch:
         """Score the queued pairs in one call and append their rows to ``columns``."""
         if not self.queue:
             return
-        pairs = _concat_pairs([item[4] for item in self.queue])
+        pairs = concat_pairs([item[4] for item in self.queue])
         values = _pair_metrics(pairs, self._queued_people(), self.pred_cam, self.gt_cam, self.opts)
         for frame, pi, gi, person_ids, _ in self.queue:
             self.columns["frame"].extend([frame] * len(pi))
@@ -364,22 +289,15 @@ class _ScoreBatch:
 
 def _camera_errors(pred_cam: Camera, gt_cam: Camera) -> dict[str, float]:
     """Camera errors under report names."""
-    err = M.camera_errors(camera_parameters(pred_cam), camera_parameters(gt_cam))
+    err = camera_errors(camera_parameters(pred_cam), camera_parameters(gt_cam))
     return {f"cam_{k}": float(v) for k, v in err.items()}
 
 
 def _effective(opts: EvalOptions) -> EvalOptions:
-    """The options with the protocol's own matching and joint set; InputError for a bad or clashing option."""
-    if opts.protocol not in PROTOCOL_NAMES:
-        raise InputError(f"--protocol must be one of {', '.join(PROTOCOL_NAMES)}, got {opts.protocol!r}")
-    if opts.match not in MATCHES:
-        raise InputError(f"--match must be one of {', '.join(MATCHES)}, got {opts.match!r}")
-    if not (math.isfinite(opts.threshold_px) and opts.threshold_px > 0):
-        raise InputError(f"--threshold-px must be a positive number of pixels, got {opts.threshold_px}")
-    if not (math.isfinite(opts.iou_threshold) and 0 <= opts.iou_threshold <= 1):
-        raise InputError(f"--iou-threshold must be within 0..1, got {opts.iou_threshold}")
+    """The options with the protocol's own matching and joint set (each option's range: EvalOptions.RULES);
+    InputError for an uninstalled engine or clashing options."""
     with input_errors("--engine"):
-        M.resolve_engine(opts.engine)  # an unknown or uninstalled engine fails here, before any output
+        resolve_engine(opts.engine)  # an uninstalled engine fails here, before any output
     proto = protocol(opts.protocol)
     if proto.match and opts.match not in ("auto", proto.match):
         raise InputError(f"--protocol {proto.name} matches people its own way ({proto.match}); drop --match {opts.match}")
@@ -403,8 +321,8 @@ def _track_series(proto: Protocol) -> TrackSeries | None:
     """The temporal accumulator a protocol needs, or None."""
     if not proto.track_metrics:
         return None
-    keep_all = proto.name == "wham"  # W-MPJPE / WA-MPJPE / RTE need every frame's joints of a track
-    return TrackSeries(("accel", "jitter", "foot_sliding"), CONTACT_M, keep_all, accel_hips=proto.root == "hips")
+    return TrackSeries(("accel", "jitter", "foot_sliding"), CONTACT_M, keep_all=proto.whole_tracks,
+                       accel_hips=proto.root == "hips")
 
 
 def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None,
@@ -504,22 +422,23 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
 
 def _foot_points(frame: Frame, idx: np.ndarray, proto: Protocol) -> np.ndarray | None:
     """The matched people's foot points for foot sliding (M, 4, 3), or None when the frame lacks them:
-    SMPL ankle and foot joints (paper), GVHMR's four SMPL foot vertices (wham)."""
-    if proto.name == "wham":
+    the protocol's ``feet`` (SMPL ankle and foot joints; wham: GVHMR's four SMPL foot vertices)."""
+    feet = proto.feet
+    if feet.vertices:
         verts = frame.get("vertices")
         ok = verts is not None and verts.shape[1] == SMPL_VERTICES
-        return verts[idx][:, list(GVHMR_FOOT_VERTICES)] if ok else None
+        return verts[idx][:, list(feet.indices)] if ok else None
     joints = frame.get("joints")
-    return joints[idx][:, list(FOOT_JOINTS)] if joints is not None and joints.shape[1] > max(FOOT_JOINTS) else None
+    return joints[idx][:, list(feet.indices)] if joints is not None and joints.shape[1] > max(feet.indices) else None
 
 
-def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pairs: _Pairs,
+def _add_to_tracks(result: EvalResult, pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, pairs: MatchedPairs,
                    opts: EvalOptions) -> None:
     """Feed one frame's matched pairs to the tracks (keyed by the ground truth's person ids)."""
     proto = protocol(opts.protocol)
     feet_p, feet_g = _foot_points(pred, pi, proto), _foot_points(gt, gi, proto)
     if feet_p is None or feet_g is None:  # NaN feet are never in contact: left out of foot sliding
-        feet_p = feet_g = np.full((len(pi), len(FOOT_JOINTS), 3), np.nan)
+        feet_p = feet_g = np.full((len(pi), len(proto.feet.indices), 3), np.nan)
         result.track_pairs_without_feet += len(pi)
     result.track_pairs += len(pi)
     result.tracks.add(gt.person_ids[gi], {"pred": pairs.pred_joints, "gt": pairs.gt_joints,
@@ -532,22 +451,21 @@ def _aggregate(result: EvalResult, columns: dict[str, list]) -> None:
     counts = {"matched": result.matched, "missed": result.missed, "false_positives": result.false_positives}
     skipped = {}
     if result.track_pairs and result.track_pairs_without_feet == result.track_pairs:
-        skipped["foot_sliding"] = ("GVHMR's foot vertices 3216, 3387, 6617, 6787 need 6,890-vertex SMPL meshes on "
-                                   "both sides" if proto.name == "wham" else
-                                   "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
+        skipped["foot_sliding"] = proto.feet.missing
     tracks = result.tracks if result.track_pairs else None
     result.metrics, notes = aggregate(proto, columns, counts, tracks, result.fps or GVHMR_FPS, skipped)
     result.units = {name: proto.unit(name) for name in result.metrics}
-    if proto.name == "spec" and not result.camera:
-        notes.append("w_mpjpe: needs a camera.yaml on both sides (each side's gravity frame)")
+    if not result.camera:
+        notes += [f"{name}: {note}" for name, note in proto.camera_notes.items()]
     if proto.track_metrics and result.track_pairs_without_feet and "foot_sliding" not in skipped:
         notes.append(f"foot_sliding: {result.track_pairs_without_feet} of {result.track_pairs} matched pairs lack "
                      "the foot points and are left out")
-    if proto.name == "wham" and result.tracks is not None and result.fps is None:
+    if proto.per_second and result.tracks is not None and result.fps is None:
         notes.append(f"fps: the ground truth's meta.yaml gives none; GVHMR's {GVHMR_FPS:g} is used for accel_err "
                      "and jitter")
-    if proto.name == "agora" and result.frames_pred_only:
-        notes.append(f"{result.frames_pred_only} prediction frame(s) without ground truth ignored, as AGORA does")
+    if not proto.pred_only_frames_count and result.frames_pred_only:
+        notes.append(f"{result.frames_pred_only} prediction frame(s) without ground truth ignored, "
+                     f"{proto.pred_only_frames_note}")
     result.notes = notes
 
 

@@ -47,11 +47,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..landmarks import SMPL_JOINT_NAMES
+from .person_metrics import PERSON_METRICS
 from .scene import detection_scores, normalize_by_f1
 from .temporal import WINDOWS, TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte
 
-__all__ = ["PROTOCOLS", "PROTOCOL_NAMES", "Protocol", "root_points", "agora_prf1", "agora_round", "protocol", "detection",
-           "aggregate"]
+__all__ = ["PROTOCOLS", "PROTOCOL_NAMES", "Protocol", "FootPoints", "root_points", "agora_prf1", "agora_round",
+           "protocol", "detection", "aggregate"]
 
 MM_PER_M = 1000.0
 HIP_JOINTS = (SMPL_JOINT_NAMES.index("left_hip"), SMPL_JOINT_NAMES.index("right_hip"))
@@ -62,6 +63,20 @@ GVHMR_FOOT_VERTICES = (3216, 3387, 6617, 6787)
 SMPL_VERTICES = 6890
 GVHMR_FPS = 30.0  # compute_camcoord_metrics / compute_jitter default
 CONTACT_M = 0.01  # compute_foot_sliding: in contact when the true point moves < 1 cm per frame
+
+
+@dataclass(frozen=True)
+class FootPoints:
+    """The points of each person that foot sliding follows, and why it is skipped when no matched pair has them."""
+
+    indices: tuple[int, ...]  # joint or vertex indices, (4,)
+    vertices: bool  # SMPL vertices (6,890-vertex meshes only), else joints
+    missing: str  # the skip note when no matched pair has them on both sides
+
+
+SMPL_FOOT_JOINTS = FootPoints(FOOT_JOINTS, False, "the joints have no SMPL ankles and feet (joints 7, 8, 10, 11)")
+GVHMR_FOOT_POINTS = FootPoints(GVHMR_FOOT_VERTICES, True, "GVHMR's foot vertices 3216, 3387, 6617, 6787 need "
+                               "6,890-vertex SMPL meshes on both sides")
 
 
 @dataclass(frozen=True)
@@ -81,15 +96,18 @@ class Protocol:
     detection: str | None = None  # None | "rotavat" | "agora"
     pooled: bool = False  # track metrics pooled over every window (GVHMR), else per track then averaged
     pred_only_frames_count: bool = True  # False: predictions on frames without ground truth are ignored
+    pred_only_frames_note: str = ""  # the note saying so (when pred_only_frames_count is False)
+    camera_notes: Mapping[str, str] = field(default_factory=dict)  # metric -> note when either side has no camera
+    feet: FootPoints = SMPL_FOOT_JOINTS  # foot sliding's points
+    whole_tracks: bool = False  # W-MPJPE, WA-MPJPE, RTE of every frame of each track (GVHMR): tracks keep all frames
+    per_second: bool = False  # window metrics per second at the ground truth's fps (GVHMR's units), else per frame
 
     @property
     def pair_metrics(self) -> Mapping[str, str]:
-        """Report name -> per-pair metric (``evaluate.PERSON_METRICS``) it is. The paper reports every
+        """Report name -> per-pair metric (``person_metrics.PERSON_METRICS``) it is. The paper reports every
         registered per-person metric under its own name, so a new registry entry is reported at once."""
         if self.pairs is not None:
             return self.pairs
-        from .evaluate import PERSON_METRICS  # the registry lives beside evaluate (it imports this module)
-
         return {name: name for name in PERSON_METRICS}
 
     def unit(self, name: str) -> str:
@@ -107,6 +125,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
     Protocol("spec", "mkocabas/SPEC@308fd4a spec/utils/compute_error.py compute_error, eval_j_24", "pelvis", 24, None,
              {"mpjpe": "mpjpe", "pa_mpjpe": "pa_mpjpe", "w_mpjpe": "w_mpjpe_spec"}, (),
              {"mpjpe": _MM, "pa_mpjpe": _MM, "w_mpjpe": _MM},
+             camera_notes={"w_mpjpe": "needs a camera.yaml on both sides (each side's gravity frame)"},
              skipped={"pve": "SPEC's V2V subtracts the pelvis of the H36M joint regressor (data/J_regressor_h36m.npy, "
                              "eval_single), which the sequence does not carry",
                       "w_pve": "SPEC's W-V2V subtracts the pelvis of the H36M joint regressor (eval_single), which the "
@@ -117,7 +136,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
              {"mpjpe": _MM, "pa_mpjpe": _MM, "nmje": _MM},
              skipped={k: "AGORA's MVE uses its SMPL body-vertex subset (agora_evaluation utils/body_verts_smpl.npy), "
                          "which rotavat does not ship" for k in ("pve", "pa_pve", "nmve")},
-             detection="agora", pred_only_frames_count=False),
+             detection="agora", pred_only_frames_count=False, pred_only_frames_note="as AGORA does"),
     Protocol("bedlam", "pixelite1201/BEDLAM@c79a9c8 train/core/hmr_trainer.py validation_step, "
              "train/utils/eval_utils.py reconstruction_error", "hips", 24, None,
              {"mpjpe": "mpjpe", "pa_mpjpe": "pa_mpjpe", "pve": "pve"}, (),
@@ -128,7 +147,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
              ("w_mpjpe", "wa_mpjpe", "rte", "jitter", "accel_err", "foot_sliding"),
              {"mpjpe": _MM, "pa_mpjpe": _MM, "pve": _MM, "accel_err": "m/s^2", "w_mpjpe": _MM, "wa_mpjpe": _MM,
               "rte": "%", "jitter": "10 m/s^3", "foot_sliding": _MM},
-             pooled=True),
+             pooled=True, feet=GVHMR_FOOT_POINTS, whole_tracks=True, per_second=True),
 )}
 PROTOCOL_NAMES: tuple[str, ...] = tuple(PROTOCOLS)
 
@@ -251,7 +270,7 @@ def _track_metrics(proto: Protocol, tracks: TrackSeries | None, fps: float,
         else:
             means = [s / c for s, c in sums.values() if c]
             out[name] = float(np.mean(means)) * scale[name] if means else math.nan
-    if proto.name == "wham":
+    if proto.whole_tracks:
         whole, whole_notes = _whole_track_metrics(tracks)
         out.update(whole)
         notes += whole_notes
@@ -259,8 +278,8 @@ def _track_metrics(proto: Protocol, tracks: TrackSeries | None, fps: float,
 
 
 def _window_scales(proto: Protocol, fps: float) -> dict[str, float]:
-    """Metres/frame^k -> the protocol's units: mm/frame^k (paper); GVHMR's m/s^2, 10 m/s^3, mm (wham)."""
-    if proto.name == "wham":
+    """Metres/frame^k -> the protocol's units: mm/frame^k, or with ``per_second`` GVHMR's m/s^2, 10 m/s^3, mm (wham)."""
+    if proto.per_second:
         return {"accel_err": fps ** 2, "jitter": fps ** 3 / 10.0, "foot_sliding": MM_PER_M}
     return {"accel_err": MM_PER_M, "jitter": MM_PER_M, "foot_sliding": MM_PER_M}
 

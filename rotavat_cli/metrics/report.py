@@ -14,7 +14,9 @@ from ..atomic import atomic_write_text
 from ..errors import InputError
 from ..plain import to_plain
 from ..version import WRITTEN_BY
-from .evaluate import PERSON_METRICS, EvalResult
+from .evaluate import EvalResult
+from .person_metrics import PERSON_METRICS
+from .protocols import PROTOCOLS
 
 __all__ = ["REPORT_COLUMNS", "GATE_METRICS", "Gate", "parse_gate", "check_gate_rows", "check_gate_metrics",
            "check_gates", "report_rows", "format_value", "metric_label", "metric_value", "markdown_report",
@@ -71,8 +73,6 @@ def check_gate_rows(gates: Sequence[Gate], preds: Sequence[str | Path]) -> None:
 
 def check_gate_metrics(gates: Sequence[Gate], protocol: str) -> None:
     """InputError for a gate on a metric the protocol never reports (it would always trip on NaN)."""
-    from .protocols import PROTOCOLS
-
     proto = PROTOCOLS[protocol]
     reported = set(proto.pair_metrics) | set(proto.track_metrics) | set(_COUNT_METRICS) | set(_CAMERA_METRICS)
     reported |= {"precision", "recall", "f1", "nmje", "nmve"} if proto.detection else set()
@@ -136,8 +136,6 @@ def format_value(metric: str, value: float) -> str:
 
 def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
     """metrics.md: one row per prediction, then the change of each row against the first."""
-    from .protocols import PROTOCOLS
-
     cols = report_rows(results)
     protocols = sorted({r.protocol for r in results})
     lines = [f"# rotavat eval against `{gt}`", ""]
