@@ -20,8 +20,8 @@ def unplaced_people(vertices, joints) -> np.ndarray:
     """(P,) bool: the people a frame of these vertices and joints does not place in the camera."""
     data = {k: v for k, v in (("vertices", vertices), ("joints", joints)) if v is not None}
     return np.logical_or(*people_not_placed(Frame("f", data, "f")))
-from rotavat_cli.formats.keypoints import (LAYOUT_NAMES, LAYOUTS, PointRule, extrapolated, feet_heads_px,
-                                           layout_by_count, mean_of, recipe_for)
+from rotavat_cli.formats.keypoints import LAYOUTS, PointRule, extrapolated, feet_heads_px, mean_of, recipe_for
+from rotavat_cli.joint_layouts import LAYOUT_NAMES, layout_by_count
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies

@@ -17,8 +17,9 @@ import numpy as np
 
 from ..camera import MAX_IMAGE_SIDE_PX, Camera, project_cam_to_px
 from ..errors import InputError
+from ..joint_layouts import layout_key
 from ..sequence import Frame, people_not_placed, validate_frame
-from .keypoints import feet_heads_px, layout_key, recipe_for
+from .keypoints import feet_heads_px, recipe_for
 from .smpl import BodyModel
 
 __all__ = [

@@ -35,10 +35,10 @@ import numpy as np
 
 from .. import safe_pickle
 from ..focal import CAMERA
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
                       feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
-from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width

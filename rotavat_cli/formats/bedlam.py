@@ -29,10 +29,10 @@ import numpy as np
 
 from .. import safe_pickle
 from ..focal import CAMERA
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
                       frame_names, model_faces, natural_key, npz_has_keys, people_frame, single_file)
-from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}

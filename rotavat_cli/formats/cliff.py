@@ -29,11 +29,11 @@ import numpy as np
 
 from .. import safe_pickle
 from ..focal import ASSUMED
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
                       feet_heads_from, frame_names, image_size_from_header, model_faces, no_model_warning, npz_has_keys,
                       people_frame, project_px, single_file)
-from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}

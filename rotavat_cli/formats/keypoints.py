@@ -87,16 +87,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key  # re-exported: the layouts live in the leaf
+from ..joint_layouts import LAYOUT_NAMES, layout_key
 
 __all__ = [
     "LAYOUTS",
-    "LAYOUT_NAMES",
     "KeypointRecipe",
     "PointRule",
     "extrapolated",
     "feet_heads_px",
-    "layout_by_count",
     "mean_of",
     "recipe_for",
 ]

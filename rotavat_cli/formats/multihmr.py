@@ -38,11 +38,11 @@ import numpy as np
 
 from .. import safe_pickle
 from ..focal import ASSUMED
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
                       feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame, project_px,
                       wrong_kind)
-from .keypoints import layout_by_count
 from .smpl import joints_to_smpl24
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
