@@ -1,9 +1,9 @@
 """Joint layouts: the names of each HPS tool's joints / 2D keypoints, in the tool's order.
 
 A leaf module (it imports only :mod:`rotavat_cli.landmarks`, for SMPL's 24 joint names): whatever
-addresses joints by name (the keypoint recipes of :mod:`rotavat_cli.formats.keypoints`, which
-re-exports these names, the skeletons of :mod:`rotavat_cli.render.skeleton`, the posture angles of
-:mod:`rotavat_cli.posture`) reads this one table. An importer records its layout in ``meta.yaml``
+addresses joints by name (the keypoint recipes of :mod:`rotavat_cli.formats.keypoints`, the skeletons
+of :mod:`rotavat_cli.render.skeleton`, the posture angles of :mod:`rotavat_cli.posture`, the joint-order
+check of :mod:`rotavat_cli.metrics.evaluate`) reads this one table. An importer records its layout in ``meta.yaml``
 (``import.joints_layout``), sometimes with a description after the key
 (``'phalp44 (OpenPose-25 + 19 extra)'``); :func:`layout_key` strips it. Files that store an
 SMPL-family layout without naming it are recognised by their joint count (:func:`layout_by_count`).

@@ -20,8 +20,9 @@ from rotavat_cli import safe_pickle
 from rotavat_cli.camera import project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
-from rotavat_cli.formats._common import image_size_from_header
-from rotavat_cli.formats.keypoints import LAYOUT_NAMES, feet_heads_px
+from rotavat_cli.formats.image_size import image_size_from_header
+from rotavat_cli.formats.keypoints import feet_heads_px
+from rotavat_cli.joint_layouts import LAYOUT_NAMES
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence
 

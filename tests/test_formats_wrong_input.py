@@ -21,7 +21,7 @@ import pytest
 from conftest import invoke
 
 from rotavat_cli.formats import available_formats, other_format
-from rotavat_cli.formats._common import file_kind
+from rotavat_cli.formats.file_kinds import file_kind
 
 W, H = 640, 480
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"

@@ -12,7 +12,9 @@ import pytest
 from rotavat_cli.camera import ROOT_CENTRED_M, project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
-from rotavat_cli.formats._common import feet_heads_from, people_frame, placement_warnings
+from rotavat_cli.formats.frames import people_frame
+from rotavat_cli.formats.imported import placement_warnings
+from rotavat_cli.formats.meta import feet_heads_from
 from rotavat_cli.sequence import Frame, people_not_placed
 
 
@@ -20,8 +22,8 @@ def unplaced_people(vertices, joints) -> np.ndarray:
     """(P,) bool: the people a frame of these vertices and joints does not place in the camera."""
     data = {k: v for k, v in (("vertices", vertices), ("joints", joints)) if v is not None}
     return np.logical_or(*people_not_placed(Frame("f", data, "f")))
-from rotavat_cli.formats.keypoints import (LAYOUT_NAMES, LAYOUTS, PointRule, extrapolated, feet_heads_px,
-                                           layout_by_count, mean_of, recipe_for)
+from rotavat_cli.formats.keypoints import LAYOUTS, PointRule, extrapolated, feet_heads_px, mean_of, recipe_for
+from rotavat_cli.joint_layouts import LAYOUT_NAMES, layout_by_count
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
@@ -309,7 +311,7 @@ def test_bedlam_without_a_model_finds_feet_and_heads_near_the_meshes(tmp_path, s
 
 def test_every_reader_reports_people_not_placed_in_the_camera():
     """The check lives in ImportedSequence, not in the readers: any reader's root-centred people are reported."""
-    from rotavat_cli.formats._common import ImportedSequence
+    from rotavat_cli.formats.imported import ImportedSequence
 
     body = np.array([[0.0, 0.0, 0.0], [0.0, -0.9, 0.05], [0.0, 0.9, -0.05]])
 

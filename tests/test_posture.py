@@ -91,7 +91,7 @@ def into_camera(joints_body: np.ndarray, rng: np.random.Generator) -> np.ndarray
     return scale * np.einsum("pij,pkj->pki", rotations, joints_body) + shift[:, None, :]
 
 
-# ---- joint_layouts: the leaf module and the re-exports of formats.keypoints --------------------------------
+# ---- joint_layouts: the leaf module, and the layouts of formats.keypoints' recipes ------------------------
 
 def _rotavat_imports(module_path: Path) -> set[str]:
     tree = ast.parse(module_path.read_text())
@@ -109,11 +109,7 @@ def test_the_new_modules_import_only_the_bottom_floor():
     assert _rotavat_imports(Path(posture.__file__)) == {".joint_layouts"}
 
 
-def test_formats_keypoints_still_exports_the_layouts():
-    assert keypoints.LAYOUT_NAMES is joint_layouts.LAYOUT_NAMES
-    assert keypoints.layout_key is joint_layouts.layout_key
-    assert keypoints.layout_by_count is joint_layouts.layout_by_count
-    assert {"LAYOUT_NAMES", "layout_by_count"} <= set(keypoints.__all__)
+def test_formats_keypoints_recipes_are_of_the_leafs_layouts():
     assert set(keypoints.LAYOUTS) <= set(LAYOUT_NAMES)
 
 

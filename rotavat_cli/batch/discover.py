@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from ..errors import InputError
+from ..formats.registry import READERS, available_formats, detect_format
 from ..sequence import is_sequence_dir
 
 __all__ = ["discover_sequences", "fingerprint", "frames_hint"]
@@ -63,18 +64,13 @@ def _rel(path: Path, root: Path, strip: bool = False) -> str:
 
 def _format_matcher(fmt: str) -> Callable[[Path], bool]:
     """path -> True when the importers detect ``fmt`` (or a sibling format of the same reader module)."""
-    try:
-        from .. import formats
-    except ImportError:
-        raise InputError("--from needs rotavat's importers (rotavat_cli.formats), missing from this installation") from None
-    if fmt not in formats.available_formats():
-        raise InputError(f"unknown format '{fmt}' for --from (known: {', '.join(formats.available_formats())})")
-    readers = getattr(formats, "READERS", {})
-    family = getattr(readers.get(fmt), "__module__", fmt)
+    if fmt not in available_formats():
+        raise InputError(f"unknown format '{fmt}' for --from (known: {', '.join(available_formats())})")
+    family = getattr(READERS.get(fmt), "__module__", fmt)
 
     def matches(path: Path) -> bool:
-        found = formats.detect_format(path)
-        return found is not None and (found == fmt or getattr(readers.get(found), "__module__", found) == family)
+        found = detect_format(path)
+        return found is not None and (found == fmt or getattr(READERS.get(found), "__module__", found) == family)
     return matches
 
 

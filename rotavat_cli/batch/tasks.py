@@ -104,7 +104,7 @@ def _given_camera(plan: dict, seq: Sequence) -> AlignCamera | None:
 def _import_into(src: str, out: str, fmt: str, imp: dict, result: dict, what: str) -> None:
     """Convert a tool's output into a sequence folder of the batch's output (--from, --gt-from); its
     warnings (prefixed by ``what``) and time go into ``result``."""
-    from ..formats import import_sequence
+    from ..formats.convert import import_sequence
 
     start = time.perf_counter()
     summary = import_sequence(src, out, fmt, image_size=imp["image_size"], smpl_model=imp["smpl_model"], overwrite=True)

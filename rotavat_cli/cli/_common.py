@@ -314,7 +314,8 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
         warn_ignored(seq)
         yield seq
         return
-    from ..formats import available_formats, imported_sequence
+    from ..formats.convert import imported_sequence
+    from ..formats.registry import available_formats
 
     if fmt not in available_formats():
         raise InputError(f"unknown format '{fmt}' for --from (known: {', '.join(available_formats())})")

@@ -8,8 +8,9 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ..formats import available_formats, detect_format, import_sequence
-from ..formats._common import wrong_kind
+from ..formats.convert import import_sequence
+from ..formats.file_kinds import wrong_kind
+from ..formats.registry import available_formats, detect_format
 from ..words import count
 from ._common import (ConfigOpt, JsonOpt, QuietOpt, print_json, progress_bar, progress_enabled, report,
                       use_config, warn)

@@ -34,11 +34,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import CAMERA
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
-                      feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
-from .keypoints import layout_by_count
+from .content import as_array, get
+from .frame_names import frame_names, natural_key
+from .frames import people_frame
+from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces
 from .smpl import joints_to_smpl24, lbs
 
 SENSOR_WIDTH_MM = 36.0  # projection.py dslr_sens_width
@@ -71,10 +76,10 @@ def _groups(src: Path) -> list[tuple[str, list[Path]]]:
     for path in files:
         match = _PERSON.match(path.name)
         if match is None:
-            raise fail(path, "AGORA files must be named <image>_personId_<k>.pkl")
+            raise file_error(path, "AGORA files must be named <image>_personId_<k>.pkl")
         groups.setdefault(match["image"], []).append((int(match["k"]), path))
     if not groups:
-        raise fail(src, "no <image>_personId_<k>.pkl files found")
+        raise file_error(src, "no <image>_personId_<k>.pkl files found")
     return [(image, [p for _, p in sorted(items)]) for image, items in sorted(groups.items(), key=lambda kv: natural_key(kv[0]))]
 
 
@@ -84,8 +89,8 @@ def _one_person(array: np.ndarray, name: str, source: Path) -> np.ndarray:
     if array.ndim == 3 and array.shape[0] == 1:
         array = array[0]
     if array.ndim != 2:
-        raise fail(source, f"'{name}' must have 2 dimensions (or a leading batch axis of 1), got shape "
-                           f"{list(array.shape)}")
+        raise file_error(source, f"'{name}' must have 2 dimensions (or a leading batch axis of 1), got shape "
+                                 f"{list(array.shape)}")
     return array
 
 
@@ -100,7 +105,7 @@ def _pose_params(params: Mapping, model_joints: int, pose2rot: bool, source: Pat
         parts.append(value.reshape(-1, 3) if pose2rot else value.reshape(-1, 3, 3))
     pose = np.concatenate(parts)
     if len(pose) != model_joints:
-        raise fail(source, f"'params' pose has {len(pose)} joints, the model {model_joints}")
+        raise file_error(source, f"'params' pose has {len(pose)} joints, the model {model_joints}")
     betas = as_array(get(params, "betas", source), "betas", source).reshape(-1)
     transl = as_array(get(params, "transl", source), "transl", source).reshape(3)
     expression = params.get("expression")
@@ -131,12 +136,12 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
     def person(path: Path) -> dict[str, np.ndarray | None]:
         data = safe_pickle.load_file(path)
         if not isinstance(data, Mapping):
-            raise fail(path, f"expected a dict, got {type(data).__name__}")
+            raise file_error(path, f"expected a dict, got {type(data).__name__}")
         out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None}
         if data.get("joints") is not None:
             joints_2d = _one_person(as_array(data["joints"], "joints", path), "joints", path)
             if joints_2d.shape[1] != 2:
-                raise fail(path, f"'joints' must be (J, 2) pixels, got shape {list(joints_2d.shape)}")
+                raise file_error(path, f"'joints' must be (J, 2) pixels, got shape {list(joints_2d.shape)}")
             out["keypoints_2d"] = joints_2d * scale_2d
         if data.get("verts") is not None:
             out["vertices"] = _one_person(as_array(data["verts"], "verts", path, last=(3,)), "verts", path)
@@ -144,14 +149,14 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
                 out["joints"] = as_array(data["allSmplJoints3d"], "allSmplJoints3d", path, ndim=2, last=(3,))
         elif data.get("params") is not None:
             if model is None:
-                raise fail(path, "holds SMPL/SMPL-X parameters only: pass --smpl-model (the model AGORA used)")
+                raise file_error(path, "holds SMPL/SMPL-X parameters only: pass --smpl-model (the model AGORA used)")
             pose2rot = bool(data.get("pose2rot", True))
             pose, betas, transl, expression = _pose_params(data["params"], model.n_joints, pose2rot, path)
             v, j = lbs(model, betas[None], pose[None], transl[None],
                        None if expression is None else expression[None])
             out["vertices"], out["joints"] = v[0], j[0]
         else:
-            raise fail(path, "neither 'verts' nor 'params'")
+            raise file_error(path, "neither 'verts' nor 'params'")
         return out
 
     def build(index: int, notes: FrameNotes) -> Frame:
@@ -172,7 +177,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
                 layout = f"agora{stacked['joints'].shape[1]}"
         notes.facts["joints_layout"] = layout
         if stacked["vertices"] is None:
-            raise fail(paths[0], "people of one image must all have vertices of the same size")
+            raise file_error(paths[0], "people of one image must all have vertices of the same size")
         n_verts = stacked["vertices"].shape[1]
         extra = {} if constant_focal else {"focal_length": np.float64(focals[image])}
         kp = stacked["keypoints_2d"]

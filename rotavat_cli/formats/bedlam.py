@@ -28,11 +28,17 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import CAMERA
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, model_faces, natural_key, npz_has_keys, people_frame, single_file)
-from .keypoints import layout_by_count
+from .content import as_array
+from .files import npz_has_keys, single_file
+from .frame_names import frame_names, natural_key
+from .frames import people_frame
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces
 from .smpl import joints_to_smpl24, lbs
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
@@ -49,7 +55,7 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     data = safe_pickle.load_npz(path, keys=_KEYS | {"gtkps", "sub"})  # other members are never read
     missing = sorted(_KEYS - set(data))
     if missing:
-        raise fail(path, f"not a BEDLAM scene file (missing {', '.join(missing)})")
+        raise file_error(path, f"not a BEDLAM scene file (missing {', '.join(missing)})")
     imgname = np.asarray(data["imgname"]).reshape(-1).astype(str)
     n_rows = len(imgname)
     pose = as_array(data["pose_cam"], "pose_cam", path, ndim=2)
@@ -58,17 +64,17 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     cam_ext = as_array(data["cam_ext"], "cam_ext", path, ndim=3)
     cam_int = as_array(data["cam_int"], "cam_int", path, ndim=3, last=(3, 3))
     if cam_ext.shape[1:] not in ((4, 4), (3, 4)):
-        raise fail(path, f"'cam_ext' must be (N, 4, 4), got {list(cam_ext.shape)}")
+        raise file_error(path, f"'cam_ext' must be (N, 4, 4), got {list(cam_ext.shape)}")
     for key, arr in (("pose_cam", pose), ("shape", betas), ("trans_cam", trans), ("cam_ext", cam_ext), ("cam_int", cam_int)):
         if len(arr) != n_rows:
-            raise fail(path, f"'{key}' has {len(arr)} rows, 'imgname' {n_rows}")
+            raise file_error(path, f"'{key}' has {len(arr)} rows, 'imgname' {n_rows}")
     gtkps = as_array(data["gtkps"], "gtkps", path, ndim=3) if "gtkps" in data else None
     warnings: list[str] = []
 
     stored = (int(round(2 * np.median(cam_int[:, 0, 2]))), int(round(2 * np.median(cam_int[:, 1, 2])))) if n_rows else None
     image_size = opts.image_size or stored
     if image_size is None:
-        raise fail(path, "empty scene and no --image-size W H")
+        raise file_error(path, "empty scene and no --image-size W H")
     if opts.image_size is not None and stored is not None and stored != opts.image_size:
         warnings.append(f"{path}: --image-size differs from the {stored[0]}x{stored[1]} implied by cam_int; using --image-size")
     fx = cam_int[:, 0, 0]
@@ -82,8 +88,8 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     if model is not None:
         n_pose = model.n_joints * 3
         if pose.shape[1] != n_pose:
-            raise fail(path, f"'pose_cam' has {pose.shape[1]} values per person but --smpl-model {model.name} "
-                             f"needs {n_pose} (SMPL-X: 165, SMPL: 72)")
+            raise file_error(path, f"'pose_cam' has {pose.shape[1]} values per person but --smpl-model {model.name} "
+                                   f"needs {n_pose} (SMPL-X: 165, SMPL: 72)")
         layout = joints_to_smpl24(np.zeros((0, model.n_joints, 3)))[1]
     else:
         warnings.append("BEDLAM stores SMPL-X parameters, not meshes, and no --smpl-model was given: imported 2D "

@@ -49,10 +49,15 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
-                      frame_names, get, model_faces, natural_key, people_frame)
+from .content import as_array, get
+from .frame_names import frame_names, natural_key
+from .frames import people_frame
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces
 from .smpl import lbs
 
 _NET_INPUT = 512
@@ -90,11 +95,11 @@ def _sources(src: Path) -> list[tuple[str, Callable[[], dict]]]:
     else:
         files = [src]
     if not files:
-        raise fail(src, "no .npz result files found")
+        raise file_error(src, "no .npz result files found")
     if len(files) == 1 and files[0].name == "video_results.npz":
         results = _load_results(files[0])
         if not all(isinstance(v, dict) for v in results.values()):
-            raise fail(files[0], "'results' must map image names to result dicts")
+            raise file_error(files[0], "'results' must map image names to result dicts")
         return [(name, (lambda v=value: v)) for name, value in sorted(results.items(), key=lambda kv: natural_key(str(kv[0])))]
     return [(p.stem, (lambda p=p: _load_results(p))) for p in files]
 
@@ -112,10 +117,10 @@ def _load_results(path: Path) -> dict:
     """The dict stored in an .npz's 'results' object array."""
     data = safe_pickle.load_npz(path, keys=("results",))  # other members are never read
     if "results" not in data:
-        raise fail(path, "not a ROMP/BEV result file (no 'results' array)")
+        raise file_error(path, "not a ROMP/BEV result file (no 'results' array)")
     results = data["results"]
     if results.shape != () or not isinstance(results.item(), dict):
-        raise fail(path, "'results' must hold a dict")
+        raise file_error(path, "'results' must hold a dict")
     return results.item()
 
 
@@ -131,7 +136,7 @@ def _people(results: dict, source: str, fmt: str, opts: ImportOptions) -> dict[s
     if joints is not None:
         joints = as_array(joints, "joints", source, ndim=3, last=(3,))
         if joints.shape[1] < 24:
-            raise fail(source, f"'joints' must hold at least the 24 SMPL joints, got {joints.shape[1]}")
+            raise file_error(source, f"'joints' must hold at least the 24 SMPL joints, got {joints.shape[1]}")
         out["joints"] = joints[:, :24] + cam_trans[:, None]
         out["_joints_all_cam"] = joints + cam_trans[:, None]
         out["_joints_rel"] = joints
@@ -143,7 +148,7 @@ def _people(results: dict, source: str, fmt: str, opts: ImportOptions) -> dict[s
         out["vertices"] = v if out["vertices"] is None else out["vertices"]
         out["joints"] = j[:, :24] if out["joints"] is None else out["joints"]
     if out["vertices"] is None and out["joints"] is None:
-        raise fail(source, "holds neither 'verts' nor 'joints' (was it run with --calc_smpl?)")
+        raise file_error(source, "holds neither 'verts' nor 'joints' (was it run with --calc_smpl?)")
     if results.get("pj2d_org") is not None:
         out["keypoints_2d"] = as_array(results["pj2d_org"], "pj2d_org", source, ndim=3, last=(2,))
     if results.get("track_ids") is not None:
@@ -152,7 +157,7 @@ def _people(results: dict, source: str, fmt: str, opts: ImportOptions) -> dict[s
         out["_cam"] = as_array(results["cam"], "cam", source, ndim=2, last=(3,))
     for key, value in out.items():
         if value is not None and len(value) != n_people:
-            raise fail(source, f"'{key}' has {len(value)} people but 'cam_trans' has {n_people}")
+            raise file_error(source, f"'{key}' has {len(value)} people but 'cam_trans' has {n_people}")
     return out
 
 
@@ -198,11 +203,11 @@ def _check_family(results: dict, fmt: str, source: str) -> None:
     joints = results.get("joints") if isinstance(results, dict) else None
     n_joints = np.shape(joints)[1] if joints is not None and np.ndim(joints) == 3 else "no"
     if fmt == "romp" and n_betas == 11:
-        raise fail(source, f"this is a BEV result (11 SMPL+A shape parameters, {n_joints} joints), not ROMP's: "
-                           "read it with --from bev")
+        raise file_error(source, f"this is a BEV result (11 SMPL+A shape parameters, {n_joints} joints), not ROMP's: "
+                                 "read it with --from bev")
     if fmt == "bev" and n_betas == 10:
-        raise fail(source, f"this is a ROMP result (10 SMPL shape parameters, {n_joints} joints), not BEV's: "
-                           "read it with --from romp")
+        raise file_error(source, f"this is a ROMP result (10 SMPL shape parameters, {n_joints} joints), not BEV's: "
+                                 "read it with --from romp")
 
 
 def _frame_geometry(results: dict, source: str, fmt: str, opts: ImportOptions) -> tuple[tuple[int, int], int, int] | None:
@@ -241,8 +246,8 @@ def _geometries(src: Path, sources: list, fmt: str, opts: ImportOptions, warning
             break
     known = {g for g in found if g is not None}
     if not known:
-        raise fail(src, f"the image size is not stored in {fmt} results and could not be inferred from "
-                        "'pj2d_org'; pass --image-size W H")
+        raise file_error(src, f"the image size is not stored in {fmt} results and could not be inferred from "
+                              "'pj2d_org'; pass --image-size W H")
     if video or len(known) == 1:
         (geometry,) = known if len(known) == 1 else [next(g for g in found if g is not None)]
         size = geometry[0]
@@ -251,9 +256,9 @@ def _geometries(src: Path, sources: list, fmt: str, opts: ImportOptions, warning
         return [geometry] * len(sources), "inferred from pj2d_org"
     missing = [sources[i][0] for i, g in enumerate(found) if g is None]
     if missing:
-        raise fail(src, f"the images differ in size and the size of '{missing[0]}' could not be inferred from its "
-                        "'pj2d_org' (one --image-size cannot serve images of different sizes): import the images "
-                        "of each size separately with --image-size W H")
+        raise file_error(src, f"the images differ in size and the size of '{missing[0]}' could not be inferred from "
+                              "its 'pj2d_org' (one --image-size cannot serve images of different sizes): import the "
+                              "images of each size separately with --image-size W H")
     sizes = ", ".join(sorted({f"{g[0][0]}x{g[0][1]}" for g in found}))
     warnings.append(f"{src}: the images differ in size ({sizes}): each frame carries its own image_size, "
                     "focal_length and principal_point, inferred from its 2D keypoints (+-1 px when the padding is "

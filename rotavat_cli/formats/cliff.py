@@ -28,12 +28,19 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..camera import project_cam_to_px
+from ..errors import file_error
 from ..focal import ASSUMED
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
-                      feet_heads_from, frame_names, image_size_from_header, model_faces, no_model_warning, npz_has_keys,
-                      people_frame, project_px, single_file)
-from .keypoints import layout_by_count
+from .content import as_array
+from .files import npz_has_keys, single_file
+from .frame_names import frame_names
+from .frames import people_frame
+from .image_size import image_size_from_header
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces, no_model_warning
 from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
@@ -53,8 +60,8 @@ def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[t
             size = image_size_from_header(candidate)
             if size is not None:
                 return size, f"header of {candidate}"
-    raise fail(src, "the image size is not stored in CLIFF results and the images were not found; "
-                    "pass --image-size W H")
+    raise file_error(src, "the image size is not stored in CLIFF results and the images were not found; "
+                          "pass --image-size W H")
 
 
 def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
@@ -63,23 +70,23 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     data = safe_pickle.load_npz(path, keys=_KEYS)  # other members are never read
     missing = sorted(k for k in ("imgname", "detection_all", "global_t", "focal_l", "pred_joints") if k not in data)
     if missing:
-        raise fail(path, f"not a CLIFF results file (missing {', '.join(missing)})")
+        raise file_error(path, f"not a CLIFF results file (missing {', '.join(missing)})")
     imgnames = np.asarray(data["imgname"]).reshape(-1)
     det = as_array(data["detection_all"], "detection_all", path)
     n_det = det.shape[0] if det.size else 0
     det = det.reshape(n_det, -1) if n_det else np.zeros((0, 8))
     if det.shape[1] < 8:
-        raise fail(path, f"'detection_all' must have 8 columns, got {det.shape[1]}")
+        raise file_error(path, f"'detection_all' must have 8 columns, got {det.shape[1]}")
     pred_joints = as_array(data["pred_joints"], "pred_joints", path, ndim=3, last=(3,)) if n_det else np.zeros((0, 24, 3))
     global_t = as_array(data["global_t"], "global_t", path).reshape(-1, 3) if n_det else np.zeros((0, 3))
     focal_l = as_array(data["focal_l"], "focal_l", path).reshape(-1) if n_det else np.zeros(0)
     if not np.all(np.isfinite(focal_l) & (focal_l > 0)):
-        raise fail(path, "'focal_l' must hold positive focal lengths (px)")
+        raise file_error(path, "'focal_l' must hold positive focal lengths (px)")
     if len(pred_joints) != n_det:
-        raise fail(path, f"'pred_joints' has {len(pred_joints)} rows but 'detection_all' has {n_det}")
+        raise file_error(path, f"'pred_joints' has {len(pred_joints)} rows but 'detection_all' has {n_det}")
     frame_index = det[:, 0].astype(np.int64)
     if n_det and (frame_index.min() < 0 or frame_index.max() >= len(imgnames)):
-        raise fail(path, "'detection_all' refers to images outside 'imgname'")
+        raise file_error(path, "'detection_all' refers to images outside 'imgname'")
 
     image_size, size_origin = _image_size(path, imgnames, opts)
     diagonal = float(np.hypot(*image_size))
@@ -104,7 +111,7 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
             rot = pose_to_matrices(pose[:n_params], model.n_joints)
             posed = posed_joints(model, betas[:n_params], rot, global_t[:n_params])
         except ValueError as exc:
-            raise fail(path, str(exc)) from None
+            raise file_error(path, str(exc)) from None
         if n_params < n_det:
             warnings.append(f"{path}: {n_det - n_params} detections without SMPL parameters (--infill rows) "
                             "were skipped")
@@ -134,10 +141,10 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
             try:
                 vertices, frame_joints = lbs(model, betas[rows], rot[rows], global_t[rows])
             except ValueError as exc:
-                raise fail(path, str(exc)) from None
+                raise file_error(path, str(exc)) from None
         else:
             vertices, frame_joints = None, joints[rows]
-        keypoints = None if model is not None else project_px(pred_joints[rows], focal, principal_point)
+        keypoints = None if model is not None else project_cam_to_px(pred_joints[rows], focal, principal_point)
         return people_frame(
             names[i], f"{path} [image {i}]", notes.warnings, vertices=vertices, joints=frame_joints,
             keypoints_2d=keypoints, person_ids=track_col[rows] if use_ids else None,

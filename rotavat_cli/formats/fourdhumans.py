@@ -30,10 +30,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
-                      feet_heads_from, frame_names, get, model_faces, no_model_warning, padded_square, people_frame)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .image_size import padded_square
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces, no_model_warning
 from .smpl import lbs
 
 _KEYPOINTS_LAYOUT = "phalp44 (OpenPose-25 + 19 extra)"
@@ -55,7 +61,7 @@ def _frame_order(data: Mapping, source: Path) -> list[str]:
     """Frame keys sorted by PHALP's ``time`` (then key)."""
     for key, value in data.items():
         if not isinstance(value, Mapping):
-            raise fail(source, f"frame {key!r} is not a dict")
+            raise file_error(source, f"frame {key!r} is not a dict")
     return sorted(data, key=lambda k: (data[k].get("time", 0) if isinstance(data[k].get("time", 0), (int, np.integer)) else 0, str(k)))
 
 
@@ -74,7 +80,7 @@ def _image_size(data: Mapping, order: list[str], opts: ImportOptions, source: Pa
                             f"stored {stored[0]}x{stored[1]}; using --image-size")
         return opts.image_size
     if stored is None:
-        raise fail(source, "no 'size' stored (no detections); pass --image-size W H")
+        raise file_error(source, "no 'size' stored (no detections); pass --image-size W H")
     return stored
 
 
@@ -82,7 +88,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
     """PHALP / 4D-Humans tracking .pkl -> contract frames."""
     data = safe_pickle.load_file(src)
     if not isinstance(data, Mapping) or not data:
-        raise fail(src, "not a PHALP results file (expected a non-empty dict of frames)")
+        raise file_error(src, "not a PHALP results file (expected a non-empty dict of frames)")
     order = _frame_order(data, src)
     warnings: list[str] = []
     image_size = _image_size(data, order, opts, src, warnings)
@@ -99,7 +105,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         tracked = frame.get("tracked_time")
         tracked = [0] * len(tids) if tracked is None else list(tracked)
         if len(tracked) != len(tids):
-            raise fail(source, "'tracked_time' and 'tid' differ in length")
+            raise file_error(source, "'tracked_time' and 'tid' differ in length")
         keep = [i for i, t in enumerate(tracked) if t == 0]
         n = len(keep)
         cams = np.stack([as_array(frame["camera"][i], "camera", source).reshape(3) for i in keep]) if n else np.zeros((0, 3))

@@ -56,11 +56,17 @@ import numpy as np
 
 from .. import safe_pickle
 from ..camera import world_to_cam
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
-                      check_model_kind, fail, feet_heads_from, frame_names, get, int64_ids, model_faces,
-                      no_model_warning, people_frame)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .ids import int64_ids
+from .image_size import centre_image_size
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces, no_model_warning
 from .smpl import BodyModel, lbs, pose_from_body
 
 __all__ = ["KEYPOINTS_LAYOUT", "READERS", "read_glamr", "sniff"]
@@ -101,8 +107,8 @@ def _result_file(src: Path) -> Path:
         return src
     found = _candidates(src)
     if len(found) != 1:
-        raise fail(src, f"expected one GLAMR result '{_GLOB}' in the folder or its grecon/, found {len(found)}"
-                        + (" (one per seed: pass the file)" if found else ""))
+        raise file_error(src, f"expected one GLAMR result '{_GLOB}' in the folder or its grecon/, found {len(found)}"
+                              + (" (one per seed: pass the file)" if found else ""))
     return found[0]
 
 
@@ -126,15 +132,15 @@ def _person(key: object, entry: object, n_frames: int, source: str) -> _Person:
     try:
         pid = int(key)  # type: ignore[call-overload]
     except (TypeError, ValueError, OverflowError):
-        raise fail(source, f"person key {str(key)[:40]!r} is not an integer id") from None
+        raise file_error(source, f"person key {str(key)[:40]!r} is not an integer id") from None
     int64_ids([pid], "person id", source)
     where = f"{source} [person {pid}]"
 
     def series(name: str, trailing: tuple[int, ...], kinds: str = "fiu") -> np.ndarray:
         arr = as_array(get(entry, name, where), name, where, kinds=kinds)
         if arr.shape != (n_frames, *trailing):
-            raise fail(where, f"'{name}' must be {[n_frames, *trailing]} (T = {n_frames} frames of cam_pose), "
-                              f"got {list(arr.shape)}")
+            raise file_error(where, f"'{name}' must be {[n_frames, *trailing]} (T = {n_frames} frames of cam_pose), "
+                                    f"got {list(arr.shape)}")
         return arr
 
     visible = get(entry, "visible_orig", where, required=False)
@@ -143,7 +149,7 @@ def _person(key: object, entry: object, n_frames: int, source: str) -> _Person:
         present &= series("exist_frames", (), "fiub").astype(bool)
     betas = as_array(get(entry, "smpl_beta", where), "smpl_beta", where, ndim=2)
     if len(betas) != n_frames:
-        raise fail(where, f"'smpl_beta' must be (T, B) with T = {n_frames}, got {list(betas.shape)}")
+        raise file_error(where, f"'smpl_beta' must be (T, B) with T = {n_frames}, got {list(betas.shape)}")
     scale = get(entry, "scale", where, required=False)
     kp = get(entry, "kp_2d_pred", where, required=False)
     return _Person(pid, series("smpl_orient_world", (3,)), series("smpl_pose", (69,)), betas,
@@ -155,12 +161,12 @@ def _intrinsics(people: list[_Person], source: Path, warnings: list[str]) -> np.
     """cam_K (3, 3) of the first detection; a warning when others differ."""
     detected = [p.cam_K[p.present] for p in people if p.present.any()]
     if not detected:
-        raise fail(source, "no person is detected in any frame (no cam_K to read the focal from)")
+        raise file_error(source, "no person is detected in any frame (no cam_K to read the focal from)")
     K = detected[0][0]
     if not all(np.allclose(k, K, rtol=_FOCAL_RTOL) for k in detected):
         warnings.append(f"{source}: cam_K differs between frames or people; using the first detection's")
     if not (np.all(np.isfinite(K)) and K[0, 0] > 0 and K[1, 1] > 0 and K[0, 2] > 0 and K[1, 2] > 0):
-        raise fail(source, f"cam_K must have positive focal and principal point, got {K[:2].tolist()}")
+        raise file_error(source, f"cam_K must have positive focal and principal point, got {K[:2].tolist()}")
     return K
 
 
@@ -184,9 +190,9 @@ def _check_root_scale(person: _Person, source: Path) -> None:
     bad = np.flatnonzero(person.present & ~(np.isfinite(person.scale) & (person.scale > 0)))
     if len(bad):
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise fail(f"{source} [person {person.pid}]",
-                   f"'scale' is {person.scale[bad[0]]:g} in frame {bad[0]}{more}: GLAMR's root scale must be positive "
-                   "(the mesh would collapse onto its root)")
+        raise file_error(f"{source} [person {person.pid}]",
+                         f"'scale' is {person.scale[bad[0]]:g} in frame {bad[0]}{more}: GLAMR's root scale must be "
+                         "positive (the mesh would collapse onto its root)")
 
 
 def _check_model(model: BodyModel | None, source: Path, warnings: list[str]) -> BodyModel | None:
@@ -213,12 +219,12 @@ def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
     path = _result_file(src)
     data = safe_pickle.load_file(path)
     if not _is_glamr(data):
-        raise fail(path, "not a GLAMR result (expected a dict with 'person_data' and 'cam_pose')")
+        raise file_error(path, "not a GLAMR result (expected a dict with 'person_data' and 'cam_pose')")
     cam_pose = as_array(data["cam_pose"], "cam_pose", path, ndim=3, last=(4, 4))
     n_frames = len(cam_pose)
     people = [_person(key, entry, n_frames, str(path)) for key, entry in data["person_data"].items()]
     if len({p.pid for p in people}) != len(people):
-        raise fail(path, "person ids repeat in 'person_data'")
+        raise file_error(path, "person ids repeat in 'person_data'")
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)
     if model is not None:  # without a model only the roots are imported: the scale is not used

@@ -38,10 +38,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
-                      feet_heads_from, frame_names, get, model_faces, people_frame, require_model)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .image_size import centre_image_size
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces, require_model
 from .smpl import joints_to_smpl24, lbs, pose_from_body
 
 _RESULTS = "hmr4d_results.pt"
@@ -76,7 +82,7 @@ def _per_frame(value: object, name: str, source: Path, width: int) -> np.ndarray
     if array.ndim == 3 and array.shape[0] == 1:
         array = array[0]
     if array.ndim != 2 or array.shape[1] < width:
-        raise fail(source, f"'smpl_params_incam.{name}' must be (L, {width}), got {list(array.shape)}")
+        raise file_error(source, f"'smpl_params_incam.{name}' must be (L, {width}), got {list(array.shape)}")
     return array
 
 
@@ -86,7 +92,7 @@ def _intrinsics(K: np.ndarray, opts: ImportOptions, source: Path,
     focal = (K[:, 0, 0] + K[:, 1, 1]) / 2.0
     principal = K[:, :2, 2]
     if not (np.all(np.isfinite(K)) and np.all(focal > 0) and np.all(principal > 0)):
-        raise fail(source, "'K_fullimg' must hold positive, finite focal lengths and principal points")
+        raise file_error(source, "'K_fullimg' must hold positive, finite focal lengths and principal points")
     if np.any(np.abs(K[:, 0, 0] - K[:, 1, 1]) > 1e-6 * focal):
         warnings.append(f"{source}: K_fullimg has fx != fy; using their mean")
     centre = np.median(principal, axis=0)
@@ -104,11 +110,11 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     """GVHMR ``hmr4d_results.pt`` (or its output folder) -> contract frames, one person per frame."""
     path = _results_file(src)
     if path is None:
-        raise fail(src, f"no GVHMR results: expected a .pt file or a folder holding {_RESULTS}")
+        raise file_error(src, f"no GVHMR results: expected a .pt file or a folder holding {_RESULTS}")
     data = safe_pickle.load_torch(path)
     incam = get(data, "smpl_params_incam", path)
     if not isinstance(incam, Mapping):
-        raise fail(path, "'smpl_params_incam' is not a dict of parameters")
+        raise file_error(path, "'smpl_params_incam' is not a dict of parameters")
     params = {name: _per_frame(get(incam, name, path), name, path, width)
               for name, width in (("global_orient", 3), ("body_pose", 63), ("betas", 1), ("transl", 3))}
     K = as_array(get(data, "K_fullimg", path), "K_fullimg", path, last=(3, 3))
@@ -116,9 +122,9 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     K = np.broadcast_to(K.reshape(-1, 3, 3), (n_frames, 3, 3)) if K.size == 9 else K.reshape(-1, 3, 3)
     for name, array in [*params.items(), ("K_fullimg", K)]:
         if len(array) != n_frames:
-            raise fail(path, f"'{name}' has {len(array)} frames, 'transl' {n_frames}")
+            raise file_error(path, f"'{name}' has {len(array)} frames, 'transl' {n_frames}")
     if n_frames == 0:
-        raise fail(path, "no frames in the results")
+        raise file_error(path, "no frames in the results")
 
     warnings: list[str] = []
     image_size, focal, principal, size_from = _intrinsics(K, opts, path, warnings)

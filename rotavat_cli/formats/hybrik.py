@@ -57,11 +57,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
-from ..camera import MAX_IMAGE_SIDE_PX
+from ..camera import MAX_IMAGE_SIDE_PX, project_cam_to_px
+from ..errors import file_error
 from ..focal import ASSUMED, hybrik_focal_px
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
-                      feet_heads_from, frame_names, get, model_faces, no_model_warning, people_frame, project_px)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces, no_model_warning
 from .smpl import lbs, pose_to_matrices
 
 __all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px", "video_of"]
@@ -137,7 +142,7 @@ def reprojection_rms_px(xyz_rel, uv_px, root_cam, focal_px, principal_point, dep
     """RMS (px) between ``uv_px`` (N, K, 2) and the camera-frame joints projected with ``focal_px`` (N,)
     and ``principal_point`` (2,) or (N, 2)."""
     centre = np.broadcast_to(np.asarray(principal_point, np.float64), (len(xyz_rel), 2))
-    projected = project_px(joints_cam(xyz_rel, root_cam, depth_factor_m), focal_px[:, None], centre[:, None])
+    projected = project_cam_to_px(joints_cam(xyz_rel, root_cam, depth_factor_m), focal_px[:, None], centre[:, None])
     return float(np.sqrt(np.nanmean(np.sum((projected - uv_px) ** 2, axis=-1))))
 
 
@@ -174,13 +179,13 @@ def _image_sizes(data: Mapping, n_rows: int, src: Path) -> np.ndarray:
     widths = as_array(get(data, "width", src), "width", src, ndim=1).reshape(-1)
     heights = as_array(get(data, "height", src), "height", src, ndim=1).reshape(-1)
     if len(widths) != n_rows or len(heights) != n_rows:
-        raise fail(src, f"'width'/'height' must have one entry per row ({n_rows})")
+        raise file_error(src, f"'width'/'height' must have one entry per row ({n_rows})")
     sizes = np.stack([widths, heights], axis=1)
     with np.errstate(invalid="ignore"):
         valid = np.isfinite(sizes) & (sizes >= 1) & (sizes <= MAX_IMAGE_SIDE_PX)
     if not valid.all():
         bad = sizes[np.argmin(valid.all(axis=1))].tolist()
-        raise fail(src, f"'width'/'height' must be image sizes of 1 to {MAX_IMAGE_SIDE_PX} px, got {bad}")
+        raise file_error(src, f"'width'/'height' must be image sizes of 1 to {MAX_IMAGE_SIDE_PX} px, got {bad}")
     return sizes.astype(np.int64)
 
 
@@ -206,7 +211,7 @@ def _select_video(videos: list[str], video: str | None, src: Path, described: di
         return np.arange(len(videos))
     picked = np.flatnonzero(np.asarray(videos) == video)
     if not picked.size:
-        raise fail(src, f"holds no video named '{video}' (--video); its videos: {_listed(described)}")
+        raise file_error(src, f"holds no video named '{video}' (--video); its videos: {_listed(described)}")
     return picked
 
 
@@ -233,8 +238,8 @@ def _person_ids_note(video_ids: dict[str, int]) -> str:
 def _rows(data: Mapping, src: Path) -> dict[str, np.ndarray]:
     """The arrays the import needs, validated: one row per (image, person)."""
     if "pred_xyz_29" not in data and "pred_uvd" in data:
-        raise fail(src, "a HybrIK-X (SMPL-X, demo_video_x.py) res.pk: it has no 'pred_xyz_29' camera joints and its "
-                        "SMPL-X pose uses HybrIK-X's own kid shape space; not supported")
+        raise file_error(src, "a HybrIK-X (SMPL-X, demo_video_x.py) res.pk: it has no 'pred_xyz_29' camera joints and "
+                              "its SMPL-X pose uses HybrIK-X's own kid shape space; not supported")
     xyz = as_array(get(data, "pred_xyz_29", src), "pred_xyz_29", src, ndim=3, last=(_N_JOINTS, 3))
     n_rows = len(xyz)
     out = {"xyz": xyz}
@@ -246,17 +251,17 @@ def _rows(data: Mapping, src: Path) -> dict[str, np.ndarray]:
         out["uvd"] = as_array(data["pred_uvd"], "pred_uvd", src, ndim=3, last=(_N_JOINTS, 3))
     paths = get(data, "img_path", src)
     if not isinstance(paths, (np.ndarray, list, tuple)) or np.ndim(paths) != 1 or not all(isinstance(p, str) for p in paths):
-        raise fail(src, "'img_path' must be a list of image paths")
+        raise file_error(src, "'img_path' must be a list of image paths")
     try:  # corrupt unicode arrays hold code points no string may (SystemError once the text is read)
         out["img_path"] = np.asarray([str(p).encode("utf-8").decode("utf-8") for p in paths])
     except (UnicodeError, SystemError):
-        raise fail(src, "'img_path' holds invalid text") from None
+        raise file_error(src, "'img_path' holds invalid text") from None
     for key, value in out.items():
         if len(value) != n_rows:
-            raise fail(src, f"'{key if key != 'xyz' else 'pred_xyz_29'}' has {len(value)} rows but 'pred_xyz_29' has {n_rows}")
+            raise file_error(src, f"'{key if key != 'xyz' else 'pred_xyz_29'}' has {len(value)} rows but 'pred_xyz_29' has {n_rows}")
     widths = box_geometry(out["bbox"])[1]
     if n_rows and not (np.all(np.isfinite(widths)) and widths.min() > 0):
-        raise fail(src, "'bbox' must hold boxes [x1, y1, x2, y2] with x2 > x1 (HybrIK's focal scales with the box width)")
+        raise file_error(src, "'bbox' must hold boxes [x1, y1, x2, y2] with x2 > x1 (HybrIK's focal scales with the box width)")
     return out
 
 
@@ -265,7 +270,7 @@ def _pose_params(data: Mapping, n_rows: int, src: Path, warnings: list[str]) -> 
     thetas = as_array(get(data, "pred_thetas", src), "pred_thetas", src)
     betas = as_array(get(data, "pred_betas", src), "pred_betas", src, ndim=2)
     if len(thetas) != n_rows or len(betas) != n_rows:
-        raise fail(src, f"'pred_thetas'/'pred_betas' must have {n_rows} rows")
+        raise file_error(src, f"'pred_thetas'/'pred_betas' must have {n_rows} rows")
     if thetas.reshape(n_rows, -1).shape[1] == 24 * 4:
         warnings.append(f"{src}: 'pred_thetas' holds quaternions (an older HybrIK); they are not read: joints only, "
                         "no meshes")
@@ -273,7 +278,7 @@ def _pose_params(data: Mapping, n_rows: int, src: Path, warnings: list[str]) -> 
     try:
         return pose_to_matrices(thetas.reshape(n_rows, -1), 24), betas
     except ValueError:
-        raise fail(src, f"'pred_thetas' must be 24 rotation matrices per row, got shape {list(thetas.shape)}") from None
+        raise file_error(src, f"'pred_thetas' must be 24 rotation matrices per row, got shape {list(thetas.shape)}") from None
 
 
 def _frames(img_paths: np.ndarray) -> list[tuple[str, list[int]]]:
@@ -288,11 +293,11 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     """HybrIK ``res.pk`` -> contract frames with one focal per person."""
     data = safe_pickle.load_file(src)
     if not isinstance(data, Mapping):
-        raise fail(src, f"not a HybrIK res.pk (expected a dict of arrays, got {type(data).__name__})")
+        raise file_error(src, f"not a HybrIK res.pk (expected a dict of arrays, got {type(data).__name__})")
     rows = _rows(data, src)
     n_rows = len(rows["xyz"])
     if n_rows == 0:
-        raise fail(src, "holds no detections")
+        raise file_error(src, "holds no detections")
     sizes = _image_sizes(data, n_rows, src)  # (N, 2)
     videos = [video_of(path) for path in rows["img_path"].tolist()]
     described = _videos(videos, sizes, _frames(rows["img_path"]))
@@ -303,7 +308,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     frames = _frames(rows["img_path"])
     for path, picks in frames:
         if len(np.unique(sizes[picks], axis=0)) > 1:
-            raise fail(src, f"the rows of image '{path}' state different image sizes ('width'/'height')")
+            raise file_error(src, f"the rows of image '{path}' state different image sizes ('width'/'height')")
     warnings: list[str] = []
     stored = sorted({tuple(size) for size in sizes.tolist()})
     per_frame_sizes = len(stored) > 1  # images of several sizes: each frame states its own (contract keys)
@@ -323,7 +328,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
         try:
             depth_factor, rms = choose_depth_factor_m(rows["xyz"], uv_px, rows["root"], focal_px, centres)
         except ValueError as exc:
-            raise fail(src, str(exc)) from None
+            raise file_error(src, str(exc)) from None
         depth_from = f"fitted to pred_uvd (reprojection rms {rms:.2g} px)"
     else:
         uv_px, depth_factor, depth_from = None, _DEMO_DEPTH_FACTOR_M, "demo_video.py's config (no pred_uvd to check it)"
@@ -334,7 +339,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
                         "used as fitted")
     joints29 = joints_cam(rows["xyz"], rows["root"], depth_factor)
     if uv_px is None:
-        uv_px = project_px(joints29, focal_px[:, None], centres[:, None])
+        uv_px = project_cam_to_px(joints29, focal_px[:, None], centres[:, None])
     model = opts.body_model
     pose = None
     if model is not None:

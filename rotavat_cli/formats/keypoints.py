@@ -4,7 +4,7 @@ Calibration and joint-level alignment need, per person, the pixel of the mid-sol
 crown (``feet_2d`` / ``heads_2d``, docs/conventions.md). Meshes give them through their landmark
 vertices (:mod:`rotavat_cli.landmarks`); without a body model, an importer still has the tool's
 2D keypoints, and the importer passes its layout's name to
-:func:`rotavat_cli.formats._common.people_frame` (``keypoints_layout=``), which writes
+:func:`rotavat_cli.formats.frames.people_frame` (``keypoints_layout=``), which writes
 ``feet_2d``/``heads_2d`` and records which points were used (``meta.yaml``
 ``import.feet_heads_from``).
 
@@ -87,16 +87,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key  # re-exported: the layouts live in the leaf
+from ..joint_layouts import LAYOUT_NAMES, layout_key
 
 __all__ = [
     "LAYOUTS",
-    "LAYOUT_NAMES",
     "KeypointRecipe",
     "PointRule",
     "extrapolated",
     "feet_heads_px",
-    "layout_by_count",
     "mean_of",
     "recipe_for",
 ]

@@ -37,12 +37,19 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..camera import project_cam_to_px
+from ..errors import file_error
 from ..focal import ASSUMED
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
-                      feet_heads_from, frame_names, model_faces, natural_key, need_image_size, people_frame, project_px,
-                      wrong_kind)
-from .keypoints import layout_by_count
+from .content import as_array
+from .file_kinds import wrong_kind
+from .frame_names import frame_names, natural_key
+from .frames import people_frame
+from .image_size import need_image_size
+from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces
 from .smpl import joints_to_smpl24
 
 DEFAULT_FOV_DEG = 60.0  # demo.py --fov default
@@ -80,7 +87,7 @@ def _files(src: Path) -> list[Path]:
     if not files:
         others = Counter(p.suffix or p.name for p in src.iterdir() if p.is_file() and not p.name.startswith("."))
         held = ", ".join(f"{n} {suffix}" for suffix, n in sorted(others.items())) or "no files"
-        raise fail(src, f"no Multi-HMR result files (.npy, .npz or .pkl) found (it holds {held})")
+        raise file_error(src, f"no Multi-HMR result files (.npy, .npz or .pkl) found (it holds {held})")
     return sorted(files, key=lambda p: natural_key(p.name))
 
 
@@ -107,14 +114,14 @@ def _humans(path: Path) -> dict[str, np.ndarray | None]:
         if not content:
             return {"verts": np.zeros((0, 0, 3)), "j3d": None}
         if not all(isinstance(h, Mapping) for h in content):
-            raise fail(path, "expected a list of per-person dicts")
+            raise file_error(path, "expected a list of per-person dicts")
         verts = np.stack([as_array(h.get("verts_smplx"), "verts_smplx", path, ndim=2, last=(3,)) for h in content])
         has_j3d = all(h.get("j3d_smplx") is not None for h in content)
         j3d = np.stack([as_array(h["j3d_smplx"], "j3d_smplx", path, ndim=2, last=(3,)) for h in content]) if has_j3d else None
         return {"verts": verts, "j3d": j3d}
     if isinstance(content, Mapping):
         if "verts_smplx" not in content:
-            raise fail(path, "no 'verts_smplx' key")
+            raise file_error(path, "no 'verts_smplx' key")
         verts = as_array(content["verts_smplx"], "verts_smplx", path)
         if verts.size == 0:
             return {"verts": np.zeros((0, 0, 3)), "j3d": None}
@@ -122,7 +129,7 @@ def _humans(path: Path) -> dict[str, np.ndarray | None]:
         j3d = content.get("j3d_smplx")
         j3d = as_array(j3d, "j3d_smplx", path, ndim=3, last=(3,)) if j3d is not None and np.size(j3d) else None
         return {"verts": verts, "j3d": j3d}
-    raise fail(path, f"unexpected content ({type(content).__name__})")
+    raise file_error(path, f"unexpected content ({type(content).__name__})")
 
 
 def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
@@ -143,7 +150,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         n = len(verts)
         joints = kp = layout = None
         if j3d is not None and len(j3d) != n:
-            raise fail(path, "'j3d_smplx' and 'verts_smplx' differ in their number of people")
+            raise file_error(path, "'j3d_smplx' and 'verts_smplx' differ in their number of people")
         if j3d is None and model is not None and n and model.n_verts == verts.shape[1]:
             j3d = np.einsum("jv,pvc->pjc", model.J_regressor, verts)  # joints regressed from the posed mesh
             layout = "smpl24 (regressed from the meshes with --smpl-model)"
@@ -154,7 +161,7 @@ def read_multihmr(src: Path, opts: ImportOptions) -> ImportedSequence:
             except ValueError:
                 joints = j3d
                 layout = layout or f"multihmr{j3d.shape[1]}"
-            kp = project_px(j3d, focal, principal_point)
+            kp = project_cam_to_px(j3d, focal, principal_point)
         notes.facts["joints_layout"] = layout
         return people_frame(names[index], path, notes.warnings, vertices=verts if verts.shape[1] else None,
                             joints=joints, keypoints_2d=kp,

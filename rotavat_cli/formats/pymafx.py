@@ -45,10 +45,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_frame_range, fail,
-                      feet_heads_from, frame_names, get, model_faces, people_frame)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .ids import check_frame_range
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces
 from .smpl import BodyModel, joints_to_smpl24, pose_from_body, posed_joints
 
 _KEYPOINTS_LAYOUT = "coco17 (openpifpaf detections: x, y, confidence)"
@@ -83,7 +89,7 @@ def _results_file(src: Path) -> Path:
     if src.is_dir():
         src = src / "output.pkl"
         if not src.is_file():
-            raise fail(src.parent, "no PyMAF-X output.pkl in the directory")
+            raise file_error(src.parent, "no PyMAF-X output.pkl in the directory")
     return src
 
 
@@ -91,7 +97,7 @@ def _load(path: Path) -> Mapping:
     """The results dict (its torch tensors, ``smplx_params``, come back as inert numpy arrays; unused)."""
     data = safe_pickle.load_file(path)
     if not isinstance(data, Mapping) or "orig_cam_t" not in data:
-        raise fail(path, "not a PyMAF-X output.pkl (expected a dict with 'orig_cam_t')")
+        raise file_error(path, "not a PyMAF-X output.pkl (expected a dict with 'orig_cam_t')")
     return data
 
 
@@ -99,7 +105,7 @@ def _rows(data: Mapping, key: str, path: Path, n_rows: int, ndim: int, last: tup
     """Per-detection array ``key`` validated to (N, ...) with N = n_rows."""
     arr = as_array(get(data, key, path), key, path, ndim=ndim, last=last)
     if len(arr) != n_rows:
-        raise fail(path, f"'{key}' has {len(arr)} rows but 'orig_cam_t' has {n_rows}")
+        raise file_error(path, f"'{key}' has {len(arr)} rows but 'orig_cam_t' has {n_rows}")
     return arr
 
 
@@ -134,8 +140,8 @@ def _image_size(data: Mapping, path: Path, n_rows: int, opts: ImportOptions,
                             f"{recovered[0]}x{recovered[1]} of 'orig_cam'; using --image-size")
         return opts.image_size, "--image-size"
     if recovered is None:
-        raise fail(path, "the image size is not stored in PyMAF-X results and could not be recovered from "
-                         "'orig_cam'; pass --image-size W H")
+        raise file_error(path, "the image size is not stored in PyMAF-X results and could not be recovered from "
+                               "'orig_cam'; pass --image-size W H")
     return recovered, "recovered from orig_cam (sx = s h / W, sy = s h / H)"
 
 
@@ -146,7 +152,7 @@ def _mesh_key(data: Mapping, model: BodyModel | None, path: Path) -> str:
     for key in wanted:
         if data.get(key) is not None:
             return key
-    raise fail(path, f"holds no '{wanted[0]}' meshes")
+    raise file_error(path, f"holds no '{wanted[0]}' meshes")
 
 
 def _frame_sources(person_ids: list | None, frame_ids: np.ndarray, n_frames: int) -> list[str]:
@@ -176,7 +182,7 @@ def _keypoints(entries: list, source: str) -> np.ndarray:
         return np.zeros((0, 17, 3))
     arrays = [as_array(entry, "joints2d", source, ndim=2) for entry in entries]
     if len({a.shape for a in arrays}) != 1 or arrays[0].shape[1] not in (2, 3):
-        raise fail(source, "'joints2d' entries must share one (K, 2) or (K, 3) shape")
+        raise file_error(source, "'joints2d' entries must share one (K, 2) or (K, 3) shape")
     return np.stack(arrays)
 
 
@@ -187,10 +193,10 @@ def read_pymafx(src: Path, opts: ImportOptions) -> ImportedSequence:
     cam_t = as_array(data["orig_cam_t"], "orig_cam_t", path, ndim=2, last=(3,))
     n_rows = len(cam_t)
     if not n_rows:
-        raise fail(path, "holds no detections")
+        raise file_error(path, "holds no detections")
     frame_ids = as_array(get(data, "frame_ids", path), "frame_ids", path, kinds="iu").reshape(-1)
     if len(frame_ids) != n_rows or frame_ids.min() < 0:
-        raise fail(path, f"'frame_ids' must hold {n_rows} frame indices >= 0")
+        raise file_error(path, f"'frame_ids' must hold {n_rows} frame indices >= 0")
     warnings: list[str] = []
     image_size, size_origin = _image_size(data, path, n_rows, opts, warnings)
     focal = focal_from_rule("pymafx", image_size)
@@ -198,13 +204,13 @@ def read_pymafx(src: Path, opts: ImportOptions) -> ImportedSequence:
 
     model = opts.body_model
     if model is not None and model.kind not in ("smpl", "smplx"):
-        raise fail(path, f"PyMAF-X meshes are SMPL-X (or SMPL topology); --smpl-model {model.name} has "
-                         f"{model.n_joints} joints (need 55 or 24)")
+        raise file_error(path, f"PyMAF-X meshes are SMPL-X (or SMPL topology); --smpl-model {model.name} has "
+                               f"{model.n_joints} joints (need 55 or 24)")
     mesh_key = _mesh_key(data, model, path)
     meshes = _rows(data, mesh_key, path, n_rows, 3, (3,))
     if model is not None and model.n_verts != meshes.shape[1]:
-        raise fail(path, f"--smpl-model {model.name} has {model.n_verts} vertices but '{mesh_key}' has "
-                         f"{meshes.shape[1]}")
+        raise file_error(path, f"--smpl-model {model.name} has {model.n_verts} vertices but '{mesh_key}' has "
+                               f"{meshes.shape[1]}")
     pose = betas = spin_joints = None
     if model is not None and model.kind == "smplx":
         pose72 = _rows(data, "pose", path, n_rows, 2, (72,))  # SMPL's 24 joints: SMPL-X takes the first 22

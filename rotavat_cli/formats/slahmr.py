@@ -64,11 +64,18 @@ import numpy as np
 
 from .. import limits, safe_pickle
 from ..camera import world_to_cam
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
-                      feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys, people_frame,
-                      require_model)
+from .content import as_array, get
+from .files import npz_has_keys
+from .frame_names import frame_names
+from .frames import people_frame
+from .ids import int64_ids
+from .image_size import centre_image_size
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces, require_model
 from .smpl import BodyModel, joints_to_smpl24, lbs, pose_from_body
 
 __all__ = ["PHASES", "READERS", "find_results", "read_slahmr", "sniff"]
@@ -148,11 +155,11 @@ def _track_info_path(results: Path) -> Path | None:
 def _read_track_info(path: Path, n_tracks: int, n_frames: int) -> _Tracks:
     """Track ids and visibility (B, T) from SLAHMR's track_info.json."""
     if path.stat().st_size > limits.current().max_file_bytes:
-        raise fail(path, "larger than limits.max_file_mb")
+        raise file_error(path, "larger than limits.max_file_mb")
     try:
         info = json.loads(path.read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError, RecursionError) as exc:
-        raise fail(path, f"not valid JSON ({exc})") from None
+        raise file_error(path, f"not valid JSON ({exc})") from None
     tracks = get(info, "tracks", path)
     meta = get(info, "meta", path)
     try:
@@ -161,12 +168,12 @@ def _read_track_info(path: Path, n_tracks: int, n_frames: int) -> _Tracks:
         rows = {int(get(track, "index", path)): (int(tid), [bool(v) for v in get(track, "vis_mask", path)])
                 for tid, track in tracks.items()}
     except (TypeError, ValueError, IndexError, AttributeError, OverflowError):
-        raise fail(path, "malformed 'tracks' or 'meta' (expected SLAHMR's track_info.json)") from None
+        raise file_error(path, "malformed 'tracks' or 'meta' (expected SLAHMR's track_info.json)") from None
     if sorted(rows) != list(range(n_tracks)):
-        raise fail(path, f"lists tracks {sorted(rows)}, the results hold {n_tracks} (not the same run?)")
+        raise file_error(path, f"lists tracks {sorted(rows)}, the results hold {n_tracks} (not the same run?)")
     masks = [rows[i][1] for i in range(n_tracks)]
     if seq_start < 0 or any(len(m) < seq_start + n_frames for m in masks):
-        raise fail(path, f"'vis_mask' shorter than seq_interval start {seq_start} + {n_frames} result frames")
+        raise file_error(path, f"'vis_mask' shorter than seq_interval start {seq_start} + {n_frames} result frames")
     present = np.array([m[seq_start:seq_start + n_frames] for m in masks], dtype=bool).reshape(n_tracks, n_frames)
     ids = int64_ids([rows[i][0] for i in range(n_tracks)], "track id", path)
     return _Tracks(ids, present, data_start + seq_start, "track_info.json vis_mask (visible frames only)")
@@ -181,7 +188,7 @@ def _tracks(results: Path, data: dict, n_tracks: int, n_frames: int, warnings: l
     if "track_mask" in data:
         mask = as_array(data["track_mask"], "track_mask", results, ndim=2, kinds="fiub")
         if mask.shape != (n_tracks, n_frames):
-            raise fail(results, f"'track_mask' must be (B, T) = ({n_tracks}, {n_frames}), got {list(mask.shape)}")
+            raise file_error(results, f"'track_mask' must be (B, T) = ({n_tracks}, {n_frames}), got {list(mask.shape)}")
         warnings.append(f"{results}: no track_info.json beside the phase folder: people are imported over their "
                         "whole track interval ('track_mask', occluded frames included) with row indices as ids")
         return _Tracks(ids, mask > 0, 0, "track_mask (track intervals, occlusions included)")
@@ -196,8 +203,8 @@ def _per_frame(arr: np.ndarray, name: str, source: Path, n_frames: int, trailing
     if arr.ndim == len(trailing) + 2:  # the same camera repeated per track (get_cameras); no track: no person to place
         arr = arr[0] if len(arr) else np.zeros(arr.shape[1:])
     if arr.ndim != len(trailing) + 1 or arr.shape[1:] != trailing or len(arr) < n_frames:
-        raise fail(source, f"'{name}' must be (B, T, {', '.join(map(str, trailing))}) with T >= {n_frames}, "
-                           f"got {list(arr.shape)}")
+        raise file_error(source, f"'{name}' must be (B, T, {', '.join(map(str, trailing))}) with T >= {n_frames}, "
+                                 f"got {list(arr.shape)}")
     return arr[:n_frames]
 
 
@@ -246,20 +253,20 @@ def _params(data: dict, path: Path) -> _Params:
     """Validate the arrays of a world results file (shapes named in each refusal)."""
     missing = sorted(_KEYS - set(data))
     if missing:
-        raise fail(path, f"not SLAHMR world results with cameras (missing {', '.join(missing)})")
+        raise file_error(path, f"not SLAHMR world results with cameras (missing {', '.join(missing)})")
     trans = as_array(data["trans"], "trans", path, ndim=3, last=(3,))
     n_tracks, n_frames = trans.shape[:2]
     root_orient = as_array(data["root_orient"], "root_orient", path, ndim=3, last=(3,))
     pose_body = as_array(data["pose_body"], "pose_body", path)
     if root_orient.shape[:2] != (n_tracks, n_frames) or pose_body.size != n_tracks * n_frames * 3 * _N_BODY_JOINTS:
-        raise fail(path, f"'root_orient' and 'pose_body' must be (B, T, 3) and (B, T, 63) with (B, T) = "
-                         f"({n_tracks}, {n_frames}) of 'trans'")
+        raise file_error(path, f"'root_orient' and 'pose_body' must be (B, T, 3) and (B, T, 63) with (B, T) = "
+                               f"({n_tracks}, {n_frames}) of 'trans'")
     betas = as_array(data["betas"], "betas", path, ndim=2)
     if len(betas) != n_tracks:
-        raise fail(path, f"'betas' must be (B, S) with B = {n_tracks}, got {list(betas.shape)}")
+        raise file_error(path, f"'betas' must be (B, S) with B = {n_tracks}, got {list(betas.shape)}")
     intrins = as_array(data["intrins"], "intrins", path).reshape(-1)
     if intrins.size < 4 or intrins.size % 4 or not np.all(np.isfinite(intrins[:4])) or np.any(intrins[:4] <= 0):
-        raise fail(path, "'intrins' must hold positive (fx, fy, cx, cy)")
+        raise file_error(path, "'intrins' must hold positive (fx, fy, cx, cy)")
     cam_f = None
     if "cam_f" in data:
         cam_f = _per_frame(as_array(data["cam_f"], "cam_f", path), "cam_f", path, n_frames, (2,))
@@ -273,11 +280,11 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     """SLAHMR world results (file, phase folder or run folder) -> contract frames in each image's camera."""
     path = find_results(src)
     if path is None:
-        raise fail(src, f"no SLAHMR *{_WORLD_SUFFIX} with cameras (cam_R, cam_t, intrins) found: give the file, "
-                        "a phase folder (e.g. motion_chunks/) or the run folder")
+        raise file_error(src, f"no SLAHMR *{_WORLD_SUFFIX} with cameras (cam_R, cam_t, intrins) found: give the file, "
+                              "a phase folder (e.g. motion_chunks/) or the run folder")
     if path.name.endswith(_PRIOR_SUFFIX):
-        raise fail(path, "SLAHMR's motion-prior results are in the prior's canonical frame: import the "
-                         f"matching *{_WORLD_SUFFIX} instead")
+        raise file_error(path, "SLAHMR's motion-prior results are in the prior's canonical frame: import the "
+                               f"matching *{_WORLD_SUFFIX} instead")
     data = safe_pickle.load_npz(path, keys=_KEYS | {"track_mask", "cam_f"})  # other members are never read
     params = _params(data, path)
     warnings: list[str] = []

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits, safe_pickle
-from ..errors import InputError
+from ..errors import InputError, file_error
 from ..rotations import axis_angle_to_matrix
 
 __all__ = [
@@ -96,19 +96,19 @@ class BodyModel:
 def _model_arrays(path: Path) -> dict[str, np.ndarray]:
     """Required (and optional 'f') arrays of an npz model file, without pickle."""
     if path.suffix.lower() == ".pkl":
-        raise InputError(f"{path}: pickled SMPL models are not read (they hold chumpy/scipy objects); "
-                         "pass the .npz release of the model (e.g. SMPL_NEUTRAL.npz, SMPLX_NEUTRAL.npz)")
+        raise file_error(path, "pickled SMPL models are not read (they hold chumpy/scipy objects); "
+                               "pass the .npz release of the model (e.g. SMPL_NEUTRAL.npz, SMPLX_NEUTRAL.npz)")
     with safe_pickle.open_npz(path) as npz:  # declared sizes checked against the limits before reading
         missing = [k for k in _REQUIRED if k not in npz.keys()]
         if missing:
-            raise InputError(f"{path}: not an SMPL-family .npz model (missing {', '.join(missing)})")
+            raise file_error(path, f"not an SMPL-family .npz model (missing {', '.join(missing)})")
         keys = _REQUIRED + (("f",) if "f" in npz.keys() else ())
         try:
             return npz.read(keys, allow_pickle=False)
         except InputError as exc:
             if "object array" in str(exc):
-                raise InputError(f"{path}: a key is a pickled object (e.g. a scipy sparse matrix); re-save the "
-                                 "model with dense numpy arrays") from None
+                raise file_error(path, "a key is a pickled object (e.g. a scipy sparse matrix); re-save the "
+                                       "model with dense numpy arrays") from None
             raise
 
 
@@ -117,46 +117,43 @@ def load_body_model(path: str | Path) -> BodyModel:
     path = Path(path)
     arrays = _model_arrays(path)
 
-    def bad(message: str) -> InputError:
-        return InputError(f"{path}: {message}")
-
     v_template = np.asarray(arrays["v_template"], dtype=np.float64)
     if v_template.ndim != 2 or v_template.shape[1] != 3 or v_template.shape[0] == 0:
-        raise bad(f"'v_template' must be (V, 3), got {list(v_template.shape)}")
+        raise file_error(path, f"'v_template' must be (V, 3), got {list(v_template.shape)}")
     n_verts = v_template.shape[0]
     shapedirs = np.asarray(arrays["shapedirs"], dtype=np.float64)
     if shapedirs.ndim != 3 or shapedirs.shape[:2] != (n_verts, 3):
-        raise bad(f"'shapedirs' must be (V, 3, S) with V = {n_verts}, got {list(shapedirs.shape)}")
+        raise file_error(path, f"'shapedirs' must be (V, 3, S) with V = {n_verts}, got {list(shapedirs.shape)}")
     J_regressor = np.asarray(arrays["J_regressor"], dtype=np.float64)
     if J_regressor.ndim != 2 or J_regressor.shape[1] != n_verts:
-        raise bad(f"'J_regressor' must be dense (J, V) with V = {n_verts}, got {list(J_regressor.shape)}")
+        raise file_error(path, f"'J_regressor' must be dense (J, V) with V = {n_verts}, got {list(J_regressor.shape)}")
     n_joints = J_regressor.shape[0]
     weights = np.asarray(arrays["weights"], dtype=np.float64)
     if weights.shape != (n_verts, n_joints):
-        raise bad(f"'weights' must be (V, J) = ({n_verts}, {n_joints}), got {list(weights.shape)}")
+        raise file_error(path, f"'weights' must be (V, J) = ({n_verts}, {n_joints}), got {list(weights.shape)}")
     posedirs = np.asarray(arrays["posedirs"], dtype=np.float64)
     n_pose = 9 * (n_joints - 1)
     if posedirs.shape == (n_verts, 3, n_pose):
         posedirs = posedirs.reshape(n_verts * 3, n_pose).T  # smplx: reshape(-1, P).T
     elif posedirs.shape != (n_pose, n_verts * 3):
-        raise bad(f"'posedirs' must be (V, 3, {n_pose}), got {list(posedirs.shape)}")
+        raise file_error(path, f"'posedirs' must be (V, 3, {n_pose}), got {list(posedirs.shape)}")
     kintree = np.asarray(arrays["kintree_table"])
     if kintree.ndim != 2 or kintree.shape != (2, n_joints) or kintree.dtype.kind not in "iuf":
-        raise bad(f"'kintree_table' must be (2, J) = (2, {n_joints}), got {list(kintree.shape)}")
+        raise file_error(path, f"'kintree_table' must be (2, J) = (2, {n_joints}), got {list(kintree.shape)}")
     parents = kintree[0].astype(np.int64)
     parents[0] = -1
     if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, n_joints)):
-        raise bad("'kintree_table' must list each joint after its parent")
+        raise file_error(path, "'kintree_table' must list each joint after its parent")
     faces = None
     if "f" in arrays:
         faces = np.asarray(arrays["f"])
         if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu" or (faces.size and faces.max() >= n_verts):
-            raise bad("'f' must be (F, 3) vertex indices")
+            raise file_error(path, "'f' must be (F, 3) vertex indices")
         faces = faces.astype(np.int64)
     for key, arr in (("v_template", v_template), ("shapedirs", shapedirs), ("posedirs", posedirs),
                      ("J_regressor", J_regressor), ("weights", weights)):
         if not np.all(np.isfinite(arr)):
-            raise bad(f"'{key}' has non-finite values")
+            raise file_error(path, f"'{key}' has non-finite values")
     return BodyModel(path.name, v_template, shapedirs, posedirs, J_regressor, weights, parents, faces)
 
 

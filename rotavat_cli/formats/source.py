@@ -26,10 +26,11 @@ import numpy as np
 import yaml
 
 from ..camera import camera_from_yaml_dict, camera_to_yaml_dict
-from ..errors import InputError, input_errors
+from ..errors import file_error, input_errors
 from ..plain import to_plain
 from ..sequence import Frame, Sequence
-from ._common import Conclusion, FrameNotes, ImportedSequence
+from .imported import Conclusion, FrameNotes, ImportedSequence
+from .read import read_format, reading_errors
 from .smpl import BodyModel
 
 __all__ = ["ImportRecipe", "ImporterSource", "open_imported", "forget", "recipe_cached"]
@@ -65,11 +66,9 @@ class ImportRecipe:
 
     def read(self) -> ImportedSequence:
         """Open the source with its reader (what it loads is kept; frames are built on demand)."""
-        from . import read_format  # the registry imports this module's package
-
         if self.smpl_model is not None and self.smpl_model.startswith("object:"):
-            raise InputError(f"{self.src}: the body model was given as an object, which this process does not hold; "
-                             "pass the model file's path instead")
+            raise file_error(self.src, "the body model was given as an object, which this process does not hold; "
+                                       "pass the model file's path instead")
         with read_errors(self):
             return read_format(self.src, self.fmt, image_size=self.image_size, smpl_model=self.smpl_model,
                                fov_deg=self.fov_deg, video=self.video)
@@ -77,8 +76,6 @@ class ImportRecipe:
 
 def read_errors(recipe: ImportRecipe) -> Any:
     """Context: what malformed content raises while reading becomes a one-line InputError (as on import)."""
-    from . import reading_errors
-
     return reading_errors(Path(recipe.src), recipe.fmt)
 
 
@@ -177,7 +174,7 @@ class ImporterSource:
         """Convert one frame (validated as the contract's; arrays as an npz frame would hold them)."""
         index = self._index.get(name)
         if index is None:
-            raise InputError(f"{self.recipe.src}: has no frame named {name}")
+            raise file_error(self.recipe.src, f"has no frame named {name}")
         frame = self._build(index)
         return Frame(frame.name, {key: np.asarray(value) for key, value in frame.data.items()}, frame.source)
 
@@ -251,8 +248,6 @@ def open_imported(src: str | Path, fmt: str, *, read_camera: bool = True, **opti
         imported = _OPENED[recipe]
     else:
         with read_errors(recipe):
-            from . import read_format
-
             imported = read_format(src, fmt, **options)
         _OPENED[recipe] = imported
     _USERS[recipe] = _USERS.get(recipe, 0) + 1
@@ -268,7 +263,7 @@ def open_imported(src: str | Path, fmt: str, *, read_camera: bool = True, **opti
 def _sequence(src: str | Path, fmt: str, source: ImporterSource, read_camera: bool) -> Sequence:
     """The Sequence over an importer source, validated as ``open_sequence`` validates a directory's."""
     if not source.frame_names:
-        raise InputError(f"{src}: no frames found for format '{fmt}'")  # as import says it
+        raise file_error(src, f"no frames found for format '{fmt}'")  # as import says it
     seq = Sequence(Path(src), "npz", source.frame_names, source.meta, origin=str(src), source=source)
     seq.intrinsics, seq.focal_kind  # validated up front, as open_sequence does
     if not read_camera:

@@ -28,12 +28,17 @@ import numpy as np
 
 from .. import safe_pickle
 from ..camera import Camera, pitch_roll_from_up
+from ..errors import file_error
 from ..focal import ASSUMED
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
-                      fail, feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
+from .content import as_array, get
+from .frame_names import frame_names, natural_key
+from .frames import people_frame
+from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces
 from .smpl import lbs
 
 _UP_SPEC_WORLD = np.array([0.0, -1.0, 0.0])  # SPEC's world: y = gravity (down), as SMPL in the camera when level
@@ -58,7 +63,7 @@ def _folders(src: Path) -> tuple[Path, Path]:
     if src.name == "spec_results" and (src.parent / "camcalib").is_dir():
         return src, src.parent / "camcalib"
     if not sniff(src):
-        raise fail(src, "not a SPEC output folder (expected spec_results/ and camcalib/ inside)")
+        raise file_error(src, "not a SPEC output folder (expected spec_results/ and camcalib/ inside)")
     return src / "spec_results", src / "camcalib"
 
 
@@ -70,7 +75,7 @@ def _stem_of_camcalib(path: Path) -> str:
 def _scalar(obj: object, name: str, source: object) -> float:
     arr = as_array(np.asarray(obj) if not isinstance(obj, np.ndarray) else obj, name, source)
     if arr.size != 1 or not np.isfinite(arr).all():
-        raise fail(source, f"'{name}' must be one finite number")
+        raise file_error(source, f"'{name}' must be one finite number")
     return float(arr.reshape(()))
 
 
@@ -78,8 +83,8 @@ def _camcalib(path: Path) -> dict[str, float]:
     data = safe_pickle.load_file(path)
     cam = {key: _scalar(get(data, key, path), key, path) for key in ("pitch", "roll", "vfov", "f_pix")}
     if cam["f_pix"] <= 0 or not 0 < cam["vfov"] < np.pi:
-        raise fail(path, f"'f_pix' must be a positive focal length and 'vfov' a field of view in (0, pi), got "
-                         f"{cam['f_pix']:g} and {cam['vfov']:g}")
+        raise file_error(path, f"'f_pix' must be a positive focal length and 'vfov' a field of view in (0, pi), got "
+                               f"{cam['f_pix']:g} and {cam['vfov']:g}")
     return cam
 
 
@@ -102,10 +107,10 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
     results = {p.stem: p for p in results_dir.glob("*.pkl")}
     stems = sorted(set(calib) | set(results), key=natural_key)
     if not stems:
-        raise fail(src, "no SPEC results (spec_results/*.pkl) or CamCalib files (camcalib/*.pkl)")
+        raise file_error(src, "no SPEC results (spec_results/*.pkl) or CamCalib files (camcalib/*.pkl)")
     missing = [s for s in results if s not in calib]
     if missing:
-        raise fail(camcalib_dir, f"no CamCalib parameters for image '{missing[0]}'")
+        raise file_error(camcalib_dir, f"no CamCalib parameters for image '{missing[0]}'")
     cams = {stem: _camcalib(calib[stem]) for stem in stems}
     model = opts.body_model
     check_model_kind(model, src, "SPEC", "smpl")
@@ -145,8 +150,8 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
                 if image_size:
                     break
         if image_size is None:
-            raise fail(src, "the image size is not stored in SPEC results and could not be recovered from "
-                            "smpl_joints2d; pass --image-size W H")
+            raise file_error(src, "the image size is not stored in SPEC results and could not be recovered from "
+                                  "smpl_joints2d; pass --image-size W H")
         size_origin = "recovered from smpl_joints2d (principal point = image centre)"
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
     for stem in stems:  # CamCalib's focal is tied to the image height: check it

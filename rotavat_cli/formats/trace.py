@@ -40,12 +40,18 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
-                      feet_heads_from, frame_names, get, image_size_from_header, model_faces, no_model_warning,
-                      npz_has_keys, padded_square, people_frame, single_file)
 from .bev import _infer_image_size
+from .content import as_array, get
+from .files import npz_has_keys, single_file
+from .frame_names import frame_names
+from .frames import people_frame
+from .image_size import image_size_from_header, padded_square
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces, no_model_warning
 from .smpl import lbs, posed_joints
 
 _KEYS = {"outputs", "imgpaths"}
@@ -72,13 +78,13 @@ def _outputs(path: Path) -> tuple[dict, list[str]]:
     content = safe_pickle.load_npz(path, keys=tuple(sorted(_KEYS)))  # other members are never read
     missing = sorted(_KEYS - set(content))
     if missing:
-        raise fail(path, f"not a TRACE results file (missing {', '.join(missing)})")
+        raise file_error(path, f"not a TRACE results file (missing {', '.join(missing)})")
     outputs = content["outputs"]
     if outputs.shape != () or not isinstance(outputs.item(), dict):
-        raise fail(path, "'outputs' must hold a dict")
+        raise file_error(path, "'outputs' must hold a dict")
     imgpaths = np.asarray(content["imgpaths"]).reshape(-1)
     if imgpaths.dtype.kind not in "UO" or not all(isinstance(p, str) for p in imgpaths.tolist()):
-        raise fail(path, "'imgpaths' must hold image paths")
+        raise file_error(path, "'imgpaths' must hold image paths")
     return outputs.item(), [str(p) for p in imgpaths.tolist()]
 
 
@@ -86,7 +92,7 @@ def _rows(outputs: dict, key: str, path: Path, n_rows: int, ndim: int, last: tup
     """Per-detection array ``key`` validated to (N, ...) with N = n_rows."""
     arr = as_array(get(outputs, key, path), key, path, ndim=ndim, last=last)
     if len(arr) != n_rows:
-        raise fail(path, f"'{key}' has {len(arr)} rows but 'cam_trans' has {n_rows}")
+        raise file_error(path, f"'{key}' has {len(arr)} rows but 'cam_trans' has {n_rows}")
     return arr
 
 
@@ -108,8 +114,8 @@ def _image_size(outputs: dict, imgpaths: list[str], path: Path, n_rows: int, opt
             warnings.append(f"{path}: image size {width}x{height} fitted from pj2d and pj2d_org (+-1 px when the "
                             "padding is odd); pass --image-size W H to be exact")
             return (width, height), left, top, "fitted from pj2d / pj2d_org"
-    raise fail(path, "the image size is not stored in TRACE results, its images were not found and it could not "
-                     "be fitted from 'pj2d_org'; pass --image-size W H")
+    raise file_error(path, "the image size is not stored in TRACE results, its images were not found and it could not "
+                           "be fitted from 'pj2d_org'; pass --image-size W H")
 
 
 def _with_padding(image_size: tuple[int, int]) -> tuple[tuple[int, int], int, int]:
@@ -126,20 +132,20 @@ def read_trace(src: Path, opts: ImportOptions) -> ImportedSequence:
     n_rows = len(cam_trans)
     frame_index = _rows(outputs, "reorganize_idx", path, n_rows, 1, None)
     if frame_index.dtype.kind == "f" and not np.all(frame_index == np.round(frame_index)):
-        raise fail(path, "'reorganize_idx' must hold frame indices")
+        raise file_error(path, "'reorganize_idx' must hold frame indices")
     frame_index = frame_index.astype(np.int64)
     if n_rows and (frame_index.min() < 0 or frame_index.max() >= len(imgpaths)):
-        raise fail(path, f"'reorganize_idx' refers to frames outside 'imgpaths' ({len(imgpaths)} frames)")
+        raise file_error(path, f"'reorganize_idx' refers to frames outside 'imgpaths' ({len(imgpaths)} frames)")
     j3d = _rows(outputs, "j3d", path, n_rows, 3, (3,))
     if j3d.shape[1] < 24:
-        raise fail(path, f"'j3d' must hold at least the 24 SMPL joints, got {j3d.shape[1]}")
+        raise file_error(path, f"'j3d' must hold at least the 24 SMPL joints, got {j3d.shape[1]}")
     joints_cam = j3d[:, :24] + cam_trans[:, None]  # (N, 24, 3)
     keypoints = _rows(outputs, "pj2d_org", path, n_rows, 3, (2,)) if outputs.get("pj2d_org") is not None else None
     track_ids = None
     if outputs.get("track_ids") is not None:
         track_ids = as_array(outputs["track_ids"], "track_ids", path, kinds="iu").reshape(-1)
         if len(track_ids) != n_rows:
-            raise fail(path, f"'track_ids' has {len(track_ids)} entries but 'cam_trans' has {n_rows}")
+            raise file_error(path, f"'track_ids' has {len(track_ids)} entries but 'cam_trans' has {n_rows}")
     warnings: list[str] = []
     image_size, left, top, size_origin = _image_size(outputs, imgpaths, path, n_rows, opts, warnings)
     side = max(image_size)

@@ -42,11 +42,17 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
-                      check_frame_range, fail, feet_heads_from, frame_names, get, image_size_from_header, model_faces,
-                      people_frame, require_model)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .ids import check_frame_range
+from .image_size import centre_image_size, image_size_from_header
+from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import model_faces, require_model
 from .smpl import lbs
 
 _TRACK = re.compile(r"hps_track_(\d+)\.npy$")
@@ -79,7 +85,7 @@ def _dict_npy(path: Path) -> Mapping:
     content = safe_pickle.load_npy(path)
     value = content.item() if content.dtype.hasobject and content.shape == () else content
     if not isinstance(value, Mapping):
-        raise fail(path, f"expected np.save of a dict, got {type(value).__name__}")
+        raise file_error(path, f"expected np.save of a dict, got {type(value).__name__}")
     return value
 
 
@@ -96,9 +102,9 @@ def _camera(folder: Path) -> tuple[float, np.ndarray, np.ndarray | None, np.ndar
     focal = as_array(_scalar_array(get(camera, "img_focal", path)), "img_focal", path).reshape(-1)
     center = as_array(_scalar_array(get(camera, "img_center", path)), "img_center", path).reshape(-1)
     if focal.size != 1 or not np.isfinite(focal[0]) or focal[0] <= 0:
-        raise fail(path, "'img_focal' must be one positive focal length (px)")
+        raise file_error(path, "'img_focal' must be one positive focal length (px)")
     if center.size != 2 or not np.all(np.isfinite(center)) or np.any(center <= 0):
-        raise fail(path, "'img_center' must be two positive pixel coordinates")
+        raise file_error(path, "'img_center' must be two positive pixel coordinates")
     rotation = camera.get("pred_cam_R")
     translation = camera.get("pred_cam_T")
     rotation = None if rotation is None else as_array(rotation, "pred_cam_R", path, ndim=3, last=(3, 3))
@@ -116,9 +122,9 @@ def _track(path: Path) -> dict[str, np.ndarray]:
     frame = as_array(get(track, "frame", path), "frame", path, kinds="iu").reshape(-1)
     for name, array in (("pred_shape", shape), ("pred_trans", trans), ("frame", frame)):
         if len(array) != n:
-            raise fail(path, f"'{name}' has {len(array)} rows, 'pred_rotmat' {n}")
+            raise file_error(path, f"'{name}' has {len(array)} rows, 'pred_rotmat' {n}")
     if n and (frame.min() < 0 or len(np.unique(frame)) != n):
-        raise fail(path, "'frame' must hold distinct, non-negative image indices")
+        raise file_error(path, "'frame' must hold distinct, non-negative image indices")
     return {"rotmat": rotmat, "shape": shape, "trans": trans, "frame": frame.astype(np.int64)}
 
 
@@ -151,10 +157,10 @@ def read_tram(src: Path, opts: ImportOptions) -> ImportedSequence:
     """TRAM results folder -> contract frames (all tracks of an image in one frame, ``person_ids`` = track k)."""
     folder = _folder(src)
     if folder is None:
-        raise fail(src, "not a TRAM results folder (expected camera.npy and hps/hps_track_*.npy)")
+        raise file_error(src, "not a TRAM results folder (expected camera.npy and hps/hps_track_*.npy)")
     files = _track_files(folder)
     if not files:
-        raise fail(folder / "hps", "no hps_track_*.npy files")
+        raise file_error(folder / "hps", "no hps_track_*.npy files")
     focal, center, rotation, translation = _camera(folder)
     tracks = [_track(path) for _, path in files]
     ids = [k for k, _ in files]

@@ -35,10 +35,17 @@ from pathlib import Path
 import numpy as np
 
 from .. import safe_pickle
+from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
-from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
-                      fail, feet_heads_from, frame_names, get, int64_ids, model_faces, need_image_size, people_frame)
+from .content import as_array, get
+from .frame_names import frame_names
+from .frames import people_frame
+from .ids import int64_ids
+from .image_size import need_image_size
+from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
+from .meta import base_meta, feet_heads_from
+from .model_checks import check_model_kind, model_faces
 from .smpl import BodyModel, lbs
 
 __all__ = ["sniff", "read_wham", "READERS"]
@@ -61,7 +68,7 @@ def sniff(path: Path) -> str | None:
 def _track_id(key: object, source: Path) -> int:
     """A track key as an int (WHAM's keys are the tracker's integer ids)."""
     if isinstance(key, (bool, np.bool_)) or not isinstance(key, (int, np.integer)):
-        raise fail(source, f"track key {key!r} is not an integer track id")
+        raise file_error(source, f"track key {key!r} is not an integer track id")
     return int(int64_ids([int(key)], "track id", source)[0])
 
 
@@ -71,19 +78,19 @@ def _track_arrays(track: Mapping, source: str, model: BodyModel | None) -> dict[
     frame_ids = as_array(get(track, "frame_ids", source), "frame_ids", source, ndim=1, kinds="iu")
     n_rows = len(verts)
     if len(frame_ids) != n_rows:
-        raise fail(source, f"'frame_ids' has {len(frame_ids)} rows but 'verts' has {n_rows}")
+        raise file_error(source, f"'frame_ids' has {len(frame_ids)} rows but 'verts' has {n_rows}")
     if n_rows and frame_ids.min() < 0:
-        raise fail(source, "'frame_ids' holds negative frame indices")
+        raise file_error(source, "'frame_ids' holds negative frame indices")
     out = {"verts": verts, "frame_ids": frame_ids.astype(np.int64)}
     if model is not None:
         if verts.shape[1] != model.n_verts:
-            raise fail(source, f"'verts' have {verts.shape[1]} vertices but --smpl-model {model.name} has {model.n_verts}")
+            raise file_error(source, f"'verts' have {verts.shape[1]} vertices but --smpl-model {model.name} has {model.n_verts}")
         for key, width in (("pose", 72), ("trans", 3)):
             out[key] = as_array(get(track, key, source), key, source, ndim=2, last=(width,))
         out["betas"] = as_array(get(track, "betas", source), "betas", source, ndim=2)
         for key in ("pose", "betas", "trans"):
             if len(out[key]) != n_rows:
-                raise fail(source, f"'{key}' has {len(out[key])} rows but 'verts' has {n_rows}")
+                raise file_error(source, f"'{key}' has {len(out[key])} rows but 'verts' has {n_rows}")
     return out
 
 
@@ -112,18 +119,18 @@ def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
     image_size = need_image_size(opts, src, "WHAM reads it from the video")
     data = safe_pickle.load_file(src)
     if not isinstance(data, Mapping) or not data:
-        raise fail(src, "not a WHAM output (expected a non-empty dict of tracks)")
+        raise file_error(src, "not a WHAM output (expected a non-empty dict of tracks)")
     model = opts.body_model
     check_model_kind(model, src, "WHAM", "smpl")
     tracks: dict[int, dict[str, np.ndarray]] = {}
     for key, track in data.items():
         tid = _track_id(key, src)
         if not isinstance(track, Mapping):
-            raise fail(src, f"track {tid} is not a dict")
+            raise file_error(src, f"track {tid} is not a dict")
         tracks[tid] = _track_arrays(track, f"{src} [track {tid}]", model)
     rows = _rows_by_frame(tracks)
     if not rows:
-        raise fail(src, "no tracked frames (every track is empty)")
+        raise file_error(src, "no tracked frames (every track is empty)")
     frame_ids = sorted(rows)
     width = max(6, len(str(frame_ids[-1])))
     warnings: list[str] = []

@@ -38,6 +38,7 @@ import numpy as np
 from ..atomic import atomic_open
 from ..camera import Camera, camera_parameters, project_cam_to_px
 from ..errors import InputError, input_errors
+from ..joint_layouts import LAYOUT_NAMES, layout_key
 from ..landmarks import SMPL_JOINT_NAMES
 from ..option_rules import Rule, check_fields
 from ..plain import csv_cell
@@ -174,8 +175,6 @@ def _check_joint_order(seq: Sequence, proto: Protocol) -> None:
     layout = block.get("joints_layout") if isinstance(block, dict) else None
     if layout is None or (proto.first_joints is None and proto.root != "hips"):
         return
-    from ..formats.keypoints import LAYOUT_NAMES, layout_key  # the layouts' joint names (imported when needed)
-
     names = LAYOUT_NAMES.get(layout_key(layout))
     n = proto.first_joints or max(HIP_JOINTS) + 1
     if names is not None and tuple(names[:n]) != tuple(SMPL_JOINT_NAMES[:n]):

@@ -6,7 +6,7 @@ drawn here as triangles, so every view, both rasterisers (depth test, shading) a
 take them unchanged:
 
 - **skeleton**: a 6-sided tube per bone and an icosahedron per joint; the bones come from the
-  layout's joint *names* (:data:`rotavat_cli.formats.keypoints.LAYOUT_NAMES`), so one bone list per
+  layout's joint *names* (:data:`rotavat_cli.joint_layouts.LAYOUT_NAMES`), so one bone list per
   skeleton family serves every layout that carries its joints (SMPL-24, SMPL-45, SMPL-X and
   HybrIK-29 share SMPL's kinematic tree; OpenPose-25, SPIN-49 and PHALP-44 share OpenPose's);
 - **points**: an icosahedron per joint of a layout without bones, an octahedron per vertex of a point cloud.
@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..formats.keypoints import LAYOUT_NAMES, layout_by_count, layout_key
 from ..formats.smpl import SMPL_PARENTS
+from ..joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
 from ..landmarks import SMPL_JOINT_NAMES
 
 __all__ = ["Shapes", "BONE_FAMILIES", "layout_name", "layout_bones", "skeleton_shapes", "point_shapes",
@@ -64,7 +64,7 @@ _H36M_BONES = (
     ("thorax", "neck_nose"), ("neck_nose", "head"), ("thorax", "left_shoulder"), ("left_shoulder", "left_elbow"),
     ("left_elbow", "left_wrist"), ("thorax", "right_shoulder"), ("right_shoulder", "right_elbow"),
     ("right_elbow", "right_wrist"))
-# Which bone list each layout of formats.keypoints.LAYOUT_NAMES uses (by the joints it carries).
+# Which bone list each layout of joint_layouts.LAYOUT_NAMES uses (by the joints it carries).
 BONE_FAMILIES: dict[str, tuple[tuple[str, str], ...]] = {
     **{name: _SMPL_BONES for name in ("smpl24", "smpl45", "romp54", "romp71", "smplx127", "smplx144", "hybrik29")},
     **{name: _OPENPOSE_BONES for name in ("openpose25", "spin49", "phalp44", "phalp45")},

@@ -67,7 +67,7 @@ class RowFrame:
     camera: Camera | None = None  # needed by orthographic views
     image: np.ndarray | None = None  # (H, W, 3) uint8 video frame under the front view
     joints_cam: np.ndarray | None = None  # (P, J, 3) float, camera frame, metres
-    joints_layout: str | None = None  # a formats.keypoints layout name (bones), None: joints drawn as points
+    joints_layout: str | None = None  # a joint_layouts layout name (bones), None: joints drawn as points
     ghost: "RowFrame | None" = None
     caption: str = ""  # numbers shown after the label (camera, metrics)
     flags: tuple[str, ...] | None = None  # (P,) people.csv's flag per person ("" = none: plausible); None: no flags
