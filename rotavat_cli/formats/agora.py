@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail,
                       feet_heads_from, frame_names, get, model_faces, natural_key, people_frame)
 from .keypoints import layout_by_count
@@ -129,7 +129,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
     names = frame_names([image for image, _ in groups], warnings)
 
     def person(path: Path) -> dict[str, np.ndarray | None]:
-        data = safe_pickle.load_file(path)
+        data = load_file(path)
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a dict, got {type(data).__name__}")
         out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None}

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import CAMERA
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
                       frame_names, model_faces, natural_key, npz_has_keys, people_frame, single_file)
 from .keypoints import layout_by_count
@@ -46,7 +46,7 @@ def sniff(path: Path) -> str | None:
 def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     """BEDLAM per-scene .npz -> contract frames (one frame per image)."""
     path = single_file(src, sniff, "BEDLAM scene .npz", ' (import one scene at a time: a sequence is one camera)')
-    data = safe_pickle.load_npz(path, keys=_KEYS | {"gtkps", "sub"})  # other members are never read
+    data = load_npz(path, keys=_KEYS | {"gtkps", "sub"})  # other members are never read
     missing = sorted(_KEYS - set(data))
     if missing:
         raise fail(path, f"not a BEDLAM scene file (missing {', '.join(missing)})")

@@ -48,9 +48,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, fail, feet_heads_from,
                       frame_names, get, model_faces, natural_key, people_frame)
 from .smpl import lbs
@@ -72,7 +72,7 @@ def sniff(path: Path) -> str | None:
     files = [path] if path.is_file() else sorted(path.glob("*.npz"))[:3] if path.is_dir() else []
     for file in files:
         if file.suffix == ".npz" and _is_results_npz(file):
-            results = safe_pickle.load_npz(file, keys=("results",))["results"].item()
+            results = load_npz(file, keys=("results",))["results"].item()
             if isinstance(results, dict) and results and all(isinstance(v, dict) for v in results.values()):
                 results = next(iter(results.values()))  # video_results.npz
             betas = results.get("smpl_betas") if isinstance(results, dict) else None
@@ -110,7 +110,7 @@ def _image_stem(name: str) -> str:
 
 def _load_results(path: Path) -> dict:
     """The dict stored in an .npz's 'results' object array."""
-    data = safe_pickle.load_npz(path, keys=("results",))  # other members are never read
+    data = load_npz(path, keys=("results",))  # other members are never read
     if "results" not in data:
         raise fail(path, "not a ROMP/BEV result file (no 'results' array)")
     results = data["results"]

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
                       feet_heads_from, frame_names, image_size_from_header, model_faces, no_model_warning, npz_has_keys,
                       people_frame, project_px, single_file)
@@ -60,7 +60,7 @@ def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[t
 def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     """CLIFF demo .npz -> contract frames (see the module docstring for the conventions)."""
     path = single_file(src, sniff, "CLIFF results .npz")
-    data = safe_pickle.load_npz(path, keys=_KEYS)  # other members are never read
+    data = load_npz(path, keys=_KEYS)  # other members are never read
     missing = sorted(k for k in ("imgname", "detection_all", "global_t", "focal_l", "pred_joints") if k not in data)
     if missing:
         raise fail(path, f"not a CLIFF results file (missing {', '.join(missing)})")

@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
                       feet_heads_from, frame_names, get, model_faces, no_model_warning, padded_square, people_frame)
 from .smpl import lbs
@@ -43,7 +43,7 @@ def sniff(path: Path) -> str | None:
     """'4dhumans' for a pickle whose values are PHALP frame dicts."""
     if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > 512 << 20:
         return None
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if isinstance(data, Mapping) and data:
         first = next(iter(data.values()))
         if isinstance(first, Mapping) and "tid" in first and ("camera" in first or "smpl" in first):
@@ -80,7 +80,7 @@ def _image_size(data: Mapping, order: list[str], opts: ImportOptions, source: Pa
 
 def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
     """PHALP / 4D-Humans tracking .pkl -> contract frames."""
-    data = safe_pickle.load_file(src)
+    data = load_file(src)
     if not isinstance(data, Mapping) or not data:
         raise fail(src, "not a PHALP results file (expected a non-empty dict of frames)")
     order = _frame_order(data, src)

@@ -54,10 +54,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..camera import world_to_cam
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
                       check_model_kind, fail, feet_heads_from, frame_names, get, int64_ids, model_faces,
                       no_model_warning, people_frame)
@@ -92,7 +92,7 @@ def sniff(path: Path) -> str | None:
         path = found[0]
     if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > _MAX_SNIFF_BYTES:
         return None
-    return "glamr" if _is_glamr(safe_pickle.load_file(path)) else None
+    return "glamr" if _is_glamr(load_file(path)) else None
 
 
 def _result_file(src: Path) -> Path:
@@ -211,7 +211,7 @@ def _posed_world(model: BodyModel, people: list[_Person], t: int) -> tuple[np.nd
 def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
     """GLAMR result pickle (or its folder) -> contract frames in each video frame's camera."""
     path = _result_file(src)
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if not _is_glamr(data):
         raise fail(path, "not a GLAMR result (expected a dict with 'person_data' and 'cam_pose')")
     cam_pose = as_array(data["cam_pose"], "cam_pose", path, ndim=3, last=(4, 4))

@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.torch_files import load_torch
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
                       feet_heads_from, frame_names, get, model_faces, people_frame, require_model)
 from .smpl import joints_to_smpl24, lbs, pose_from_body
@@ -105,7 +105,7 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     path = _results_file(src)
     if path is None:
         raise fail(src, f"no GVHMR results: expected a .pt file or a folder holding {_RESULTS}")
-    data = safe_pickle.load_torch(path)
+    data = load_torch(path)
     incam = get(data, "smpl_params_incam", path)
     if not isinstance(incam, Mapping):
         raise fail(path, "'smpl_params_incam' is not a dict of parameters")

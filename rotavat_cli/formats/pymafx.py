@@ -44,9 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_frame_range, fail,
                       feet_heads_from, frame_names, get, model_faces, people_frame)
 from .smpl import BodyModel, joints_to_smpl24, pose_from_body, posed_joints
@@ -89,7 +89,7 @@ def _results_file(src: Path) -> Path:
 
 def _load(path: Path) -> Mapping:
     """The results dict (its torch tensors, ``smplx_params``, come back as inert numpy arrays; unused)."""
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if not isinstance(data, Mapping) or "orig_cam_t" not in data:
         raise fail(path, "not a PyMAF-X output.pkl (expected a dict with 'orig_cam_t')")
     return data

@@ -62,10 +62,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import limits, safe_pickle
+from .. import limits
 from ..camera import world_to_cam
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size, fail,
                       feet_heads_from, frame_names, get, int64_ids, model_faces, npz_has_keys, people_frame,
                       require_model)
@@ -278,7 +279,7 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     if path.name.endswith(_PRIOR_SUFFIX):
         raise fail(path, "SLAHMR's motion-prior results are in the prior's canonical frame: import the "
                          f"matching *{_WORLD_SUFFIX} instead")
-    data = safe_pickle.load_npz(path, keys=_KEYS | {"track_mask", "cam_f"})  # other members are never read
+    data = load_npz(path, keys=_KEYS | {"track_mask", "cam_f"})  # other members are never read
     params = _params(data, path)
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)

@@ -39,9 +39,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind, fail,
                       feet_heads_from, frame_names, get, image_size_from_header, model_faces, no_model_warning,
                       npz_has_keys, padded_square, people_frame, single_file)
@@ -69,7 +69,7 @@ def sniff(path: Path) -> str | None:
 
 def _outputs(path: Path) -> tuple[dict, list[str]]:
     """The results dict and the frames' image paths."""
-    content = safe_pickle.load_npz(path, keys=tuple(sorted(_KEYS)))  # other members are never read
+    content = load_npz(path, keys=tuple(sorted(_KEYS)))  # other members are never read
     missing = sorted(_KEYS - set(content))
     if missing:
         raise fail(path, f"not a TRACE results file (missing {', '.join(missing)})")

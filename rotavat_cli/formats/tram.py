@@ -41,9 +41,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npy import load_npy
 from ._common import (FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, centre_image_size,
                       check_frame_range, fail, feet_heads_from, frame_names, get, image_size_from_header, model_faces,
                       people_frame, require_model)
@@ -76,7 +76,7 @@ def sniff(path: Path) -> str | None:
 
 def _dict_npy(path: Path) -> Mapping:
     """The dict an ``np.save(path, dict)`` holds."""
-    content = safe_pickle.load_npy(path)
+    content = load_npy(path)
     value = content.item() if content.dtype.hasobject and content.shape == () else content
     if not isinstance(value, Mapping):
         raise fail(path, f"expected np.save of a dict, got {type(value).__name__}")

@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from ._common import (Conclusion, FrameNotes, ImportedSequence, ImportOptions, as_array, base_meta, check_model_kind,
                       fail, feet_heads_from, frame_names, get, int64_ids, model_faces, need_image_size, people_frame)
 from .smpl import BodyModel, lbs
@@ -51,7 +51,7 @@ def sniff(path: Path) -> str | None:
     """'wham' for a pickle whose values are per-track dicts holding ``frame_ids`` and ``verts``."""
     if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > _MAX_SNIFF_BYTES:
         return None
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if isinstance(data, Mapping) and data and all(
             isinstance(track, Mapping) and "frame_ids" in track and "verts" in track for track in data.values()):
         return "wham"
@@ -110,7 +110,7 @@ def _posed_joints(model: BodyModel, tracks: dict, picks: list[tuple[int, int]],
 def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
     """WHAM ``wham_output.pkl`` -> contract frames (camera frame; WHAM's world trajectory is not read)."""
     image_size = need_image_size(opts, src, "WHAM reads it from the video")
-    data = safe_pickle.load_file(src)
+    data = load_file(src)
     if not isinstance(data, Mapping) or not data:
         raise fail(src, "not a WHAM output (expected a non-empty dict of tracks)")
     model = opts.body_model
