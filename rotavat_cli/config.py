@@ -17,34 +17,22 @@ from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
+from .defaults import read_defaults
 from .errors import InputError
 from .yaml_io import read_yaml
 
-__all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default", "config_choices"]
-
-DEFAULT_CONFIG_PATH = Path(__file__).resolve().parent / "data" / "default.yaml"
+__all__ = ["default_config", "load_config", "merge_config", "packaged_default", "config_choices"]
 
 
 def default_config() -> dict:
     """A fresh copy of the packaged defaults."""
-    return copy.deepcopy(_read_defaults())
+    return copy.deepcopy(read_defaults())
 
 
 def packaged_default(packaged: Callable[[], Any], name: str) -> Any:
     """A dataclass field defaulting to attribute ``name`` of ``packaged()``: the options instance built
     from the packaged configs/default.yaml, so the YAML stays the one source of the default."""
     return dataclasses.field(default_factory=lambda: getattr(packaged(), name))
-
-
-_DEFAULTS_CACHE: dict | None = None
-
-
-def _read_defaults() -> dict:
-    """Packaged defaults, read once."""
-    global _DEFAULTS_CACHE
-    if _DEFAULTS_CACHE is None:
-        _DEFAULTS_CACHE = read_yaml(DEFAULT_CONFIG_PATH)
-    return _DEFAULTS_CACHE
 
 
 def merge_config(base: dict, override: dict, source: str, prefix: str = "") -> dict:

@@ -37,6 +37,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
+from .defaults import read_defaults
 from .errors import InputError
 
 __all__ = ["Limits", "current", "configure", "applied", "human_bytes"]
@@ -80,10 +81,8 @@ class Limits:
 
 
 def _packaged_section() -> dict:
-    """The ``limits`` section of the packaged defaults (read lazily: config imports the readers)."""
-    from .config import default_config
-
-    return default_config().get("limits", {})
+    """The ``limits`` section of the packaged defaults (a copy)."""
+    return dict(read_defaults().get("limits", {}))
 
 
 _current: Limits | None = None
