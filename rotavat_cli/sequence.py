@@ -22,11 +22,11 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from . import limits
-from .atomic import atomic_open, atomic_write_text
+from .atomic import atomic_open
 from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict, people_not_in_front
 from .errors import InputError, file_error, input_errors
 from .focal import focal_kind_or_default
-from .safe_pickle import load_npz
+from .unpickle.npz import load_npz
 from .yaml_io import read_yaml, write_yaml
 
 __all__ = [
@@ -241,7 +241,7 @@ def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int
 # ---- frame readers ------------------------------------------------------------------------------
 def read_frame_npz(path: str | Path) -> Frame:
     """Read and validate one ``.npz`` frame: numeric arrays only (no pickle), every member's declared
-    size checked against ``limits`` before it is read (``safe_pickle.open_npz``)."""
+    size checked against ``limits`` before it is read (``unpickle.npz.open_npz``)."""
     path = Path(path)
     data = load_npz(path, allow_pickle=False, total_limit=(limits.current().max_frame_bytes, "limits.max_frame_mb"))
     validate_frame(data, str(path))

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from conftest import invoke, tree_hash
 
-from rotavat_cli import safe_pickle
+from rotavat_cli import unpickle
 from rotavat_cli.camera import horizon_v_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
@@ -317,7 +317,7 @@ def test_bev_video_results_and_image_size_inference(tmp_path, scene):
 def test_romp_without_vertices_poses_its_parameters(tmp_path, scene, model, model_path):
     src = F.write_bev(tmp_path / "romp", scene, (W, H), fmt="romp")
     for file in src.glob("*.npz"):  # as if run without --calc_smpl: parameters + cam_trans only
-        results = safe_pickle.load_npz(file)["results"].item()  # the importer's own restricted reader
+        results = unpickle.load_npz(file)["results"].item()  # the importer's own restricted reader
         for key in ("verts", "joints", "pj2d_org"):
             results.pop(key)
         np.savez(file, results=results)
@@ -727,7 +727,7 @@ def test_from_shows_the_import_warnings_once_also_from_workers(tmp_path, model, 
     scene = _from_scene(model, camera)
     src = F.write_bev(tmp_path / "bev", scene, (W, H))
     bad = sorted(src.glob("*.npz"))[8]  # the tenth frame (the third is empty: no file), in align's second chunk
-    results = safe_pickle.load_npz(bad)["results"].item()
+    results = unpickle.load_npz(bad)["results"].item()
     results["verts"][1, 5] = np.nan
     np.savez(bad, results=results)
     cam_yaml = tmp_path / "camera.yaml"
@@ -782,7 +782,7 @@ def test_from_errors_in_a_frame_exit_2_with_one_line(tmp_path, scene, model, cam
     and leaves no output."""
     src = F.write_bev(tmp_path / "bev", scene, (W, H))
     bad = sorted(src.glob("*.npz"))[1]
-    results = safe_pickle.load_npz(bad)["results"].item()
+    results = unpickle.load_npz(bad)["results"].item()
     results["verts"] = "not an array"
     np.savez(bad, results=results)
     cam_yaml = tmp_path / "camera.yaml"
@@ -831,7 +831,7 @@ def test_agora_sample_predictions_with_a_batch_axis_import_like_the_others(tmp_p
     bad = tmp_path / "c"
     F.write_agora(bad, scene[:1])
     victim = sorted(bad.glob("*.pkl"))[0]
-    data = safe_pickle.load_file(victim)
+    data = unpickle.load_file(victim)
     victim.write_bytes(pickle.dumps({**data, "joints": np.repeat(data["joints"][None], 2, axis=0)}, protocol=2))
     with pytest.raises(InputError, match=r"'joints' must have 2 dimensions \(or a leading batch axis of 1\)"):
         import_sequence(bad, tmp_path / "bad", "agora")

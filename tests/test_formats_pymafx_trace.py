@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import invoke
 
-from rotavat_cli import safe_pickle
+from rotavat_cli import unpickle
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence, imported_sequence, pymafx, trace
 from rotavat_cli.formats.keypoints import recipe_for
@@ -146,9 +146,9 @@ def test_pymafx_mesh_of_another_topology_than_the_model_is_refused(tmp_path, sce
 
 
 def _load_pymafx(path: Path) -> dict:
-    from rotavat_cli import safe_pickle
+    from rotavat_cli import unpickle
 
-    return dict(safe_pickle.load_file(path))
+    return dict(unpickle.load_file(path))
 
 
 # ---- TRACE -----------------------------------------------------------------------------------------
@@ -210,7 +210,7 @@ def test_trace_refusals(tmp_path, scene, smplx_path, runner):
     text = _one_line_error(invoke(runner, "import", src, tmp_path / "o1", "--from", "trace", "--smpl-model",
                                   smplx_path))
     assert "TRACE uses SMPL" in text
-    content = safe_pickle.load_npz(src)
+    content = unpickle.load_npz(src)
     outputs = content["outputs"].item()
     outputs["reorganize_idx"] = outputs["reorganize_idx"] + 5
     np.savez(src, outputs=outputs, imgpaths=content["imgpaths"])

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from conftest import invoke
 
-from rotavat_cli import safe_pickle
+from rotavat_cli import unpickle
 from rotavat_cli.camera import project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
@@ -36,7 +36,7 @@ needs_gait = pytest.mark.skipif(not GAIT.is_file(), reason="real 4D-Humans file 
 
 
 def _bev_results() -> list[dict]:
-    return [safe_pickle.load_npz(p, keys=("results",))["results"].item() for p in sorted(BEV_LIVE.glob("*.npz"))]
+    return [unpickle.load_npz(p, keys=("results",))["results"].item() for p in sorted(BEV_LIVE.glob("*.npz"))]
 
 
 def _chain_stature_m(joints: np.ndarray, verts: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import invoke
 
-from rotavat_cli import safe_pickle
+from rotavat_cli import unpickle
 from rotavat_cli.camera import world_to_cam
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence
@@ -285,7 +285,7 @@ def test_glamr_refusals_name_the_file(tmp_path, scene, model_path, smplh_path, r
     other.write_bytes(pickle.dumps([1, 2, 3]))
     with pytest.raises(InputError, match="list_seed1.pkl: not a GLAMR result"):
         import_sequence(other, tmp_path / "out", "glamr")
-    data = safe_pickle.load_file(src)
+    data = unpickle.load_file(src)
     data["person_data"][3]["smpl_pose"] = data["person_data"][3]["smpl_pose"][:, :60]
     src.write_bytes(pickle.dumps(data))
     with pytest.raises(InputError, match=r"\[person 3\]: 'smpl_pose' must be \[3, 69\]"):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import invoke
 
-from rotavat_cli import safe_pickle
+from rotavat_cli import unpickle
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence, imported_sequence
 from rotavat_cli.formats.hybrik import HYBRIK29_JOINT_NAMES, fitted_depth_factor_m, uvd_to_px
@@ -77,7 +77,7 @@ def test_wham_without_a_model_imports_its_meshes(tmp_path, scene):
 
 def test_wham_warns_when_the_model_does_not_reproduce_its_meshes(tmp_path, scene, model_path):
     src = WH.write_wham(tmp_path / "wham_output.pkl", scene)
-    data = safe_pickle.load_file(src)
+    data = unpickle.load_file(src)
     data[np.int64(3)]["verts"] = data[np.int64(3)]["verts"] + np.float32(0.05)  # 5 cm off the posed model
     src.write_bytes(F.joblib_bytes(data))
     summary = import_sequence(src, tmp_path / "out", "wham", smpl_model=model_path, image_size=(W, H))
@@ -92,7 +92,7 @@ def test_wham_needs_the_image_size(tmp_path, scene, runner):
 
 def _wham_damaged(path: Path, scene, damage: str) -> Path:
     WH.write_wham(path, scene)
-    data = dict(safe_pickle.load_file(path))
+    data = dict(unpickle.load_file(path))
     track = data[np.int64(3)]
     if damage == "no frame_ids":
         del track["frame_ids"]
@@ -236,7 +236,7 @@ def test_hybrik_rows_of_one_image_are_one_frame(tmp_path, scene, model_path):
 
 def test_hybrik_person_with_non_finite_joints_is_dropped_with_its_focal(tmp_path, scene):
     src = WH.write_hybrik(tmp_path / "res.pk", scene, (W, H))
-    data = safe_pickle.load_file(src)
+    data = unpickle.load_file(src)
     data["pred_xyz_29"][0, 5] = np.nan  # first image, first person (pid 3)
     src.write_bytes(pickle.dumps(data))
     summary = import_sequence(src, tmp_path / "out", "hybrik")
@@ -282,7 +282,7 @@ def test_uvd_to_px_is_the_demos_vis_2d():
 
 def _hybrik_damaged(path: Path, scene, damage: str) -> Path:
     WH.write_hybrik(path, scene, (W, H))
-    data = safe_pickle.load_file(path)
+    data = unpickle.load_file(path)
     if damage == "no transl":
         del data["transl"]
     elif damage == "24 joints":
@@ -323,7 +323,7 @@ def test_hybrik_malformed_files_are_refused_in_one_line(damage, needle, tmp_path
 def test_hybrik_quaternion_thetas_import_joints_only(tmp_path, model, camera, model_path):
     scene = WH.single_person_scene(model, camera)
     src = WH.write_hybrik(tmp_path / "res.pk", scene, (W, H))
-    data = safe_pickle.load_file(src)
+    data = unpickle.load_file(src)
     data["pred_thetas"] = np.zeros((len(data["transl"]), 96), np.float32)  # older HybrIK: 24 quaternions
     src.write_bytes(pickle.dumps(data))
     summary = import_sequence(src, tmp_path / "out", "hybrik", smpl_model=model_path)
@@ -449,7 +449,7 @@ def test_hybrik_real_output_imports(tmp_path, runner):
     assert summary["frames"] == 135 and summary["people"] == 135 and summary["image_size"] == [384, 640]
     seq = open_sequence(out)
     assert seq.meta["import"]["depth_factor_m"] == 2.2  # the demo's hrw48 config (BBOX_3D_SHAPE 2200)
-    raw = safe_pickle.load_file(src)
+    raw = unpickle.load_file(src)
     frames = list(seq.frames())
     box_width = raw["bbox"][:, 2] - raw["bbox"][:, 0]
     focals = np.array([f.intrinsics.focals_px(1)[0] for f in frames])
@@ -477,7 +477,7 @@ def test_hybrik_real_video_and_another_in_one_res_pk(tmp_path, model, camera, ru
     it when run on both with one --out-dir: one sequence with per-frame sizes, and --video IMG_6412 gives
     exactly the import of the real file alone."""
     real_src = _real("hybrik/res.pk")
-    real = safe_pickle.load_file(real_src)
+    real = unpickle.load_file(real_src)
     dance = WH.hybrik_res_db(_videos(model, camera)[1][1], (1280, 720), video="dance")
     src = tmp_path / "res.pk"
     src.write_bytes(pickle.dumps({key: np.concatenate([np.asarray(real[key]), dance[key]]) for key in real}))

@@ -28,11 +28,12 @@ import numpy as np
 import pytest
 from conftest import invoke, tetra_frame
 
-from rotavat_cli import limits, safe_pickle
+from rotavat_cli import limits, unpickle
 from rotavat_cli.calibration import GridSpec
 from rotavat_cli.errors import InputError
 from rotavat_cli.limits import Limits
 from rotavat_cli.plain import to_plain
+from rotavat_cli.unpickle.allowed import numpy_multiarray
 
 PEAK_MB = 300  # every hostile case must stay under this (the files declare 4 to 48 GB; measured: 55-110 MB)
 MEMORY_CAP = 6 << 30  # address-space cap of the subprocess: a regression fails instead of swamping the machine
@@ -326,7 +327,7 @@ def test_compressed_pickle_bomb(tmp_path):
     (tmp_path / "phalp.pkl").write_bytes(b"\x78\xda" + data + b"\0\0\0\0")
     with limits.applied(Limits(16 << 20, 1 << 20, 1 << 20, 10_000, 10_000)), pytest.raises(
             InputError, match=r"phalp\.pkl: decompresses to more than 16\.0 MiB \(limit: limits\.max_file_mb\)"):
-        safe_pickle.load_file(tmp_path / "phalp.pkl")
+        unpickle.load_file(tmp_path / "phalp.pkl")
 
 
 @pytest.mark.parametrize("fmt", ["wham", "gvhmr", "bev"])
@@ -415,9 +416,9 @@ def test_batch_tasks_apply_the_plan_limits(tmp_path, npz_seq):
     config["limits"]["max_array_mb"] = 0.0001  # 104 bytes: the fixture's vertices are larger
     _apply_limits({"config": config})
     with pytest.raises(InputError, match="limits.max_array_mb"):
-        list(safe_pickle.load_npz(npz_seq / "000000.npz"))
+        list(unpickle.load_npz(npz_seq / "000000.npz"))
     _apply_limits({"config": {}})  # an older plan without the section: the defaults
-    assert safe_pickle.load_npz(npz_seq / "000000.npz")["vertices"].shape == (3, 4, 3)
+    assert unpickle.load_npz(npz_seq / "000000.npz")["vertices"].shape == (3, 4, 3)
 
 
 # ---- the rules, in process -------------------------------------------------------------------------
@@ -434,7 +435,7 @@ _numpy_frombuffer = (getattr(np, "_core", None) or np.core).numeric._frombuffer
     (_Call(bytearray, 10**12), "bytearray() of a int is not allowed"),
     (_Call(str, shared_nest(20, 2)), "str() of a list is not allowed"),
     (_Call(np.ndarray, (10**6, 10**6)), "numpy.ndarray may not be called directly"),
-    (_Call(safe_pickle._numpy_multiarray()._reconstruct, np.ndarray, (10**6, 10**6), b"b"), "declares 931.3 GiB"),
+    (_Call(numpy_multiarray()._reconstruct, np.ndarray, (10**6, 10**6), b"b"), "declares 931.3 GiB"),
     (_Call(_numpy_frombuffer, 10**12, np.dtype("u1"), (10**12,), "C"), "protocol-5 array buffer"),
     (list(range(20_000)), "more than 10,000 objects"),
     (shared_nest(12, 4), "shared references expand the pickle to"),
@@ -443,7 +444,7 @@ _numpy_frombuffer = (getattr(np, "_core", None) or np.core).numeric._frombuffer
 def test_refusals_are_made_before_building(obj, needle):
     payload = pickle.dumps({"x": obj}, protocol=4)
     with limits.applied(SMALL), pytest.raises(InputError, match=re.escape(needle)) as info:
-        safe_pickle.loads(payload, "h.pkl")
+        unpickle.loads(payload, "h.pkl")
     message = str(info.value)
     assert message.startswith("h.pkl: ") and "\n" not in message
 
@@ -471,7 +472,7 @@ def _hand_made_pickles():
 @pytest.mark.parametrize("what, payload, needle", list(_hand_made_pickles()), ids=lambda v: v if isinstance(v, str) else "")
 def test_hand_made_opcodes(what, payload, needle):
     with limits.applied(Limits(1 << 20, 1 << 30, 1 << 30, 10_000, 10_000)), pytest.raises(InputError, match=re.escape(needle)):
-        safe_pickle.loads(payload, "h.pkl")
+        unpickle.loads(payload, "h.pkl")
 
 
 def test_legitimate_sharing_and_sizes_pass():
@@ -480,7 +481,7 @@ def test_legitimate_sharing_and_sizes_pass():
     people = [{"faces": faces, "verts": np.zeros((6890, 3), np.float32)} for _ in range(20)]
     data = {"people": people, "names": ["x" * 1000] * 10, "big": np.zeros(1 << 17)}  # 1 MiB: exactly the limit
     with limits.applied(Limits(1 << 30, 1 << 20, 1 << 30, 100_000, 10_000)):
-        back = safe_pickle.loads(pickle.dumps(data, protocol=4), "ok.pkl")
+        back = unpickle.loads(pickle.dumps(data, protocol=4), "ok.pkl")
     assert back["people"][19]["faces"] is back["people"][0]["faces"]
     assert back["big"].nbytes == 1 << 20
 
@@ -490,22 +491,22 @@ def test_npz_reading_checks(tmp_path):
                                           npy_member("f", np.asfortranarray(np.arange(6).reshape(2, 3))),
                                           npy_member("o", np.array([{"k": 1}], dtype=object)),
                                           liar_member("big", "<f8", (10**6,))])
-    data = safe_pickle.load_npz(path, keys=["a", "f", "o", "absent"])
+    data = unpickle.load_npz(path, keys=["a", "f", "o", "absent"])
     assert data["a"].tolist() == [[0, 1, 2], [3, 4, 5]] and data["f"].tolist() == [[0, 1, 2], [3, 4, 5]]
     assert data["o"][0] == {"k": 1} and set(data) == {"a", "f", "o"}
     with pytest.raises(InputError, match=r"member 'o' is an object array: cannot read without pickle"):
-        safe_pickle.load_npz(path, keys=["o"], allow_pickle=False)
+        unpickle.load_npz(path, keys=["o"], allow_pickle=False)
     with pytest.raises(InputError, match=r"x\.npz \['big'\]: corrupt or truncated array"):
-        safe_pickle.load_npz(path)
+        unpickle.load_npz(path)
     (tmp_path / "t.npz").write_text("just some text\n")
     with pytest.raises(InputError, match=r"t\.npz: not a valid \.npz file \(not a zip archive\)$"):
-        safe_pickle.load_npz(tmp_path / "t.npz")
+        unpickle.load_npz(tmp_path / "t.npz")
     members = [bomb_member(f"m{i}", "u1", (900 << 20,)) for i in range(3)]  # 3 x 900 MiB: each OK, 2.6 GiB in all
     with pytest.raises(InputError, match=r"members total 2\.6 GiB uncompressed \(limit 2\.0 GiB: limits\.max_file_mb\)"):
-        safe_pickle.load_npz(write_zip(tmp_path / "many.npz", members))
+        unpickle.load_npz(write_zip(tmp_path / "many.npz", members))
     bz = npy_member("a", np.arange(3))
     with pytest.raises(InputError, match="unsupported compression method"):
-        safe_pickle.load_npz(write_zip(tmp_path / "bz.npz", [(bz[0], bz[1], zipfile.ZIP_BZIP2, bz[3], bz[4])]))
+        unpickle.load_npz(write_zip(tmp_path / "bz.npz", [(bz[0], bz[1], zipfile.ZIP_BZIP2, bz[3], bz[4])]))
 
 
 def test_frame_reader_messages(tmp_path, runner):

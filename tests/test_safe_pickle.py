@@ -19,7 +19,7 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 
-from rotavat_cli import limits, safe_pickle, safe_torch
+from rotavat_cli import limits, unpickle
 from rotavat_cli.errors import InputError
 
 
@@ -57,15 +57,15 @@ def _assert_same(got: dict, want: dict) -> None:
 @pytest.mark.parametrize("protocol", range(pickle.HIGHEST_PROTOCOL + 1))
 def test_round_trip_of_allowed_content(protocol):
     data = _sample()
-    _assert_same(safe_pickle.loads(pickle.dumps(data, protocol=protocol), "x.pkl"), data)
+    _assert_same(unpickle.loads(pickle.dumps(data, protocol=protocol), "x.pkl"), data)
 
 
 def test_python2_style_pickle_with_latin1_strings():
     """Protocol-2 pickles of numpy arrays store the raw bytes through _codecs.encode(str, 'latin1')."""
     arr = np.arange(300, dtype=np.float64)
-    assert np.array_equal(safe_pickle.loads(pickle.dumps(arr, protocol=2), "py2.pkl"), arr)
+    assert np.array_equal(unpickle.loads(pickle.dumps(arr, protocol=2), "py2.pkl"), arr)
     hand_made = b"\x80\x02c__builtin__\nset\nq\x00]q\x01K\x01a\x85q\x02Rq\x03."  # Python 2 names
-    assert safe_pickle.loads(hand_made, "py2.pkl") == {1}
+    assert unpickle.loads(hand_made, "py2.pkl") == {1}
 
 
 @pytest.mark.parametrize("compress", [0, 3])
@@ -75,7 +75,7 @@ def test_joblib_files(tmp_path, compress, protocol, align):
     data = _sample()
     path = tmp_path / "x.pkl"
     path.write_bytes(F.joblib_bytes(data, compress=compress, protocol=protocol, align=align))
-    _assert_same(safe_pickle.load_file(path), data)
+    _assert_same(unpickle.load_file(path), data)
 
 
 @pytest.mark.parametrize("codec", ["gzip", "bz2", "xz", "lzma"])
@@ -88,17 +88,17 @@ def test_joblib_compressors(tmp_path, codec):
     packed = {"gzip": gzip.compress, "bz2": bz2.compress, "xz": lzma.compress,
               "lzma": lambda b: lzma.compress(b, format=lzma.FORMAT_ALONE)}[codec](raw)
     (tmp_path / "x.pkl").write_bytes(packed)
-    assert safe_pickle.load_file(tmp_path / "x.pkl")["a"].tolist() == [0, 1, 2, 3, 4]
+    assert unpickle.load_file(tmp_path / "x.pkl")["a"].tolist() == [0, 1, 2, 3, 4]
 
 
 def test_npz_with_object_members(tmp_path):
     results = {"verts": np.ones((2, 4, 3)), "ids": [1, 2]}
     np.savez(tmp_path / "r.npz", results=results, plain=np.arange(3))
-    data = safe_pickle.load_npz(tmp_path / "r.npz")
+    data = unpickle.load_npz(tmp_path / "r.npz")
     assert data["plain"].tolist() == [0, 1, 2]
     assert data["results"].shape == () and data["results"].item()["ids"] == [1, 2]
     np.save(tmp_path / "o.npy", np.array([np.zeros(2), np.ones(3)], dtype=object))
-    assert [a.tolist() for a in safe_pickle.load_npy(tmp_path / "o.npy")] == [[0, 0], [1, 1, 1]]
+    assert [a.tolist() for a in unpickle.load_npy(tmp_path / "o.npy")] == [[0, 0], [1, 1, 1]]
 
 
 # ---- hostile -----------------------------------------------------------------------------------
@@ -129,7 +129,7 @@ def test_hostile_pickles_are_refused_without_running(tmp_path, index):
     marker = tmp_path / "pwned"
     what, payload = list(_hostile_payloads(marker))[index]
     with pytest.raises(InputError, match=r"^evil\.pkl: refused to unpickle global '[\w.]+' \(only numpy arrays"):
-        safe_pickle.loads(payload, "evil.pkl")
+        unpickle.loads(payload, "evil.pkl")
     assert not marker.exists(), what
 
 
@@ -137,7 +137,7 @@ def test_refusal_message_names_file_and_global(tmp_path):
     path = tmp_path / "evil.pkl"
     path.write_bytes(F.evil_pickle(tmp_path / "pwned"))
     with pytest.raises(InputError) as info:
-        safe_pickle.load_file(path)
+        unpickle.load_file(path)
     message = str(info.value)
     assert message.startswith(str(path)) and "'posix.system'" in message and "\n" not in message
     assert not (tmp_path / "pwned").exists()
@@ -148,15 +148,15 @@ def test_hostile_content_inside_containers(tmp_path):
     payload = F.joblib_bytes({"a": np.arange(3), "b": _RunsCode(os.system, (f"touch {marker}",))})
     (tmp_path / "j.pkl").write_bytes(payload)
     with pytest.raises(InputError, match="refused to unpickle global"):
-        safe_pickle.load_file(tmp_path / "j.pkl")
+        unpickle.load_file(tmp_path / "j.pkl")
     F.evil_npz(tmp_path / "e.npz", marker)
     with pytest.raises(InputError, match=r"e\.npz \['results'\]: refused"):
-        safe_pickle.load_npz(tmp_path / "e.npz")
+        unpickle.load_npz(tmp_path / "e.npz")
     obj = np.empty(1, dtype=object)
     obj[0] = _RunsCode(os.system, (f"touch {marker}",))
     (tmp_path / "o.pkl").write_bytes(F.joblib_bytes({"obj": obj}))  # joblib pickles object arrays inline
     with pytest.raises(InputError, match="refused"):
-        safe_pickle.load_file(tmp_path / "o.pkl")
+        unpickle.load_file(tmp_path / "o.pkl")
     assert not marker.exists()
 
 
@@ -170,17 +170,17 @@ def test_numpy_beyond_plain_arrays(make, needle):
     payload = make()
     data = pickle.dumps(payload)
     if needle is None:  # numpy scalars of any dtype are plain data
-        assert safe_pickle.loads(data, "x") == payload
+        assert unpickle.loads(data, "x") == payload
         return
     with pytest.raises(InputError, match="refused"):
-        safe_pickle.loads(data, "x")
+        unpickle.loads(data, "x")
 
 
 def test_array_reconstruction_rejects_subclasses_and_bad_arguments():
     with pytest.raises(InputError, match="subclass"):
-        safe_pickle.loads(b"\x80\x02cnumpy.core.multiarray\n_reconstruct\ncnumpy\ndtype\nK\x00\x85C\x01b\x87R.", "x")
+        unpickle.loads(b"\x80\x02cnumpy.core.multiarray\n_reconstruct\ncnumpy\ndtype\nK\x00\x85C\x01b\x87R.", "x")
     with pytest.raises(InputError, match="malformed numpy scalar"):
-        safe_pickle.loads(b"\x80\x02cnumpy.core.multiarray\nscalar\nK\x01K\x02\x86R.", "x")
+        unpickle.loads(b"\x80\x02cnumpy.core.multiarray\nscalar\nK\x01K\x02\x86R.", "x")
 
 
 def test_persistent_ids_are_refused():
@@ -191,7 +191,7 @@ def test_persistent_ids_are_refused():
     buf = io.BytesIO()
     _P(buf).dump(["x"])
     with pytest.raises(InputError, match="persistent id"):
-        safe_pickle.loads(buf.getvalue(), "p.pkl")
+        unpickle.loads(buf.getvalue(), "p.pkl")
 
 
 # ---- broken -----------------------------------------------------------------------------------
@@ -207,7 +207,7 @@ def test_broken_files_give_one_line_errors(tmp_path, data, needle):
     path = tmp_path / "b.pkl"
     path.write_bytes(data)
     with pytest.raises(InputError, match=needle) as info:
-        safe_pickle.load_file(path)
+        unpickle.load_file(path)
     assert "\n" not in str(info.value) and str(path) in str(info.value)
 
 
@@ -215,32 +215,32 @@ def test_truncated_joblib_array_is_detected_before_allocating(tmp_path):
     data = F.joblib_bytes({"a": np.zeros(1000)}, compress=0)
     (tmp_path / "t.pkl").write_bytes(data[:-4000])
     with pytest.raises(InputError, match="truncated joblib array"):
-        safe_pickle.load_file(tmp_path / "t.pkl")
+        unpickle.load_file(tmp_path / "t.pkl")
 
 
 def test_missing_file_and_directory(tmp_path):
     with pytest.raises(InputError, match="file not found"):
-        safe_pickle.load_file(tmp_path / "nope.pkl")
+        unpickle.load_file(tmp_path / "nope.pkl")
     with pytest.raises(InputError, match="is a directory"):
-        safe_pickle.load_file(tmp_path)
+        unpickle.load_file(tmp_path)
     with pytest.raises(InputError, match="file not found"):
-        safe_pickle.load_npz(tmp_path / "nope.npz")
+        unpickle.load_npz(tmp_path / "nope.npz")
 
 
 def test_broken_npz_and_npy(tmp_path):
     np.savez(tmp_path / "a.npz", x=np.arange(10))
     F.truncate(tmp_path / "a.npz", 0.5)
     with pytest.raises(InputError, match=r"not a (readable|valid) \.npz"):
-        safe_pickle.load_npz(tmp_path / "a.npz")
+        unpickle.load_npz(tmp_path / "a.npz")
     with pytest.raises(InputError, match="bad magic"):
-        safe_pickle.load_npy_bytes(b"not an npy file", "x.npy")
+        unpickle.load_npy_bytes(b"not an npy file", "x.npy")
     header = b"\x93NUMPY\x01\x00" + (60).to_bytes(2, "little") + b"{'descr': '<f8', 'fortran_order': False, 'shape': (-1,), }".ljust(60)
     with pytest.raises(InputError, match="malformed .npy header"):
-        safe_pickle.load_npy_bytes(header, "x.npy")
+        unpickle.load_npy_bytes(header, "x.npy")
     np.save(tmp_path / "t.npy", np.arange(100.0))
     F.truncate(tmp_path / "t.npy", 0.5)
     with pytest.raises(InputError, match="corrupt or truncated"):
-        safe_pickle.load_npy(tmp_path / "t.npy")
+        unpickle.load_npy(tmp_path / "t.npy")
 
 
 def test_decompression_bomb_is_capped(tmp_path):
@@ -248,7 +248,7 @@ def test_decompression_bomb_is_capped(tmp_path):
                           max_grid_cells=10**6)
     (tmp_path / "bomb.pkl").write_bytes(zlib.compress(b"\x80\x04" + b"N" * (1 << 20)))
     with limits.applied(small), pytest.raises(InputError, match=r"decompresses to more than 64\.0 KiB \(limit: limits\.max_file_mb\)"):
-        safe_pickle.load_file(tmp_path / "bomb.pkl")
+        unpickle.load_file(tmp_path / "bomb.pkl")
 
 
 @pytest.mark.parametrize("protocol", [0, 2, 4, 5])
@@ -261,7 +261,7 @@ def test_defaultdict_with_a_builtin_factory_is_read(tmp_path, protocol):
     tracks[3]["frame_ids"] = np.array([4, 5])
     path = tmp_path / "wham_output.pkl"
     path.write_bytes(F.joblib_bytes(tracks, protocol=protocol) if protocol >= 2 else pickle.dumps(tracks, protocol))
-    loaded = safe_pickle.load_file(path)
+    loaded = unpickle.load_file(path)
     assert isinstance(loaded, defaultdict) and loaded.default_factory is dict
     assert loaded[0]["pose"].tolist() == [[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]] and loaded[3]["frame_ids"].tolist() == [4, 5]
 
@@ -271,10 +271,10 @@ def test_defaultdict_with_another_factory_is_refused():
     from collections import defaultdict
 
     with pytest.raises(InputError, match="d.pkl: defaultdict with factory 'dtype' is not allowed"):
-        safe_pickle.loads(pickle.dumps(defaultdict(np.dtype)), "d.pkl")
+        unpickle.loads(pickle.dumps(defaultdict(np.dtype)), "d.pkl")
 
 
-# ---- torch files (rotavat_cli.safe_torch): read without torch, written by hand (tests/_fixtures_torch.py) ----
+# ---- torch files (rotavat_cli.unpickle.torch_files): read without torch, written by hand (tests/_fixtures_torch.py) ----
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
 
 
@@ -313,8 +313,8 @@ def test_torch_save_files_read_without_torch(tmp_path, form):
             "legacy": lambda: T.legacy_bytes(obj), "big_endian": lambda: T.torch_zip_bytes(obj, byteorder="big")}[form]()
     path = tmp_path / "x.pt"
     path.write_bytes(data)
-    _assert_torch_sample(safe_pickle.load_file(path), want)  # load_file opens torch files transparently
-    _assert_torch_sample(safe_pickle.load_torch(path), want)
+    _assert_torch_sample(unpickle.load_file(path), want)  # load_file opens torch files transparently
+    _assert_torch_sample(unpickle.load_torch(path), want)
 
 
 def test_np_save_of_torch_tensors_reads_each_storage_blob(tmp_path):
@@ -323,7 +323,7 @@ def test_np_save_of_torch_tensors_reads_each_storage_blob(tmp_path):
     path = T.np_save_tensors(tmp_path / "hps_track_0.npy", {"pred_rotmat": T.tensor(rotmat),
                                                             "frame": T.tensor(np.array([0, 1, 5, 6])),
                                                             "pred_trans": T.transposed(np.arange(6.0).reshape(2, 3))})
-    got = safe_pickle.load_npy(path).item()
+    got = unpickle.load_npy(path).item()
     assert got["pred_rotmat"].shape == (4, 24, 3, 3) and np.array_equal(got["pred_rotmat"][2, 7], np.eye(3))
     assert got["frame"].tolist() == [0, 1, 5, 6] and got["frame"].dtype == np.int64
     assert got["pred_trans"].tolist() == [[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]
@@ -332,7 +332,7 @@ def test_np_save_of_torch_tensors_reads_each_storage_blob(tmp_path):
 @pytest.mark.skipif(not (REALFILES / "gvhmr").is_dir(), reason="shared real files absent")
 def test_real_gvhmr_archive_matches_torch_load():
     """Values measured with torch 2.13's own torch.load (outside the project) on the same file."""
-    data = safe_pickle.load_file(REALFILES / "gvhmr" / "tennis" / "hmr4d_results.pt")
+    data = unpickle.load_file(REALFILES / "gvhmr" / "tennis" / "hmr4d_results.pt")
     incam = data["smpl_params_incam"]
     assert {k: v.shape for k, v in incam.items()} == {"body_pose": (312, 63), "betas": (312, 10), "global_orient": (312, 3),
                                                       "transl": (312, 3)}
@@ -350,7 +350,7 @@ def _torch_file(tmp_path: Path, obj, **kw) -> Path:
 
 def _torch_error(path: Path) -> str:
     with pytest.raises(InputError) as info:
-        safe_pickle.load_file(path)
+        unpickle.load_file(path)
     message = str(info.value)
     assert message.startswith(f"{path}: torch archive: ") and "\n" not in message and "pickle (" not in message
     return message
@@ -374,7 +374,7 @@ def test_hostile_storage_blob_inside_a_plain_pickle_is_refused(tmp_path):
 
     path = T.np_save_tensors(tmp_path / "hps_track_0.npy", {"x": T.Tensor(EvilStorage(np.ones(2)), 0, (2,), (1,))})
     with pytest.raises(InputError, match=r"hps_track_0\.npy: refused to unpickle global 'os\.system'"):
-        safe_pickle.load_npy(path)
+        unpickle.load_npy(path)
     assert not marker.exists()
 
 
@@ -414,9 +414,9 @@ def test_other_torch_layouts_are_refused_by_name(tmp_path):
         archive.addfile(info, io.BytesIO(b""))
     (tmp_path / "old.pt").write_bytes(tar.getvalue())
     with pytest.raises(InputError, match=r"old\.pt: torch archive: the pre-1\.0 tar layout"):
-        safe_pickle.load_torch(tmp_path / "old.pt")
+        unpickle.load_torch(tmp_path / "old.pt")
     with pytest.raises(InputError, match=r"model\.pt: torch archive: a TorchScript model archive \(torch\.jit\.save\)"):
-        safe_pickle.load_file(script)
+        unpickle.load_file(script)
 
 
 def test_torch_persistent_ids_other_than_storages_are_refused(tmp_path):
@@ -437,11 +437,11 @@ def test_torch_persistent_ids_other_than_storages_are_refused(tmp_path):
 
 
 def test_torch_globals_map_only_to_inert_builders():
-    assert ("torch._utils", "_rebuild_tensor_v2") in safe_torch.TORCH_GLOBALS
+    assert ("torch._utils", "_rebuild_tensor_v2") in unpickle.TORCH_GLOBALS
     assert not any(name in ("load", "jit", "_load", "eval") or module == "torch.serialization"
-                   for module, name in safe_torch.TORCH_GLOBALS)
+                   for module, name in unpickle.TORCH_GLOBALS)
     with pytest.raises(InputError, match=r"refused to unpickle global 'torch\.load'"):
-        safe_pickle.loads(b"\x80\x02ctorch\nload\n.", "x.pkl")
+        unpickle.loads(b"\x80\x02ctorch\nload\n.", "x.pkl")
 
 
 def test_torch_byteorder_record_is_read_bounded(tmp_path):
@@ -451,7 +451,7 @@ def test_torch_byteorder_record_is_read_bounded(tmp_path):
     path = tmp_path / "t.pt"
     path.write_bytes(T.torch_zip_bytes({"x": T.tensor(np.arange(3.0))}, name="t", byteorder="little" * 100))
     with pytest.raises(InputError, match=r"t.pt: torch archive: record 't/byteorder' holds 600 bytes \(at most 16"):
-        safe_pickle.load_file(path)
+        unpickle.load_file(path)
 
 
 def test_pickled_text_arrays_with_impossible_code_points_are_refused():
@@ -462,5 +462,5 @@ def test_pickled_text_arrays_with_impossible_code_points_are_refused():
     bad = raw[:4] + (0x110000).to_bytes(4, "little") + raw[8:]
     assert raw in blob
     with pytest.raises(InputError, match=r"x.pkl: an array holds invalid text"):
-        safe_pickle.loads(blob.replace(raw, bad), "x.pkl")
-    assert safe_pickle.loads(blob, "x.pkl")["img_path"].tolist() == good.tolist()
+        unpickle.loads(blob.replace(raw, bad), "x.pkl")
+    assert unpickle.loads(blob, "x.pkl")["img_path"].tolist() == good.tolist()

@@ -33,11 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import CAMERA
 from ..joint_layouts import layout_by_count
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names, natural_key
 from .frames import people_frame
@@ -134,7 +134,7 @@ def read_agora(src: Path, opts: ImportOptions) -> ImportedSequence:
     names = frame_names([image for image, _ in groups], warnings)
 
     def person(path: Path) -> dict[str, np.ndarray | None]:
-        data = safe_pickle.load_file(path)
+        data = load_file(path)
         if not isinstance(data, Mapping):
             raise file_error(path, f"expected a dict, got {type(data).__name__}")
         out: dict[str, np.ndarray | None] = {"vertices": None, "joints": None, "keypoints_2d": None}

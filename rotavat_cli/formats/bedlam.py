@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import CAMERA
 from ..joint_layouts import layout_by_count
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from .content import as_array
 from .files import npz_has_keys, single_file
 from .frame_names import frame_names, natural_key
@@ -52,7 +52,7 @@ def sniff(path: Path) -> str | None:
 def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     """BEDLAM per-scene .npz -> contract frames (one frame per image)."""
     path = single_file(src, sniff, "BEDLAM scene .npz", ' (import one scene at a time: a sequence is one camera)')
-    data = safe_pickle.load_npz(path, keys=_KEYS | {"gtkps", "sub"})  # other members are never read
+    data = load_npz(path, keys=_KEYS | {"gtkps", "sub"})  # other members are never read
     missing = sorted(_KEYS - set(data))
     if missing:
         raise file_error(path, f"not a BEDLAM scene file (missing {', '.join(missing)})")

@@ -48,10 +48,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from .content import as_array, get
 from .frame_names import frame_names, natural_key
 from .frames import people_frame
@@ -77,7 +77,7 @@ def sniff(path: Path) -> str | None:
     files = [path] if path.is_file() else sorted(path.glob("*.npz"))[:3] if path.is_dir() else []
     for file in files:
         if file.suffix == ".npz" and _is_results_npz(file):
-            results = safe_pickle.load_npz(file, keys=("results",))["results"].item()
+            results = load_npz(file, keys=("results",))["results"].item()
             if isinstance(results, dict) and results and all(isinstance(v, dict) for v in results.values()):
                 results = next(iter(results.values()))  # video_results.npz
             betas = results.get("smpl_betas") if isinstance(results, dict) else None
@@ -115,7 +115,7 @@ def _image_stem(name: str) -> str:
 
 def _load_results(path: Path) -> dict:
     """The dict stored in an .npz's 'results' object array."""
-    data = safe_pickle.load_npz(path, keys=("results",))  # other members are never read
+    data = load_npz(path, keys=("results",))  # other members are never read
     if "results" not in data:
         raise file_error(path, "not a ROMP/BEV result file (no 'results' array)")
     results = data["results"]

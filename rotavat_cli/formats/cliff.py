@@ -27,12 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..camera import project_cam_to_px
 from ..errors import file_error
 from ..focal import ASSUMED
 from ..joint_layouts import layout_by_count
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from .content import as_array
 from .files import npz_has_keys, single_file
 from .frame_names import frame_names
@@ -67,7 +67,7 @@ def _image_size(src: Path, imgnames: np.ndarray, opts: ImportOptions) -> tuple[t
 def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     """CLIFF demo .npz -> contract frames (see the module docstring for the conventions)."""
     path = single_file(src, sniff, "CLIFF results .npz")
-    data = safe_pickle.load_npz(path, keys=_KEYS)  # other members are never read
+    data = load_npz(path, keys=_KEYS)  # other members are never read
     missing = sorted(k for k in ("imgname", "detection_all", "global_t", "focal_l", "pred_joints") if k not in data)
     if missing:
         raise file_error(path, f"not a CLIFF results file (missing {', '.join(missing)})")

@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -49,7 +49,7 @@ def sniff(path: Path) -> str | None:
     """'4dhumans' for a pickle whose values are PHALP frame dicts."""
     if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > 512 << 20:
         return None
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if isinstance(data, Mapping) and data:
         first = next(iter(data.values()))
         if isinstance(first, Mapping) and "tid" in first and ("camera" in first or "smpl" in first):
@@ -86,7 +86,7 @@ def _image_size(data: Mapping, order: list[str], opts: ImportOptions, source: Pa
 
 def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
     """PHALP / 4D-Humans tracking .pkl -> contract frames."""
-    data = safe_pickle.load_file(src)
+    data = load_file(src)
     if not isinstance(data, Mapping) or not data:
         raise file_error(src, "not a PHALP results file (expected a non-empty dict of frames)")
     order = _frame_order(data, src)

@@ -54,11 +54,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..camera import world_to_cam
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -98,7 +98,7 @@ def sniff(path: Path) -> str | None:
         path = found[0]
     if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > _MAX_SNIFF_BYTES:
         return None
-    return "glamr" if _is_glamr(safe_pickle.load_file(path)) else None
+    return "glamr" if _is_glamr(load_file(path)) else None
 
 
 def _result_file(src: Path) -> Path:
@@ -217,7 +217,7 @@ def _posed_world(model: BodyModel, people: list[_Person], t: int) -> tuple[np.nd
 def read_glamr(src: Path, opts: ImportOptions) -> ImportedSequence:
     """GLAMR result pickle (or its folder) -> contract frames in each video frame's camera."""
     path = _result_file(src)
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if not _is_glamr(data):
         raise file_error(path, "not a GLAMR result (expected a dict with 'person_data' and 'cam_pose')")
     cam_pose = as_array(data["cam_pose"], "cam_pose", path, ndim=3, last=(4, 4))

@@ -12,7 +12,7 @@ keys of ``pred``), ``hmr4d/model/gvhmr/pipeline/gvhmr_pipeline.py`` (``Pipeline.
 with ``flat_hand_mean=False``), ``hmr4d/configs/demo.yaml`` (``paths.hmr4d_results =
 outputs/demo/<video>/hmr4d_results.pt``).
 
-- File: a torch zip archive (read by :func:`rotavat_cli.safe_pickle.load_torch`, without torch)
+- File: a torch zip archive (read by :func:`rotavat_cli.unpickle.torch_files.load_torch`, without torch)
   holding ``{"smpl_params_global": {...}, "smpl_params_incam": {"body_pose" (L, 63),
   "betas" (L, 10), "global_orient" (L, 3), "transl" (L, 3)}, "K_fullimg" (L, 3, 3),
   "net_outputs": {...}}``, L = the video's frames. One person: GVHMR follows the one track of
@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.torch_files import load_torch
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -111,7 +111,7 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     path = _results_file(src)
     if path is None:
         raise file_error(src, f"no GVHMR results: expected a .pt file or a folder holding {_RESULTS}")
-    data = safe_pickle.load_torch(path)
+    data = load_torch(path)
     incam = get(data, "smpl_params_incam", path)
     if not isinstance(incam, Mapping):
         raise file_error(path, "'smpl_params_incam' is not a dict of parameters")

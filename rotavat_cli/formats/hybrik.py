@@ -56,11 +56,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..camera import MAX_IMAGE_SIDE_PX, project_cam_to_px
 from ..errors import file_error
 from ..focal import ASSUMED, hybrik_focal_px
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -93,7 +93,7 @@ def sniff(path: Path) -> str | None:
     """'hybrik' for a pickle of HybrIK's ``res_db``: a dict with ``pred_uvd``, ``transl`` and ``img_path``."""
     if not (path.is_file() and path.suffix in (".pk", ".pkl")) or path.stat().st_size > _MAX_SNIFF_BYTES:
         return None
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if isinstance(data, Mapping) and "img_path" in data and "transl" in data and (
             "pred_xyz_29" in data or "pred_uvd" in data):
         return "hybrik"
@@ -291,7 +291,7 @@ def _frames(img_paths: np.ndarray) -> list[tuple[str, list[int]]]:
 
 def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     """HybrIK ``res.pk`` -> contract frames with one focal per person."""
-    data = safe_pickle.load_file(src)
+    data = load_file(src)
     if not isinstance(data, Mapping):
         raise file_error(src, f"not a HybrIK res.pk (expected a dict of arrays, got {type(data).__name__})")
     rows = _rows(data, src)

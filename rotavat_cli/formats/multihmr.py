@@ -36,12 +36,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..camera import project_cam_to_px
 from ..errors import file_error
 from ..focal import ASSUMED
 from ..joint_layouts import layout_by_count
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
+from ..unpickle.npy import load_npy
+from ..unpickle.npz import load_npz
 from .content import as_array
 from .file_kinds import wrong_kind
 from .frame_names import frame_names, natural_key
@@ -64,7 +66,7 @@ def sniff(path: Path) -> str | None:
             return None
         path = files[0]
     if path.suffix == ".npy":
-        arr = safe_pickle.load_npy(path)
+        arr = load_npy(path)
         return "multihmr" if arr.ndim == 3 and arr.shape[-1] == 3 and arr.shape[1] in (10475, 6890) else None
     if path.suffix == ".npz":
         with zipfile.ZipFile(path) as archive:
@@ -97,11 +99,11 @@ def _humans(path: Path) -> dict[str, np.ndarray | None]:
     if wrong is not None:
         raise wrong
     if path.suffix == ".npy":
-        content: object = safe_pickle.load_npy(path)
+        content: object = load_npy(path)
     elif path.suffix == ".npz":
-        content = safe_pickle.load_npz(path, keys=("humans", "verts_smplx", "j3d_smplx"))  # the members used
+        content = load_npz(path, keys=("humans", "verts_smplx", "j3d_smplx"))  # the members used
     else:
-        content = safe_pickle.load_file(path)
+        content = load_file(path)
     if isinstance(content, Mapping) and "humans" in content:
         content = content["humans"]
     if isinstance(content, np.ndarray) and content.dtype.kind == "O":

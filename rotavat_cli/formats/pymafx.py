@@ -32,7 +32,7 @@ the smplx branch's model and renderer as vendored in YuliangXiu/ECON @2e20b83 ``
   of the kinematic joints). Without a model: ``smplx_verts`` and the file's 49 SPIN joints (pelvis = 8).
 - ``smplx_params`` holds the demo's torch tensors as they were (on the GPU where it ran), pickled by plain
   pickle (``torch._utils._rebuild_tensor_v2`` over ``torch.storage._load_from_bytes``): the restricted
-  unpickler rebuilds them as numpy arrays (:mod:`rotavat_cli.safe_torch`); nothing here uses them.
+  unpickler rebuilds them as numpy arrays (:mod:`rotavat_cli.unpickle.torch_tensors`); nothing here uses them.
 """
 
 from __future__ import annotations
@@ -44,10 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -95,7 +95,7 @@ def _results_file(src: Path) -> Path:
 
 def _load(path: Path) -> Mapping:
     """The results dict (its torch tensors, ``smplx_params``, come back as inert numpy arrays; unused)."""
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if not isinstance(data, Mapping) or "orig_cam_t" not in data:
         raise file_error(path, "not a PyMAF-X output.pkl (expected a dict with 'orig_cam_t')")
     return data

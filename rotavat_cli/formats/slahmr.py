@@ -62,11 +62,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import limits, safe_pickle
+from .. import limits
 from ..camera import world_to_cam
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from .content import as_array, get
 from .files import npz_has_keys
 from .frame_names import frame_names
@@ -285,7 +286,7 @@ def read_slahmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     if path.name.endswith(_PRIOR_SUFFIX):
         raise file_error(path, "SLAHMR's motion-prior results are in the prior's canonical frame: import the "
                                f"matching *{_WORLD_SUFFIX} instead")
-    data = safe_pickle.load_npz(path, keys=_KEYS | {"track_mask", "cam_f"})  # other members are never read
+    data = load_npz(path, keys=_KEYS | {"track_mask", "cam_f"})  # other members are never read
     params = _params(data, path)
     warnings: list[str] = []
     model = _check_model(opts.body_model, path, warnings)

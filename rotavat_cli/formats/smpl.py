@@ -37,9 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import limits, safe_pickle
+from .. import limits
 from ..errors import InputError, file_error
 from ..rotations import axis_angle_to_matrix
+from ..unpickle.npz import open_npz
 
 __all__ = [
     "BodyModel",
@@ -98,7 +99,7 @@ def _model_arrays(path: Path) -> dict[str, np.ndarray]:
     if path.suffix.lower() == ".pkl":
         raise file_error(path, "pickled SMPL models are not read (they hold chumpy/scipy objects); "
                                "pass the .npz release of the model (e.g. SMPL_NEUTRAL.npz, SMPLX_NEUTRAL.npz)")
-    with safe_pickle.open_npz(path) as npz:  # declared sizes checked against the limits before reading
+    with open_npz(path) as npz:  # declared sizes checked against the limits before reading
         missing = [k for k in _REQUIRED if k not in npz.keys()]
         if missing:
             raise file_error(path, f"not an SMPL-family .npz model (missing {', '.join(missing)})")

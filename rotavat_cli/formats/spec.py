@@ -26,13 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..camera import Camera, pitch_roll_from_up
 from ..errors import file_error
 from ..focal import ASSUMED
 from ..landmarks import foot_head_points
 from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names, natural_key
 from .frames import people_frame
@@ -80,7 +80,7 @@ def _scalar(obj: object, name: str, source: object) -> float:
 
 
 def _camcalib(path: Path) -> dict[str, float]:
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     cam = {key: _scalar(get(data, key, path), key, path) for key in ("pitch", "roll", "vfov", "f_pix")}
     if cam["f_pix"] <= 0 or not 0 < cam["vfov"] < np.pi:
         raise file_error(path, f"'f_pix' must be a positive focal length and 'vfov' a field of view in (0, pi), got "
@@ -120,7 +120,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
         if stem not in results:
             return None
         path = results[stem]
-        data = safe_pickle.load_file(path)
+        data = load_file(path)
         cam = cams[stem]
         R = spec_rotation(cam["pitch"], cam["roll"])
         t = as_array(get(data, "pred_cam_t", path), "pred_cam_t", path, ndim=2, last=(3,))
@@ -173,7 +173,7 @@ def read_spec(src: Path, opts: ImportOptions) -> ImportedSequence:
             return None
         if stem not in vertex_counts:
             path = results[stem]
-            verts = as_array(get(safe_pickle.load_file(path), "smpl_vertices", path), "smpl_vertices", path, ndim=3,
+            verts = as_array(get(load_file(path), "smpl_vertices", path), "smpl_vertices", path, ndim=3,
                              last=(3,))
             vertex_counts[stem] = verts.shape[1]
         return vertex_counts[stem]

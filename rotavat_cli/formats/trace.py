@@ -39,10 +39,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npz import load_npz
 from .bev import _infer_image_size
 from .content import as_array, get
 from .files import npz_has_keys, single_file
@@ -75,7 +75,7 @@ def sniff(path: Path) -> str | None:
 
 def _outputs(path: Path) -> tuple[dict, list[str]]:
     """The results dict and the frames' image paths."""
-    content = safe_pickle.load_npz(path, keys=tuple(sorted(_KEYS)))  # other members are never read
+    content = load_npz(path, keys=tuple(sorted(_KEYS)))  # other members are never read
     missing = sorted(_KEYS - set(content))
     if missing:
         raise file_error(path, f"not a TRACE results file (missing {', '.join(missing)})")

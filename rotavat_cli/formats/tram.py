@@ -16,7 +16,7 @@ global_orient=pred_rotmat[:, [0]], betas=pred_shape, transl=pred_trans)`` is the
   unpickler): ``pred_cam_R`` (T, 3, 3), ``pred_cam_T`` (T, 3) (camera-to-world, metric SLAM; the
   identity and zero for a static camera), ``img_focal`` (px), ``img_center`` (2,) px.
 - ``hps/hps_track_{k}.npy``: ``np.save`` of a dict of **torch tensors** (each storage a
-  ``torch.storage._load_from_bytes`` blob, read by :mod:`rotavat_cli.safe_torch` without torch):
+  ``torch.storage._load_from_bytes`` blob, read by :mod:`rotavat_cli.unpickle.torch_files` without torch):
   ``pred_rotmat`` (N, 24, 3, 3), ``pred_shape`` (N, 10), ``pred_trans`` (N, 1, 3), ``frame`` (N,)
   image indices, ``pred_cam`` (N, 3), ``pred_pose`` (N, 144, 6D). ``k`` ranks tracks by length
   (not DEVA's track id): ``person_ids`` = k, people grouped by ``frame`` into multi-person frames.
@@ -41,10 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.npy import load_npy
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -82,7 +82,7 @@ def sniff(path: Path) -> str | None:
 
 def _dict_npy(path: Path) -> Mapping:
     """The dict an ``np.save(path, dict)`` holds."""
-    content = safe_pickle.load_npy(path)
+    content = load_npy(path)
     value = content.item() if content.dtype.hasobject and content.shape == () else content
     if not isinstance(value, Mapping):
         raise file_error(path, f"expected np.save of a dict, got {type(value).__name__}")

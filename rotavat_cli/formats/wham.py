@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safe_pickle
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
+from ..unpickle.dispatch import load_file
 from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
@@ -58,7 +58,7 @@ def sniff(path: Path) -> str | None:
     """'wham' for a pickle whose values are per-track dicts holding ``frame_ids`` and ``verts``."""
     if not (path.is_file() and path.suffix == ".pkl") or path.stat().st_size > _MAX_SNIFF_BYTES:
         return None
-    data = safe_pickle.load_file(path)
+    data = load_file(path)
     if isinstance(data, Mapping) and data and all(
             isinstance(track, Mapping) and "frame_ids" in track and "verts" in track for track in data.values()):
         return "wham"
@@ -117,7 +117,7 @@ def _posed_joints(model: BodyModel, tracks: dict, picks: list[tuple[int, int]],
 def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
     """WHAM ``wham_output.pkl`` -> contract frames (camera frame; WHAM's world trajectory is not read)."""
     image_size = need_image_size(opts, src, "WHAM reads it from the video")
-    data = safe_pickle.load_file(src)
+    data = load_file(src)
     if not isinstance(data, Mapping) or not data:
         raise file_error(src, "not a WHAM output (expected a non-empty dict of tracks)")
     model = opts.body_model

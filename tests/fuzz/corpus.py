@@ -57,7 +57,7 @@ import _fixtures_torch as T  # noqa: E402
 import _fixtures_wham_hybrik as WH  # noqa: E402
 import _format_fixtures as F  # noqa: E402
 
-from rotavat_cli import safe_pickle  # noqa: E402
+from rotavat_cli import unpickle  # noqa: E402
 from rotavat_cli.camera import Camera, camera_to_yaml_dict  # noqa: E402
 from rotavat_cli.formats.smpl import SMPL_PARENTS, load_body_model  # noqa: E402
 
@@ -919,7 +919,7 @@ def _npz_edit(fmt: str, member: str, edit: Callable[[dict], dict], objects: bool
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "member.npz"
             path.write_bytes(all_files[member])
-            data = safe_pickle.load_npz(path, allow_pickle=objects)
+            data = unpickle.load_npz(path, allow_pickle=objects)
         all_files[member] = npz_bytes(edit(data))
         return all_files
 
@@ -928,11 +928,11 @@ def _npz_edit(fmt: str, member: str, edit: Callable[[dict], dict], objects: bool
 
 def _pickle_edit(fmt: str, member: str, edit: Callable[[Any], Any], joblib: bool = False,
                  compress: int = 3) -> Callable[[], dict]:
-    from rotavat_cli import safe_pickle
+    from rotavat_cli import unpickle
 
     def files() -> dict[str, Content]:
         all_files = dict(format_files(fmt))
-        obj = safe_pickle.loads(_maybe_unzlib(all_files[member]), member)
+        obj = unpickle.loads(_maybe_unzlib(all_files[member]), member)
         new = edit(obj)
         all_files[member] = F.joblib_bytes(new, compress=compress) if joblib else pickle.dumps(new, protocol=4)
         return all_files
@@ -1136,9 +1136,9 @@ def _incam(edit: Callable[[dict], dict]) -> Callable[[dict], dict]:
 
 
 def _load_any_npy(data: bytes) -> Any:
-    from rotavat_cli import safe_pickle
+    from rotavat_cli import unpickle
 
-    arr = safe_pickle.load_npy_bytes(data, "x.npy")
+    arr = unpickle.load_npy_bytes(data, "x.npy")
     return arr.item() if arr.dtype.hasobject and arr.shape == () else arr
 
 
@@ -1356,10 +1356,10 @@ def _new_importer_cases() -> list[Case]:
         return _pickle_edit("pymafx", pm, edit, joblib=True, compress=0)
 
     def pm_torch(tensor: Any) -> Callable[[], dict]:
-        from rotavat_cli import safe_pickle
+        from rotavat_cli import unpickle
 
         return lambda: {**format_files("pymafx"), pm: torch_pickle_bytes(_set(
-            safe_pickle.loads(format_files("pymafx")[pm], pm), smplx_params=[{"shape": tensor}]))}
+            unpickle.loads(format_files("pymafx")[pm], pm), smplx_params=[{"shape": tensor}]))}
 
     add("pymafx", "output-posix-system", _replace("pymafx", pm, lambda root: F.evil_pickle(root / MARKER)),
         payload=True)

@@ -141,9 +141,9 @@ def mutate_bytes(data: bytes, rng: np.random.Generator) -> tuple[str, bytes]:
 
 
 def _npy_load(raw: bytes) -> np.ndarray:
-    from rotavat_cli import safe_pickle
+    from rotavat_cli import unpickle
 
-    return safe_pickle.load_npy_bytes(raw, "member.npy")
+    return unpickle.load_npy_bytes(raw, "member.npy")
 
 
 def _npy_save(arr: np.ndarray) -> bytes:
@@ -329,12 +329,12 @@ class _quiet_zip:
 
 
 def mutate_pickle(data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | None:
-    from rotavat_cli import safe_pickle
+    from rotavat_cli import unpickle
 
     compressed = data[:1] == b"x"
     try:
         raw = zlib.decompress(data) if compressed else data
-        obj = safe_pickle.loads(raw, "x.pkl")
+        obj = unpickle.loads(raw, "x.pkl")
     except Exception:  # noqa: BLE001
         return None
     name, new = mutate_tree(obj, rng)
@@ -418,7 +418,7 @@ def mutate_obj(data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | Non
 def mutate_torch(data: bytes, rng: np.random.Generator) -> tuple[str, bytes] | None:
     """A torch.save file (zip archive or legacy stream) loaded, its tree damaged, re-saved by the test
     writers with every numeric array a torch tensor (zip or legacy stream at random)."""
-    from rotavat_cli.safe_torch import load_torch_bytes
+    from rotavat_cli.unpickle import load_torch_bytes
 
     try:
         obj = load_torch_bytes(data, "x.pt")

@@ -1,0 +1,56 @@
+"""Refusals of the restricted readers, and the one place where they become a one-line
+:class:`~rotavat_cli.errors.InputError` naming the file.
+
+Everything below the file level (the unpickler, the allowed builders, the budget, the torch
+stand-ins, the stream readers) raises :class:`Refused` with a message that does not know the
+file; :func:`unpickling_errors` adds the file's name, as it does to every way unpickling hostile or
+broken bytes fails.
+
+>>> with unpickling_errors("x.pkl"):
+...     raise Refused("pickle nests too deeply")
+Traceback (most recent call last):
+...
+rotavat_cli.errors.InputError: x.pkl: pickle nests too deeply
+"""
+
+from __future__ import annotations
+
+import pickle
+import struct
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from ..errors import InputError
+
+__all__ = ["Refused", "MALFORMED", "unpickling_errors"]
+
+
+class Refused(Exception):
+    """Raised inside the restricted readers; turned into an InputError naming the file."""
+
+
+# What malformed pickle bytes raise in the pure-Python unpickler and the builders it calls.
+MALFORMED = (pickle.UnpicklingError, ValueError, TypeError, IndexError, AttributeError, struct.error, UnicodeDecodeError,
+             OverflowError)
+
+
+@contextmanager
+def unpickling_errors(source: str, what: str = "") -> Iterator[None]:
+    """Context: every way unpickling hostile or broken bytes fails becomes a one-line InputError naming
+    ``source`` (and ``what`` was read, e.g. ``"torch archive: "``)."""
+    prefix = f"{source}: {what}"
+    try:
+        yield
+    except Refused as exc:
+        raise InputError(f"{prefix}{exc}") from None
+    except EOFError:
+        raise InputError(f"{prefix}truncated pickle (unexpected end of data)") from None
+    except RecursionError:
+        raise InputError(f"{prefix}pickle nests too deeply") from None
+    except MemoryError:
+        raise InputError(f"{prefix}pickle needs more memory than available") from None
+    except KeyError:  # the dispatch table has no entry for the byte read
+        raise InputError(f"{prefix}not a readable pickle (invalid opcode)") from None
+    except MALFORMED as exc:
+        detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{prefix}not a readable pickle ({detail})") from None
