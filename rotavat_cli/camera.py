@@ -28,6 +28,7 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field, fields
 from functools import cached_property
@@ -340,8 +341,6 @@ class Camera:
 
     def replace(self, **changes: Any) -> "Camera":
         """Copy with some fields changed."""
-        import dataclasses
-
         return dataclasses.replace(self, **changes)
 
 

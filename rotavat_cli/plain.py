@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .limits import current
 
 __all__ = ["to_plain", "csv_cell"]
 
@@ -35,8 +36,6 @@ def to_plain(value: Any, max_items: int | None = None) -> Any:
     {'a': 1.5, 'b': [1, 2], 'c': None}
     """
     if max_items is None:
-        from .limits import current
-
         max_items = current().max_pickle_items
     return _plain(value, [max_items], max_items)
 

@@ -250,7 +250,7 @@ def read_frame_npz(path: str | Path) -> Frame:
 
 def read_frame_obj(folder: str | Path) -> Frame:
     """Read a frame folder of per-person OBJ files (stem = person id) into contract arrays."""
-    import trimesh
+    import trimesh  # lazy: ~0.3 s to import, needed only for OBJ frame folders; every command reads sequences
 
     folder = Path(folder)
     files = _obj_files(folder)

@@ -46,14 +46,16 @@ def named_commands(message: str) -> list[list[str]]:
 def assert_named_flags_exist(message: str) -> None:
     """Every --flag a message names after ``rotavat CMD`` is an option of CMD."""
     group = typer.main.get_command(app)
+    ctx = typer.Context(group)
+    commands = {name: group.get_command(ctx, name) for name in group.list_commands(ctx)}
     for args in named_commands(message):
-        command = group.commands[args[0]]
+        command = commands[args[0]]
         options = {opt for param in command.params for opt in (*param.opts, *param.secondary_opts)}
         for flag in (a for a in args[1:] if a.startswith("--")):
             assert flag in options, (args[0], flag)
         for flag in re.findall(r"--[a-z][a-z-]+", message):  # the ones named alone (e.g. "or --accept-camera")
             assert any(flag in {opt for p in c.params for opt in (*p.opts, *p.secondary_opts)}
-                       for c in group.commands.values()), flag
+                       for c in commands.values()), flag
 
 
 def markdown_anchors(page: Path) -> set[str]:

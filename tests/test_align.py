@@ -316,8 +316,8 @@ def test_a_frame_without_meshes_or_2d_points_is_refused(scene):
 
 def test_track_plots_of_joints_only_people_measure_them_as_align_does(scene, tmp_path):
     """A joints-only person's per-track stature is the one of align's mid-sole and crown (feet_2d/heads_2d at the
-    joints' depth: alignment.frame_foot_head_cam), not another estimate."""
-    from rotavat_cli.alignment import MeshIntrinsics, frame_foot_head_cam
+    joints' depth: frame_points.frame_foot_head_cam), not another estimate."""
+    from rotavat_cli.frame_points import MeshIntrinsics, frame_foot_head_cam
     from rotavat_cli.render import sequence_tracks
 
     seq, cam = open_sequence(scene / "pred"), open_sequence(scene / "gt").camera

@@ -396,10 +396,10 @@ def _implausible_calibration_of(rel: str, monkeypatch) -> None:
     """Calibrating ``rel`` (in this process: --jobs 1) finds the camera implausible; the others as they are."""
     from dataclasses import replace
 
-    import rotavat_cli.calibration.sequence as calibration
+    import rotavat_cli.batch.tasks as tasks
     from _camera_gate import FINDINGS
 
-    real = calibration.calibrate_sequence
+    real = tasks.calibrate_sequence
 
     def calibrate_sequence(seq, options):
         calib = real(seq, options)
@@ -407,7 +407,7 @@ def _implausible_calibration_of(rel: str, monkeypatch) -> None:
             return replace(calib, result=replace(calib.result, implausible=FINDINGS))
         return calib
 
-    monkeypatch.setattr(calibration, "calibrate_sequence", calibrate_sequence)
+    monkeypatch.setattr(tasks, "calibrate_sequence", calibrate_sequence)  # the batch task's own name for it
 
 
 def test_an_implausible_camera_fails_its_sequence_only_until_accepted(data, tmp_path, runner, monkeypatch):

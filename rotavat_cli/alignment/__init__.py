@@ -8,8 +8,8 @@ from ..lazy import public_names
 # Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
 _PUBLIC = {
     ".align": (
-        "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignSummary", "MeshIntrinsics", "align_frame", "align_sequence",
-        "aligned_meta", "frame_foot_head_cam", "summarize_people_csv", "track_statures"
+        "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignSummary", "align_frame", "align_sequence", "aligned_meta",
+        "summarize_people_csv", "track_statures"
     ),
     ".camera_choice": ("CALIBRATED", "GIVEN", "AlignCamera", "camera_for_align"),
     ".camera_gate": (

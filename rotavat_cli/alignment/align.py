@@ -25,20 +25,20 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_open, staged_directory
-from ..camera import Camera, pixel_rays_cam, project_cam_to_px
+from ..camera import Camera, project_cam_to_px
 from ..errors import InputError
+from ..frame_points import MeshIntrinsics, frame_foot_head_cam
 from ..focal import CAMERA
-from ..landmarks import foot_head_points
 from ..outputs import check_output_dir
 from ..parallel import cap_workers, ordered_map
 from ..plain import csv_cell
 from ..posture import POSTURES, postures
-from ..sequence import Frame, Intrinsics, Sequence, can_align, write_camera_yaml, write_frame, write_meta
+from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 from .options import AlignOptions
 from .transform import (FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
                         rotavat_transforms, transformed_blocks)
 
-__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "NOT_STANDING", "ALIGNED_FLAGS", "MeshIntrinsics", "AlignSummary",
+__all__ = ["PEOPLE_COLUMNS", "IMPLAUSIBLE_STATURE", "NOT_STANDING", "ALIGNED_FLAGS", "AlignSummary",
            "align_frame", "track_statures", "align_sequence", "summarize_people_csv"]
 
 PEOPLE_COLUMNS = (
@@ -49,72 +49,6 @@ IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outsi
 # Aligned, but the joints say the person does not stand (rotavat_cli.posture): a sitting body has no stature.
 NOT_STANDING = tuple(name for name in POSTURES if name not in ("standing", "unknown"))
 ALIGNED_FLAGS = ("", IMPLAUSIBLE_STATURE, *NOT_STANDING)  # flags of people that were transformed
-
-
-@dataclass(frozen=True)
-class MeshIntrinsics:
-    """The intrinsics a frame's meshes were made with: focal per person (P,) px and principal point px."""
-
-    focal_px: np.ndarray  # (P,)
-    principal_point: tuple[float, float]
-
-    @classmethod
-    def of_frame(cls, frame: Frame, intrinsics: Intrinsics | None, camera: Camera) -> "MeshIntrinsics":
-        """From a frame's stated intrinsics; what is not stated is the camera's (meshes assumed made in it)."""
-        focals = None if intrinsics is None else intrinsics.focals_px(frame.n_people)
-        pp = None if intrinsics is None else intrinsics.principal_point
-        return cls(np.full(frame.n_people, camera.focal_px) if focals is None else focals,
-                   camera.principal_point if pp is None else pp)
-
-    def same_as(self, camera: Camera) -> bool:
-        """True when every person's mesh was made in the camera's own intrinsics."""
-        return bool(np.all(self.focal_px == camera.focal_px)) and tuple(self.principal_point) == tuple(camera.principal_point)
-
-
-_FOOT_JOINTS_RADIUS = 0.15  # joints drawn within this fraction of the foot-crown pixel distance are the foot's
-
-
-def joints_foot_head_cam(joints_cam: np.ndarray, feet_px: np.ndarray, heads_px: np.ndarray,
-                         mesh: MeshIntrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """Mid-sole and crown points (P, 3) of joints-only people: their pixels (P, 2), drawn in the
-    method's intrinsics, back-projected to the depth of the joints drawn there.
-
-    A person with joints but no mesh has no landmark vertices; the tool's own 2D keypoints give
-    the pixels of the mid-sole and crown (``feet_2d``/``heads_2d``, rotavat_cli.formats.keypoints)
-    and the joints their depth: the mean depth of the joints drawn within 15% of the foot-crown
-    pixel distance of the foot (ankles and toes, whatever the layout), and the depth of the joint
-    drawn nearest the crown (the head). Against the mesh landmarks of synthetic walkers 5-8 m
-    away this puts the mid-sole within 2.1 cm and the crown within 5.2 cm of their depth
-    (tests/test_align.py). NaN for people without finite inputs.
-    """
-    focal = mesh.focal_px.astype(np.float64)
-    joints = np.asarray(joints_cam, dtype=np.float64)
-    feet_px, heads_px = (np.asarray(p, dtype=np.float64) for p in (feet_px, heads_px))
-    drawn = project_cam_to_px(joints, focal[:, None], mesh.principal_point)  # (P, J, 2)
-    with np.errstate(invalid="ignore"):
-        to_foot = np.linalg.norm(drawn - feet_px[:, None], axis=-1)  # (P, J)
-        to_head = np.linalg.norm(drawn - heads_px[:, None], axis=-1)
-        radius = _FOOT_JOINTS_RADIUS * np.linalg.norm(heads_px - feet_px, axis=-1)
-    to_foot[~np.isfinite(to_foot)] = np.inf
-    to_head[~np.isfinite(to_head)] = np.inf
-    near_foot = (to_foot <= radius[:, None]) | (to_foot == to_foot.min(axis=1, keepdims=True))
-    depth = np.where(near_foot, joints[..., 2], 0.0).sum(axis=1) / near_foot.sum(axis=1)
-    foot_depth = np.where(np.isfinite(to_foot.min(axis=1)), depth, np.nan)
-    head_depth = np.take_along_axis(joints[..., 2], to_head.argmin(axis=1)[:, None], axis=1)[:, 0]
-    head_depth[~np.isfinite(to_head.min(axis=1))] = np.nan
-    return (pixel_rays_cam(feet_px, focal, mesh.principal_point) * foot_depth[:, None],
-            pixel_rays_cam(heads_px, focal, mesh.principal_point) * head_depth[:, None])
-
-
-def frame_foot_head_cam(frame: Frame, mesh: MeshIntrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """Mid-sole and crown points (P, 3) in the method's camera frame: the mesh landmarks, or for a
-    frame without meshes its joints with ``feet_2d``/``heads_2d`` (:func:`joints_foot_head_cam`)."""
-    if not can_align(frame):
-        raise InputError(f"{frame.source}: align needs 'vertices' (meshes), or 'joints' with 'feet_2d' and "
-                         "'heads_2d' (joint-level alignment), in every frame with people")
-    if frame.get("vertices") is not None:
-        return foot_head_points(frame.data["vertices"])
-    return joints_foot_head_cam(frame.data["joints"], frame.data["feet_2d"], frame.data["heads_2d"], mesh)
 
 
 def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: dict[int, float] | None,

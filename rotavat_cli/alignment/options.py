@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ..config import packaged_default
+from ..config import default_config, packaged_default
 from ..option_rules import Rule, check_fields
 from .transform import UPRIGHT
 
@@ -31,8 +31,6 @@ HEIGHT_FROM = ("frame", "track")  # each mesh keeps its stature, or one per pers
 @functools.lru_cache(maxsize=1)
 def _packaged_options() -> "AlignOptions":
     """AlignOptions of the packaged ``align:`` section (read once)."""
-    from ..config import default_config
-
     return AlignOptions.from_config(default_config()["align"])
 
 

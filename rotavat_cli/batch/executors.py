@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import concurrent.futures as cf
+import logging
 import multiprocessing
 import os
 from collections.abc import Callable
@@ -84,7 +85,7 @@ class _DaskExecutor:
 
     def __init__(self, scheduler: str | None, jobs: int) -> None:
         try:
-            import distributed
+            import distributed  # lazy: optional extra rotavat[dask]
         except ImportError:
             raise InputError("--executor dask needs Dask: pip install 'rotavat[dask]' (or dask[distributed])") from None
         self._distributed, self._cluster = distributed, None
@@ -141,10 +142,8 @@ LOCAL_CLUSTER_CONFIG = {
 
 def local_cluster(workers: int) -> Any:
     """A dask.distributed LocalCluster on loopback: ``workers`` processes of one thread, rotavat's configuration."""
-    import logging
-
-    import dask
-    import distributed
+    import dask  # lazy: optional extra rotavat[dask]
+    import distributed  # lazy: optional extra rotavat[dask]
 
     with dask.config.set(LOCAL_CLUSTER_CONFIG):
         return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",

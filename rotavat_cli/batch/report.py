@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 
 from ..atomic import atomic_write_text
+from ..metrics.protocols import detection, protocol
+from ..metrics.report import REPORT_COLUMNS, format_value
 from ..plain import to_plain
 
 __all__ = ["REPORT_JSON", "REPORT_MD", "BatchReport", "aggregate_rows", "camera_checks", "markdown_batch_report",
@@ -77,8 +79,6 @@ def aggregate_rows(rows: list[dict]) -> dict:
     summed match counts by the protocol's own rule (AGORA's rounding included); camera errors and
     estimated camera parameters get mean, people-weighted mean, median, min and max.
     """
-    from ..metrics.protocols import detection, protocol
-
     ok = [r for r in rows if r["status"] in ("done", "skipped")]
     counts = {"sequences": len(rows), "done": sum(r["status"] == "done" for r in rows),
               "skipped": sum(r["status"] == "skipped" for r in rows), "failed": sum(r["status"] == "failed" for r in rows),
@@ -126,9 +126,6 @@ def _cell(value: Any, digits: int = 1) -> str:
 
 def markdown_batch_report(report: BatchReport) -> str:
     """batch_report.md: counts, the dataset aggregate (input vs aligned), cameras, one row per sequence."""
-    from ..metrics.protocols import protocol
-    from ..metrics.report import REPORT_COLUMNS, format_value
-
     agg, c = report.aggregate, report.aggregate["counts"]
     lines = [f"# rotavat batch of `{report.root}`", "",
              f"{c['sequences']} sequences: {c['done']} done, {c['skipped']} skipped (already complete), {c['failed']} failed; "

@@ -21,16 +21,28 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+try:
+    import resource
+except ImportError:  # not a POSIX system: no peak memory in the report
+    resource = None
+
 from ..version import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
+from ..alignment.align import align_sequence, summarize_people_csv
 from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from ..alignment.camera_gate import (ImplausibleCameraError, batch_remedies, check_align_camera, implausible_findings,
                                      is_accepted)
+from ..alignment.options import AlignOptions
+from ..calibration.options import CalibrateOptions
+from ..calibration.sequence import calibrate_sequence
 from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
 from ..errors import InputError, RotavatError, TaskError, input_errors
 from ..limits import Limits
 from ..limits import configure as configure_limits
+from ..metrics.evaluate import EvalOptions, evaluate, merge_results
+from ..metrics.report import write_reports
 from ..plain import to_plain
+from ..render.sequences import FigureOptions, render_sequences
 from ..sequence import Sequence, open_sequence, write_camera_yaml
 from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
 
@@ -60,13 +72,10 @@ def one_line(text: str) -> str:
 
 def _worker() -> dict:
     """Host, pid and peak resident memory (MB) of this process."""
-    try:
-        import resource
-
+    rss_mb = float("nan")
+    if resource is not None:
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         rss_mb = rss / (1 << 20) if sys.platform == "darwin" else rss / 1024.0
-    except ImportError:  # Windows
-        rss_mb = float("nan")
     return {"host": socket.gethostname(), "pid": os.getpid(), "peak_rss_mb": rss_mb}
 
 
@@ -134,9 +143,6 @@ def task_prepare(job: dict, plan: dict) -> dict:
     result["frames"] = len(seq)
 
     def calibrate(s: Sequence) -> AlignCamera:
-        from ..calibration.options import CalibrateOptions
-        from ..calibration.sequence import calibrate_sequence
-
         start = time.perf_counter()
         calib = calibrate_sequence(s, CalibrateOptions.from_config(plan["config"]["calibrate"]))
         write_camera_yaml(out / "camera.yaml", calib.result.camera, calib.fit_dict())
@@ -187,9 +193,6 @@ def _chunk_dir(job: dict, index: int) -> Path:
 def task_align_chunk(job: dict, plan: dict, camera_yaml: dict, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
     _apply_limits(plan)
-    from ..alignment.options import AlignOptions
-    from ..alignment.align import align_sequence
-
     seq = open_sequence(job["seq"], read_camera=False)
     camera, fit = camera_from_yaml_dict(camera_yaml), camera_yaml.get("fit") or {}
     part = replace(seq, frame_names=seq.frame_names[start:stop])
@@ -224,16 +227,12 @@ def task_align_merge(job: dict, plan: dict, n_chunks: int) -> dict:
 
 def _people_summary(people_csv: Path) -> dict:
     """What align did, from its people.csv (the same numbers whatever the chunking)."""
-    from ..alignment.align import summarize_people_csv
-
     summary = summarize_people_csv(people_csv)
     return {k: v for k, v in vars(summary).items() if k not in ("out", "frames") and not k.startswith("_")}
 
 
 def _eval_options(plan: dict) -> Any:
     """EvalOptions from the eval config section."""
-    from ..metrics.evaluate import EvalOptions
-
     return EvalOptions.from_config(plan["config"]["eval"])
 
 
@@ -245,8 +244,6 @@ def _eval_pred_dir(job: dict, side: str) -> str:
 def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> dict:
     """Score frames [start, stop) of the sorted union of prediction and GT frame names, for one side."""
     _apply_limits(plan)
-    from ..metrics.evaluate import evaluate
-
     part = evaluate(open_sequence(_eval_pred_dir(job, side)), open_sequence(job["gt"]), _eval_options(plan),
                     frames=(start, stop))
     return {"part": part, "frames": stop - start}
@@ -264,9 +261,6 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         row["align"] = state["align"]
         row["people"] = state["align"]["people"]
     if "eval" in steps:
-        from ..metrics.evaluate import merge_results
-        from ..metrics.report import write_reports
-
         start = time.perf_counter()
         results = [merge_results(state["eval_parts"][side]) for side in ("before", "after") if side in state["eval_parts"]]
         write_reports(out / "eval", results, job["gt"], {**plan["config"]["eval"], "joints": None})
@@ -276,8 +270,6 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
     if row["people"] is None and state["camera"] and state["camera"].get("pairs") is not None:
         row["people"] = state["camera"]["pairs"]  # calibrate only: the foot/head pairs offered
     if "render" in steps:
-        from ..render.sequences import FigureOptions, render_sequences
-
         start = time.perf_counter()
         paths = [Path(job["seq"])] + ([out / "aligned"] if "align" in steps else []) + ([Path(job["gt"])] if job["gt"] else [])
         camera = out / "aligned" / "camera.yaml" if "align" in steps else state["camera_file"]

@@ -7,7 +7,7 @@ the pixels the method drew, whatever the camera's real focal.
 
 Where the frame has 3D people, each pair also carries the person's own sole->crown axis in the
 method's camera frame (the mesh landmarks, or align's rule for joints:
-:func:`rotavat_cli.alignment.align.frame_foot_head_cam`), which calibration may use as evidence of
+:func:`rotavat_cli.frame_points.frame_foot_head_cam`), which calibration may use as evidence of
 the vertical.
 """
 
@@ -17,8 +17,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..alignment.align import MeshIntrinsics, frame_foot_head_cam
 from ..camera import project_cam_to_px
+from ..frame_points import MeshIntrinsics, frame_foot_head_cam
 from ..errors import InputError
 from ..landmarks import foot_head_points
 from ..posture import postures

@@ -12,6 +12,8 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.special import chdtri  # the chi-square quantile: chdtri(k, 1 - p) = chi2.ppf(p, k)
 
 from ..camera import Camera, horizon_v_px
 from .grid import order_invariant_subset
@@ -99,7 +101,6 @@ def _row_clusters(prob: Problem, clusters: np.ndarray | None, n_rows: int) -> tu
 
 def _cluster_sums(values: np.ndarray, row_cluster: np.ndarray, n_groups: int) -> np.ndarray:
     """(G, ...) sums of the rows of ``values`` (M, ...) per cluster; rows of cluster -1 are left out."""
-    from scipy.sparse import csr_matrix  # imported when used: keeps `rotavat --help` fast
     rows = np.flatnonzero(row_cluster >= 0)
     member = csr_matrix((np.ones(len(rows)), (row_cluster[rows], np.arange(len(rows)))), shape=(n_groups, len(rows)))
     flat = values[rows].reshape(len(rows), -1)
@@ -194,7 +195,6 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
     (``max(0, d_i^2 - V_ii)``: an estimate of the squared bias the columns put in the fit; zero on
     average for a right model, whose disagreement is all noise), at most the parameter's prior variance.
     """
-    from scipy.stats import chi2 as chi2_dist  # imported when used: keeps `rotavat --help` fast
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
     total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
     warns = []
@@ -208,7 +208,7 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
         sub_stat = stat if len(sub) == len(prob.rel_feet) else _statistical_cov(sub_prob, params, free, scale,
                                                                                sub_clusters)[0]
         shift, stat_h, rank, noise = _column_shift(sub_prob, params, free, scale, sub_clusters, sub_stat)
-        if rank and stat_h > _COLUMN_TEST_FACTOR * chi2_dist.ppf(0.99, rank):
+        if rank and stat_h > _COLUMN_TEST_FACTOR * chdtri(rank, 0.01):
             excess = np.maximum(shift**2 - np.diag(noise), 0.0)
             if prob.priors is not None:
                 excess = np.minimum(excess, prob.priors.sd[free] ** 2)

@@ -1,4 +1,5 @@
-"""The ``rotavat`` command line: a thin layer over the Python API, one module per command.
+"""The ``rotavat`` command line: a thin layer over the Python API, one module per command (listed in
+:mod:`rotavat_cli.cli.commands`, imported only when used: :mod:`rotavat_cli.cli.group`).
 
 Exit status: 0 ok; 1 a ``--fail-if`` gate tripped; 2 bad input or usage.
 """
@@ -10,8 +11,7 @@ from typing import Annotated
 import typer
 
 from ..version import WRITTEN_BY
-from . import align, batch, calibrate, eval, export, import_, info, measure, render, synth
-from ._common import RotavatGroup
+from .group import RotavatGroup  # lists the commands of .commands; imports one when it is used
 
 app = typer.Typer(
     name="rotavat",
@@ -37,19 +37,6 @@ def _root(
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Show the version and exit.")] = False,
 ) -> None:
     """rotavat: auto-calibrate a static camera from its people, re-seat HPS meshes on the ground, and score them."""
-
-
-# The commands, registered here in the order `rotavat --help` lists them (a new command: one module + one line).
-app.command()(info.info)
-app.command()(synth.synth)
-app.command()(calibrate.calibrate)
-app.command()(measure.measure)
-app.command()(align.align)
-app.command("eval")(eval.eval_)
-app.command()(render.render)
-app.command()(export.export)
-app.command("import")(import_.import_)
-app.command()(batch.batch)
 
 
 def main() -> None:

@@ -6,8 +6,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import sys
-import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,10 +15,9 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-from typer.core import TyperGroup
 
 from ..config import load_config, merge_config
-from ..errors import InputError, RotavatError
+from ..errors import InputError
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..option_rules import Rule
@@ -38,16 +35,6 @@ FromOpt = Annotated[str | None, typer.Option("--from", help="Read the input in a
 ImageSizeOpt = Annotated[tuple[int, int] | None, typer.Option(help="With --from: original image width and height (px), for formats that do not store it.")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Replace an existing output that rotavat did not write (never an input).")]
 SmplModelOpt = Annotated[Path | None, typer.Option(help="With --from: SMPL/SMPL-X .npz model to pose parameter-only formats.", dir_okay=False)]
-
-
-# click's exception classes as typer ships them (typer may vendor its own click)
-_USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
-_CLICK_EXCEPTION = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
-
-
-# The config section whose keys are each command's options (their defaults shown in --help).
-_SECTIONS = {"calibrate": "calibrate", "align": "align", "eval": "eval", "render": "render", "export": "render",
-             "synth": "synth", "batch": "batch"}
 
 
 def _default_text(value: Any, flag: str) -> str:
@@ -141,69 +128,10 @@ def polish_help(command: Any, section: dict | None, rules: dict[str, Rule] | Non
             param.help = f"{param.help} \\[default: {escape(shown)}]"
 
 
-class RotavatGroup(TyperGroup):
-    """Click group that answers every bad input or usage with one line on stderr and exit status 2.
-
-    A RotavatError prints its message and exits with its code (2, or 1 for a quality gate). The
-    environment's refusals that no check can rule out beforehand (a file system error, memory
-    exhausted, a structure nested too deep) are input problems too: one line, exit 2. Usage errors
-    (a missing option, a bad value) are one line naming the command, not click's help box.
-    """
-
-    def get_command(self, ctx: Any, cmd_name: str) -> Any:
-        command = super().get_command(ctx, cmd_name)
-        if command is not None:
-            section = _SECTIONS.get(cmd_name)
-            polish_help(command, load_config(None).get(section) if section else None,
-                        section_rules(section) if section else None)
-            help_option = command.get_help_option(ctx)  # click adds --help itself (cached per command)
-            if help_option is not None:
-                help_option.metavar = ""
-        return command
-
-    def invoke(self, ctx: Any) -> Any:
-        try:
-            with warnings.catch_warnings():  # numpy's overflow/invalid-value notes on hostile data: the
-                warnings.simplefilter("ignore", RuntimeWarning)  # checks after them say what is wrong, once
-                return super().invoke(ctx)
-        except RotavatError as exc:
-            _error_line(str(exc))
-            raise typer.Exit(exc.exit_code) from None
-        except OSError as exc:
-            where = f"{exc.filename}: " if exc.filename else ""
-            _error_line(f"{where}{exc.strerror or exc}")
-            raise typer.Exit(2) from None
-        except MemoryError:
-            _error_line("out of memory: the input is larger than this machine can hold (see the limits section of "
-                        "configs/default.yaml)")
-            raise typer.Exit(2) from None
-        except RecursionError:
-            _error_line("the input is nested too deeply to read")
-            raise typer.Exit(2) from None
-
-    def main(self, args: Any = None, prog_name: str | None = None, complete_var: str | None = None,
-             standalone_mode: bool = True, **extra: Any) -> Any:
-        if not standalone_mode:
-            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        try:
-            code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        except _USAGE_ERROR as exc:
-            name = exc.ctx.command_path if exc.ctx is not None else "rotavat"
-            _error_line(f"{name}: {exc.format_message()} (see {name} --help)")
-            sys.exit(2)
-        except _CLICK_EXCEPTION as exc:
-            _error_line(exc.format_message())
-            sys.exit(exc.exit_code)
-        except typer.Abort:
-            sys.exit(1)
-        sys.exit(code if isinstance(code, int) else 0)
-
-
-def _error_line(message: str) -> None:
-    """One line on stderr: ``error: <message>``. The message is text, not markup: "rotavat[fast]" or a
-    path with brackets stays intact; it is never wrapped, so CI logs and tests see one line."""
-    text = " ".join(str(message).split())
-    console.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
+def polish_command_help(command: Any, section: str) -> None:
+    """:func:`polish_help` with the packaged defaults and the rules of config section ``section`` ("" for none)."""
+    polish_help(command, load_config(None).get(section) if section else None,
+                section_rules(section) if section else None)
 
 
 def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:

@@ -39,7 +39,6 @@ def align(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."""
     if seq is None and in_ is None:
         raise InputError("rotavat align: missing the input sequence SEQ (see rotavat align --help)")
     if seq is not None and in_ is not None and seq != in_:

@@ -44,9 +44,7 @@ def batch(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Run calibrate/align/eval/render on every sequence under ROOT; outputs mirror ROOT's tree, plus batch_report.json/.md.
-
-    A sequence whose outputs are complete and newer than its inputs is skipped (--force redoes it); a
+    """A sequence whose outputs are complete and newer than its inputs is skipped (--force redoes it); a
     failing sequence is reported with its reason and the others go on. Exit status: 0 all ok, 1 a
     sequence failed, 2 bad input or usage.
     """

@@ -71,7 +71,6 @@ def calibrate(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Estimate focal, pitch, roll and height of the static camera from the people in a sequence."""
     if from_ and out is None:
         raise InputError("with --from, pass --out FILE for the camera.yaml (the input is not a contract sequence)")
     target = out or seq / "camera.yaml"

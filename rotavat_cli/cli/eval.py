@@ -40,7 +40,6 @@ def eval_(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Score predictions against ground truth: MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera, temporal."""
     opts = config_for(config, "eval", match=match, threshold_px=threshold_px, iou_threshold=iou_threshold,
                       engine=engine, protocol=protocol)
     gates = [parse_gate(text) for text in fail_if or []]

@@ -29,7 +29,6 @@ def export(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Write one frame as a .glb (glTF 2.0, Y up, metres): people coloured by id, ground quad, camera frustum and camera."""
     opts = config_for(config, "render")
     with input_errors():
         palette = RenderStyle.from_config(opts).palette

@@ -31,7 +31,6 @@ def import_(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Convert HPS results (CLIFF, BEV/ROMP, 4D-Humans, Multi-HMR, SPEC, AGORA, BEDLAM, WHAM, GVHMR, TRAM, HybrIK, PyMAF-X, TRACE, SLAHMR, GLAMR) into the contract (OpenCV camera frame, metres)."""
     use_config(config)  # its limits
     fmt = from_ or detect_format(src)
     if fmt is None:

@@ -20,7 +20,6 @@ def info(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Validate a sequence and print a summary: form, frames, people, keys, sizes, intrinsics, camera."""
     use_config(config)  # its limits
     sequence = open_sequence(seq)
     warn_ignored(sequence)

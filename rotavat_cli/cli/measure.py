@@ -38,7 +38,6 @@ def measure(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Measure each person's stature (sole to crown) from the camera: median and spread per track."""
     out = out or default_output(seq, "_measure.csv", from_)
     check_output_file(out, [seq, *([camera] if camera else [])], force, signature=CSV_SIGNATURE.encode())
     quiet_notes = quiet or as_json

@@ -48,7 +48,6 @@ def render(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Draw the meshes from the camera (front) and orthographically from the side and top, where floating, sunk and leaning bodies show."""
     opts = config_for(config, "render", views=views, frames=frames, every=every, size=list(size) if size else None,
                       renderer=renderer, fit=fit, scale=scale, gt=gt, ghost=ghost, labels=labels, gif=gif, mp4=mp4,
                       glb=glb, plots=plots)

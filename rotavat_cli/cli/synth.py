@@ -33,7 +33,6 @@ def synth(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Synthesise a static-camera scene: true people on the ground (gt/) and an HPS-like prediction (pred/)."""
     opts = config_for(config, "synth", seed=seed, frames=frames, people=people, layout=layout,
                       image_size=list(image_size) if image_size else None, roll_deg=roll,
                       camera_height_range_m=list(camera_height_range) if camera_height_range else None,

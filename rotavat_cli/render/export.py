@@ -26,6 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import trimesh
+from trimesh.exchange.gltf import export_glb
+from trimesh.visual.material import PBRMaterial
 
 from ..version import WRITTEN_BY
 from ..atomic import atomic_open
@@ -94,8 +97,6 @@ def gltf_camera(camera: Camera, name: str = "camera") -> dict:
 
 def _material(rgba: tuple[int, int, int, int]) -> Any:
     """A double-sided PBR material of one colour."""
-    from trimesh.visual.material import PBRMaterial
-
     return PBRMaterial(baseColorFactor=list(rgba), metallicFactor=0.0, roughnessFactor=0.8, doubleSided=True)
 
 
@@ -129,8 +130,6 @@ def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[RGB,
     meshes, point clouds (glTF points) or skeletons (tubes along the bones, balls at the joints);
     node names are ``<row label>/person_<id>``. ``camera`` gives the frustum and the glTF camera.
     """
-    import trimesh
-
     scene = trimesh.Scene()
     everything = [camera.center_world[None] * [1.0, 0.0, 1.0]]
     for row in rows:
@@ -164,8 +163,6 @@ def build_scene(rows: SequenceABC[RowFrame], camera: Camera, palette: tuple[RGB,
 
 def glb_bytes(scene: Any, camera: Camera) -> bytes:
     """Export a scene to GLB with the camera rewritten by :func:`gltf_camera` (aspect ratio W / H)."""
-    from trimesh.exchange.gltf import export_glb
-
     def fix_camera(tree: dict) -> None:
         if tree.get("cameras"):
             tree["cameras"][0] = gltf_camera(camera, tree["cameras"][0].get("name", "camera"))

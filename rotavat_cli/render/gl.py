@@ -113,7 +113,7 @@ class GLContext:
 def open_gl_context() -> GLContext:
     """A moderngl/EGL context; raises RotavatError (exit 2) saying what is missing."""
     try:
-        import moderngl
+        import moderngl  # lazy: optional extra rotavat[gl]
     except ImportError as exc:
         raise RotavatError(f"OpenGL renderer unavailable: moderngl is not installed ({exc}); "
                            "pip install 'moderngl>=5.13' or use --renderer fallback") from None

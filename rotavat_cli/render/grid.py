@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from PIL import Image, ImageDraw
 
 from .geometry import PanelView, panel_px_per_m, project_view_px
 from .skeleton import BONE_RADIUS_M, POINT_RADIUS_M, Shapes, layout_bones, point_shapes, skeleton_shapes
@@ -134,8 +135,6 @@ def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle, ids
     (:attr:`RowFrame.flagged`) get their flag in an outlined box, and in an orthographic view, when they
     lie off the panel (windows are fitted on the others), an edge marker pointing to them, clear of the
     labels in ``taken`` (the view's annotations) and of the ids."""
-    from PIL import ImageDraw
-
     points = row.points_cam
     flagged = row.flagged
     if not points.shape[1] or not (ids or flagged):
@@ -190,8 +189,6 @@ def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderSt
     """One panel: the view's background, the shaded people, the ghost, the view's annotations and
     the person ids (``labels``; flagged people's marks are drawn either way) -> (H, W, 3) uint8. ``mesh`` / ``ghost_mesh``: the row's / its ghost's mesh when
     already flattened (mesh rows: the same in every view)."""
-    from PIL import Image
-
     spec = REGISTRY[view.kind]
     W, H = view.size
     img = Image.new("RGB", (W, H), rgb8(style.background))
@@ -217,8 +214,6 @@ def render_grid(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int, i
     extents: the views' windows, one mapping shared by every row or a list of one per row
     (default: one fitted to these rows).
     """
-    from PIL import Image, ImageDraw
-
     specs = view_specs(views)
     extents = extents if extents is not None else scene_extents(rows, views, size, style.margin)
     per_row = list(extents) if isinstance(extents, (list, tuple)) else [extents] * len(rows)

@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from ..camera import Camera, reexpress_cam
 from ..errors import InputError, input_errors
@@ -158,8 +159,6 @@ def people_flags(seq: Sequence, warnings: list[str] | None = None) -> dict[tuple
 
 def _frame_image(image_dir: Path, name: str) -> np.ndarray:
     """The video frame ``image_dir/<name>.<png|jpg|...>`` as (H, W, 3) uint8."""
-    from PIL import Image, UnidentifiedImageError
-
     for path in sorted(image_dir.glob(f"{name}.*")):
         if path.suffix.lower() in IMAGE_SUFFIXES:
             try:

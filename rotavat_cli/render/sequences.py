@@ -28,12 +28,14 @@ from typing import ClassVar
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from ..alignment.camera_gate import check_fit, render_remedies
 from ..atomic import atomic_open
 from ..camera import Camera
-from ..config import packaged_default
+from ..config import default_config, packaged_default
 from ..errors import InputError, RotavatError
+from ..metrics.evaluate import EvalOptions, evaluate
 from ..option_rules import Rule, check_fields
 from ..sequence import Sequence
 from .export import build_scene, write_glb
@@ -55,8 +57,6 @@ GHOSTS = ("none", "gt")  # what is drawn faintly over the rows
 @functools.lru_cache(maxsize=1)
 def _packaged_options() -> "FigureOptions":
     """FigureOptions of the packaged ``render:`` section (read once)."""
-    from ..config import default_config
-
     return FigureOptions.from_config(default_config()["render"])
 
 
@@ -159,8 +159,6 @@ def _fmt(value: float, text: str) -> str | None:
 def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
     """Errors of ``pred`` against the ground truth on frame ``name``: W-MPJPE (else W-PVE), lean, foot
     height (means over the matched people, as ``rotavat eval`` computes them on that frame alone)."""
-    from ..metrics.evaluate import EvalOptions, evaluate
-
     names = sorted(set(pred.frame_names) | set(gt.frame_names))
     if name not in names:
         return ""
@@ -211,8 +209,6 @@ def _same_file(a: str | Path, b: str | Path) -> bool:
 
 def _save_png(path: Path, image: np.ndarray) -> None:
     """Write an (H, W, 3) uint8 image as PNG atomically."""
-    from PIL import Image
-
     with atomic_open(path, "wb") as handle:
         Image.fromarray(image).save(handle, format="PNG", optimize=False)
 

@@ -13,8 +13,10 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+from PIL import ImageFont
+from scipy.sparse import csr_matrix
 
-from ..config import packaged_default
+from ..config import default_config, packaged_default
 from ..option_rules import Rule, check_fields
 
 __all__ = ["RGB", "RenderStyle", "parse_color", "person_colors", "vertex_normals", "shade_vertices"]
@@ -38,8 +40,6 @@ def parse_color(text: str) -> RGB:
 @functools.lru_cache(maxsize=1)
 def _packaged_style() -> "RenderStyle":
     """RenderStyle of the packaged ``render:`` section (read once)."""
-    from ..config import default_config
-
     return RenderStyle.from_config(default_config()["render"])
 
 
@@ -78,8 +78,6 @@ def person_colors(person_ids: np.ndarray, palette: tuple[RGB, ...]) -> np.ndarra
 
 def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(P, V, 3) vertices, (F, 3) faces -> (P, V, 3) unit area-weighted normals (0 where undefined)."""
-    from scipy.sparse import csr_matrix
-
     v = np.asarray(verts, dtype=np.float64)
     P, V = v.shape[:2]
     f = np.asarray(faces, dtype=np.int64)
@@ -110,8 +108,6 @@ def mix(a: RGB, b: RGB, t: float) -> RGB:
 
 def font(size_px: int) -> Any:
     """Pillow's default font at a size (bitmap default on Pillow builds without FreeType)."""
-    from PIL import ImageFont
-
     try:
         return ImageFont.load_default(size=size_px)
     except (TypeError, OSError, ImportError):

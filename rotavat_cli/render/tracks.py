@@ -3,7 +3,7 @@
 For each frame and person (``person_id`` = the track), in the row's camera (its world: ground at
 ``Y = 0``): the mid-sole's height above the ground (m, signed: below 0 = sunk), the lean of the
 mid-sole -> crown axis from the vertical (deg) and the stature (the mid-sole -> crown length, m).
-Mid-sole and crown are those ``rotavat align`` uses (:func:`rotavat_cli.alignment.frame_foot_head_cam`:
+Mid-sole and crown are those ``rotavat align`` uses (:func:`rotavat_cli.frame_points.frame_foot_head_cam`:
 the mesh landmarks, or for joints-only people their ``feet_2d``/``heads_2d`` at the joints' depth),
 else for joints without those pixels the layout's keypoint recipe applied to the 3D joints
 (:func:`rotavat_cli.formats.keypoints.feet_heads_cam`). These
@@ -23,11 +23,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, ImageDraw
 
 from ..atomic import atomic_open
 from ..camera import Camera
-from ..alignment.align import MeshIntrinsics, frame_foot_head_cam
 from ..formats.keypoints import feet_heads_cam
+from ..frame_points import MeshIntrinsics, frame_foot_head_cam
 from ..metrics.scene import lean_deg, stature_m
 from ..sequence import Frame, Sequence, can_align
 from .geometry import nice_length_m
@@ -120,8 +121,6 @@ def _panel(draw, box: tuple[int, int, int, int], title: str, unit: str, ref: flo
 
 def plot_tracks(path: Path, tracks: Tracks, palette: tuple[RGB, ...], size: tuple[int, int] = (900, 720)) -> Path:
     """Write the three stacked per-track plots of ``tracks`` as a PNG, atomically."""
-    from PIL import Image, ImageDraw
-
     W, H = size
     img = Image.new("RGB", (W, H), (255, 255, 255))
     draw = ImageDraw.Draw(img)

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from PIL import Image
 
 from ..atomic import atomic_open
 from ..errors import InputError
@@ -25,7 +26,7 @@ MP4_INSTALL = "pip install 'rotavat[video]'"  # the extra that brings PyAV
 def require_mp4() -> Any:
     """The ``av`` module; InputError (exit 2) saying how to install it when it is missing."""
     try:
-        import av
+        import av  # lazy: optional extra rotavat[video]
     except ImportError:
         raise InputError(f"--mp4 needs PyAV, which is not installed: {MP4_INSTALL} (or use --gif)") from None
     return av
@@ -33,8 +34,6 @@ def require_mp4() -> Any:
 
 def write_gif(path: Path, images: list[np.ndarray], fps: float) -> Path:
     """(H, W, 3) uint8 frames as a looping GIF, atomically."""
-    from PIL import Image
-
     frames = [Image.fromarray(im).convert("P", palette=Image.ADAPTIVE, colors=255) for im in images]
     with atomic_open(path, "wb") as handle:
         frames[0].save(handle, format="GIF", save_all=True, append_images=frames[1:], duration=int(round(1000 / fps)), loop=0)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from PIL import Image, ImageDraw
 
 from ..camera import Camera, camera_parameters
 from .geometry import (UP_WORLD, FrontCrop, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
@@ -263,8 +264,6 @@ def _top_bounds(pts_view: np.ndarray, basis: np.ndarray, camera: Camera, fit: st
 # ---- drawings (Pillow) -----------------------------------------------------------------------------
 def _draw(img: Any) -> Any:
     """An alpha-blending ImageDraw on ``img``."""
-    from PIL import ImageDraw
-
     return ImageDraw.Draw(img, "RGBA")
 
 
@@ -383,8 +382,6 @@ def _camera_glyph(draw: Any, view: PanelView, camera: Camera, style: RenderStyle
 
 def _front_under(img: Any, view: PanelView, row: RowFrame, style: RenderStyle) -> None:
     """Letterbox, then the video frame (or the background colour) in the image area (cropped to the panel)."""
-    from PIL import Image
-
     W, H = view.size
     draw = _draw(img)
     draw.rectangle([0, 0, W, H], fill=rgb8(mix(style.background, (0.0, 0.0, 0.0), 0.15)))
