@@ -37,6 +37,7 @@ from ..calibration.options import CalibrateOptions
 from ..calibration.sequence import calibrate_sequence
 from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
 from ..errors import InputError, RotavatError, TaskError, input_errors
+from ..formats.convert import import_sequence
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..metrics.evaluate import EvalOptions, evaluate, merge_results
@@ -113,8 +114,6 @@ def _given_camera(plan: dict, seq: Sequence) -> AlignCamera | None:
 def _import_into(src: str, out: str, fmt: str, imp: dict, result: dict, what: str) -> None:
     """Convert a tool's output into a sequence folder of the batch's output (--from, --gt-from); its
     warnings (prefixed by ``what``) and time go into ``result``."""
-    from ..formats.convert import import_sequence
-
     start = time.perf_counter()
     summary = import_sequence(src, out, fmt, image_size=imp["image_size"], smpl_model=imp["smpl_model"], overwrite=True)
     result["warnings"] += [f"{what}{w}" for w in summary.get("warnings", [])]
