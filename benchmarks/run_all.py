@@ -16,6 +16,7 @@ HERE = Path(__file__).resolve().parent
 
 # name -> (full arguments, quick arguments)
 BENCHMARKS = {
+    "bench_startup.py": ([], ["--quick"]),
     "bench_calibrate.py": ([], ["--quick"]),
     "bench_align.py": ([], ["--frames", "200"]),
     "bench_eval.py": ([], ["--pairs", "10000", "--loop-pairs", "500"]),

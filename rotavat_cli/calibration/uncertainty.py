@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.sparse import csr_matrix
 from scipy.special import chdtri  # the chi-square quantile: chdtri(k, 1 - p) = chi2.ppf(p, k)
 
 from ..camera import Camera, horizon_v_px
@@ -102,9 +101,9 @@ def _row_clusters(prob: Problem, clusters: np.ndarray | None, n_rows: int) -> tu
 def _cluster_sums(values: np.ndarray, row_cluster: np.ndarray, n_groups: int) -> np.ndarray:
     """(G, ...) sums of the rows of ``values`` (M, ...) per cluster; rows of cluster -1 are left out."""
     rows = np.flatnonzero(row_cluster >= 0)
-    member = csr_matrix((np.ones(len(rows)), (row_cluster[rows], np.arange(len(rows)))), shape=(n_groups, len(rows)))
-    flat = values[rows].reshape(len(rows), -1)
-    return np.asarray(member @ flat).reshape((n_groups,) + values.shape[1:])
+    sums = np.zeros((n_groups,) + values.shape[1:])
+    np.add.at(sums, row_cluster[rows], values[rows])  # in row order, as a sparse membership product would
+    return sums
 
 
 def jackknife_cov(J: np.ndarray, r: np.ndarray, row_cluster: np.ndarray, n_groups: int) -> np.ndarray:

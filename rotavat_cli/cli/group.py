@@ -25,6 +25,7 @@ __all__ = ["RotavatGroup", "error_line"]
 # click's exception classes as typer ships them (typer may vendor its own click)
 _USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
 _CLICK_EXCEPTION = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+_NO_ARGS_IS_HELP = getattr(sys.modules[_USAGE_ERROR.__module__], "NoArgsIsHelpError", ())  # click >= 8.2
 
 
 class RotavatGroup(TyperGroup):
@@ -88,6 +89,9 @@ class RotavatGroup(TyperGroup):
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         try:
             code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except _NO_ARGS_IS_HELP as exc:  # `rotavat` alone: its help is the answer
+            typer.echo(exc.ctx.get_help())
+            sys.exit(0)
         except _USAGE_ERROR as exc:
             name = exc.ctx.command_path if exc.ctx is not None else "rotavat"
             error_line(f"{name}: {exc.format_message()} (see {name} --help)")
