@@ -458,3 +458,16 @@ def test_every_residual_kind_keeps_the_contract(name):
     res = fit_camera(data.feet_px, data.heads_px, (W, H), residual=name, focal_px=cam.focal_px, estimate_roll=False)
     assert res.residual == name
     assert_close_camera(res.camera, cam, focal=1e-9, pitch=1e-3, roll=1e-9, height=1e-4)
+
+
+def test_the_chi_square_table_is_scipys_to_four_decimals():
+    """calibration/chi_square.py's quantiles (a table: no scipy import on calibrate's path) are the distribution's."""
+    from scipy.stats import chi2
+
+    from rotavat_cli.calibration.chi_square import CHI2_99, CHI2_MEDIAN
+    from rotavat_cli.calibration.params import N_PARAMS
+
+    assert sorted(CHI2_99) == sorted(CHI2_MEDIAN) == list(range(1, N_PARAMS + 1))  # every rank a fit can have
+    for dof in CHI2_99:
+        assert CHI2_99[dof] == pytest.approx(chi2.ppf(0.99, dof), abs=5e-5)
+        assert CHI2_MEDIAN[dof] == pytest.approx(chi2.ppf(0.5, dof), abs=5e-5)

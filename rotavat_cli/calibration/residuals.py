@@ -30,10 +30,10 @@ import operator
 
 import numpy as np
 
+from .chi_square import chi2_99, chi2_median
+
 __all__ = ["ResidualKind", "RESIDUAL_KINDS", "RESIDUALS", "register", "residual_kind"]
 
-# Chi-square quantiles by components per pair: (99% quantile: outlier test, median: robust scale).
-_CHI2 = {1: (6.6349, 0.4549), 2: (9.2103, 1.3863)}
 
 
 class ResidualKind:
@@ -52,12 +52,12 @@ class ResidualKind:
     @property
     def chi2_99(self) -> float:
         """99% quantile of a pair's squared whitened residual norm (outlier rejection)."""
-        return _CHI2[self.dof][0]
+        return chi2_99(self.dof)
 
     @property
     def chi2_median(self) -> float:
         """Median of a pair's squared whitened residual norm (robust scale)."""
-        return _CHI2[self.dof][1]
+        return chi2_median(self.dof)
 
     def squared_px(self, e: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """Unweighted squared error (...) px^2 of head errors ``e = (e_u, e_v)``, each (...)."""

@@ -12,9 +12,9 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.special import chdtri  # the chi-square quantile: chdtri(k, 1 - p) = chi2.ppf(p, k)
 
 from ..camera import Camera, horizon_v_px
+from .chi_square import chi2_99
 from .grid import order_invariant_subset
 from .model import undistort
 from .objective import Problem, model_residual, pair_chi2, residual_and_jacobian, robust_scale
@@ -207,7 +207,7 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
         sub_stat = stat if len(sub) == len(prob.rel_feet) else _statistical_cov(sub_prob, params, free, scale,
                                                                                sub_clusters)[0]
         shift, stat_h, rank, noise = _column_shift(sub_prob, params, free, scale, sub_clusters, sub_stat)
-        if rank and stat_h > _COLUMN_TEST_FACTOR * chdtri(rank, 0.01):
+        if rank and stat_h > _COLUMN_TEST_FACTOR * chi2_99(rank):
             excess = np.maximum(shift**2 - np.diag(noise), 0.0)
             if prob.priors is not None:
                 excess = np.minimum(excess, prob.priors.sd[free] ** 2)
