@@ -7,9 +7,8 @@ import re
 import shlex
 from pathlib import Path
 
-import typer
+from _cli import command
 
-from rotavat_cli.cli import app
 from rotavat_cli.sequence import read_camera_yaml, write_camera_yaml
 
 FINDINGS = ("camera height 0.11 m is under 0.3 m",
@@ -45,7 +44,7 @@ def named_commands(message: str) -> list[list[str]]:
 
 def assert_named_flags_exist(message: str) -> None:
     """Every --flag a message names after ``rotavat CMD`` is an option of CMD."""
-    group = typer.main.get_command(app)
+    group = command()
     for args in named_commands(message):
         command = group.commands[args[0]]
         options = {opt for param in command.params for opt in (*param.opts, *param.secondary_opts)}

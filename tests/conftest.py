@@ -1,4 +1,4 @@
-"""Shared fixtures: small hand-made sequences and a CLI runner."""
+"""Shared fixtures: small hand-made sequences and a CLI runner (tests/_cli.py runs the CLI in-process)."""
 
 from __future__ import annotations
 
@@ -9,17 +9,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from rotavat_cli.cli import app
 
-
-@pytest.fixture
+@pytest.fixture(scope="session")
 def runner() -> CliRunner:
+    """typer's test runner (it keeps no state between runs): ``_cli.invoke(runner, ARGS)``."""
     return CliRunner()
-
-
-def invoke(runner: CliRunner, *args: str):
-    """Run the CLI in-process; returns the click Result."""
-    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
 
 
 def tree_hash(path: Path) -> str:

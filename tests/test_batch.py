@@ -14,7 +14,8 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 import yaml
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli.alignment import AlignOptions, align_sequence
 from rotavat_cli.batch import MARKER, aggregate_rows, discover_sequences

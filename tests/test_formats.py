@@ -19,7 +19,8 @@ import _fixtures_pymafx_trace as PT
 import _fixtures_slahmr_glamr as SG
 import numpy as np
 import pytest
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli import safe_pickle
 from rotavat_cli.camera import horizon_v_px

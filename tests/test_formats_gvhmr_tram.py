@@ -13,7 +13,7 @@ import _fixtures_torch as T
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence, imported_sequence

@@ -11,7 +11,7 @@ import _format_fixtures as F
 from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli import safe_pickle
 from rotavat_cli.errors import InputError

@@ -13,7 +13,7 @@ import _fixtures_slahmr_glamr as G
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli import safe_pickle
 from rotavat_cli.camera import world_to_cam

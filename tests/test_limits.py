@@ -26,7 +26,8 @@ from pathlib import Path
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke, tetra_frame
+from _cli import invoke
+from conftest import tetra_frame
 
 from rotavat_cli import limits, safe_pickle
 from rotavat_cli.calibration import GridSpec

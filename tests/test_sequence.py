@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import invoke, tetra_frame, tree_hash
+from _cli import invoke
+from conftest import tetra_frame, tree_hash
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError
