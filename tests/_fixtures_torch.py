@@ -207,8 +207,16 @@ def torch_zip_bytes(obj, name: str = "archive", byteorder: str = "little", drop:
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as archive:
         for record, data in records.items():
             if record not in drop:
-                archive.writestr(f"{name}/{record}", data)
+                archive.writestr(_member(f"{name}/{record}"), data)
     return buf.getvalue()
+
+
+def _member(name: str) -> zipfile.ZipInfo:
+    """A stored zip member dated 1980-01-01 (as ``np.savez`` dates its members): the same object gives the
+    same bytes whenever it is written (``writestr`` of a bare name stamps the current time)."""
+    info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+    info.compress_type, info.external_attr = zipfile.ZIP_STORED, 0o600 << 16
+    return info
 
 
 def legacy_bytes(obj, protocol: int = 2) -> bytes:
