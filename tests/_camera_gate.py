@@ -7,7 +7,7 @@ import re
 import shlex
 from pathlib import Path
 
-from _cli import command
+import _cli
 
 from rotavat_cli.sequence import read_camera_yaml, write_camera_yaml
 
@@ -44,7 +44,7 @@ def named_commands(message: str) -> list[list[str]]:
 
 def assert_named_flags_exist(message: str) -> None:
     """Every --flag a message names after ``rotavat CMD`` is an option of CMD."""
-    group = command()
+    group = _cli.command()
     for args in named_commands(message):
         command = group.commands[args[0]]
         options = {opt for param in command.params for opt in (*param.opts, *param.secondary_opts)}
