@@ -149,6 +149,7 @@ def test_stale_staging_of_a_killed_run_is_removed(scene, tmp_path, runner):
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".al.")) == [".al.partial-notours"]
 
 
+@pytest.mark.slow
 def test_thousands_of_jobs_start_no_more_workers_than_cores(scene, tmp_path):
     """--jobs 10000 in a subprocess limited to 64 processes: it must finish and say how many it used."""
     import resource

@@ -1,7 +1,7 @@
 """The fixed fuzz corpus (issue 15): every hostile-input class, every rule (see harness.py).
 
-Run with ``make test`` (marked ``fuzz``: ``pytest -m fuzz`` selects it, ``-m "not fuzz"`` skips it);
-``make fuzz`` runs the longer randomized campaign (run_fuzz.py). Set ``ROTAVAT_FUZZ_REPORT=FILE``
+Run with ``make test`` (marked ``fuzz``: ``pytest -m fuzz`` selects it, ``-m "not fuzz"`` skips it; the
+cases run as real processes are marked ``slow`` too: ``make test-slow``); ``make fuzz`` runs the longer randomized campaign (run_fuzz.py). Set ``ROTAVAT_FUZZ_REPORT=FILE``
 to append one JSON line per case (command, exit, stderr, peak RSS, violations).
 """
 
@@ -30,8 +30,10 @@ def _report(rec: H.RunRecord) -> None:
             handle.write(json.dumps(rec.as_dict()) + "\n")
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+@pytest.mark.parametrize("case", [pytest.param(c, id=c.id, marks=[pytest.mark.slow] if c.subprocess else [])
+                                  for c in CASES])
 def test_case_keeps_every_rule(case: C.Case, tmp_path: Path) -> None:
+    """A case that measures memory or processes runs as a real ``rotavat`` process (marked slow)."""
     rec = H.run_case(case, tmp_path / "case")
     _report(rec)
     assert rec.ok, "\n" + rec.describe()
@@ -107,6 +109,7 @@ def test_harness_sees_each_rule_break(tmp_path: Path) -> None:
     assert [r for r, _ in H.evaluate(case, tmp_path, run, before, before)] == ["R4 memory"]
 
 
+@pytest.mark.slow
 def test_harness_measures_memory_and_processes(tmp_path: Path, monkeypatch) -> None:
     import sys
 
