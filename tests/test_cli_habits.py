@@ -7,7 +7,6 @@ import json
 
 import _format_fixtures as F
 import numpy as np
-from _format_fixtures import model, model_path  # noqa: F401 (pytest fixtures)
 from _cli import invoke
 
 from rotavat_cli.sequence import Frame, open_sequence, write_frame
@@ -19,11 +18,7 @@ W, H = F.W, F.H
 
 def _bev_photo(folder, model):
     """A BEV image-mode output of 5 standing people (the tool's own file)."""
-    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-             for _ in range(2)]
-    return F.write_bev(folder, scene, (W, H))
+    return F.write_bev(folder, F.bev_scene(model, 2, 5), (W, H))
 
 
 def test_outputs_of_a_from_source_go_to_the_current_folder_not_the_data_folder(tmp_path, model, model_path,

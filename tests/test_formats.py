@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import _fixtures_torch as T
 import _fixtures_wham_hybrik as WH
 import _fixtures_pymafx_trace as PT
@@ -110,20 +109,18 @@ def _expected(fmt: str, camera):
     raise AssertionError(fmt)
 
 
-def _model_for(fmt: str, model_path: Path) -> Path:
+def _model_for(fmt: str, model_path: Path, smplx_path: Path) -> Path:
     """The model file a format's parameters need: GVHMR's are SMPL-X (the synthetic SMPL-X on the same mesh)."""
-    if fmt != "gvhmr":
-        return model_path
-    smplx = model_path.with_name("SMPLX_SYNTH.npz")
-    return smplx if smplx.exists() else T.write_synthetic_smplx(smplx, model_path)
+    return smplx_path if fmt == "gvhmr" else model_path
 
 
 def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
+    """``fmt``'s files of ``scene`` imported with the model file ``model_path`` (GVHMR's: SMPL-X)."""
     src = _write(fmt, tmp_path, scene, model, camera)
     if fmt in ("cliff", "multihmr", "wham"):
         kw.setdefault("image_size", (W, H))
     out = tmp_path / "out"
-    summary = import_sequence(src, out, fmt, smpl_model=_model_for(fmt, model_path), **kw)
+    summary = import_sequence(src, out, fmt, smpl_model=model_path, **kw)
     return src, out, summary
 
 
@@ -136,9 +133,10 @@ def test_available_formats():
 
 
 @pytest.mark.parametrize("fmt", ALL)
-def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model, camera, model_path, runner):
+def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model, camera, model_path, smplx_on_smpl_path,
+                                                    runner):
     """People placed at known camera-frame positions come out there: OpenCV axes, metres, right focal."""
-    src, out, summary = _import(fmt, tmp_path, scene, model, camera, model_path)
+    src, out, summary = _import(fmt, tmp_path, scene, model, camera, _model_for(fmt, model_path, smplx_on_smpl_path))
     assert detect_format(src) == fmt
     seq = open_sequence(out)
     focal, pp, size = _expected(fmt, camera)
@@ -208,7 +206,7 @@ def test_track_ids_are_kept(fmt, tmp_path, scene, model, camera, model_path):
 def test_imported_sequence_feeds_align_eval_and_render(tmp_path, scene, model, camera, model_path, runner):
     _, out, _ = _import("bev", tmp_path, scene, model, camera, model_path)
     cam_yaml = tmp_path / "camera.yaml"
-    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=F.BEV_FOCAL_PX))
     aligned = tmp_path / "aligned"
     result = invoke(runner, "align", "--in", out, "--camera", cam_yaml, "--out", aligned, "--quiet")
     assert result.exit_code == 0, result.output
@@ -239,13 +237,9 @@ def test_bedlam_and_agora_ground_truth_serve_eval(tmp_path, scene, model, camera
     assert invoke(runner, "eval", agora, "--gt", agora, "--out", tmp_path / "m2", "--quiet").exit_code == 0
 
 
-def test_calibrate_accepts_an_imported_sequence(tmp_path, model, model_path, runner):
+def test_calibrate_accepts_an_imported_sequence(tmp_path, bev_scene, model_path, runner):
     """A larger scene imported from BEV calibrates close to the true camera."""
-    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-             for _ in range(6)]
-    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    src = F.write_bev(tmp_path / "bev", bev_scene, (W, H))
     out = tmp_path / "out"
     import_sequence(src, out, "bev", smpl_model=model_path, image_size=(W, H))
     result = invoke(runner, "calibrate", out, "--quiet")
@@ -392,10 +386,9 @@ def test_parameter_formats_without_a_model_import_joints_only(tmp_path, scene, m
     assert "keypoints_2d" in next(open_sequence(tmp_path / "out_bedlam").frames()).data
 
 
-def test_wrong_model_family_is_refused(tmp_path, scene, model, camera):
+def test_wrong_model_family_is_refused(tmp_path, scene, model, camera, model_path):
     model_file = tmp_path / "x.npz"
-    F.write_synthetic_smpl(model_file)
-    data = dict(np.load(model_file, allow_pickle=False))
+    data = dict(np.load(model_path, allow_pickle=False))
     data["kintree_table"] = data["kintree_table"][:, :23]
     data["J_regressor"] = data["J_regressor"][:23]
     data["weights"] = data["weights"][:, :23]
@@ -544,13 +537,9 @@ def test_wrong_types_inside_a_valid_pickle_exit_2(tmp_path, runner):
     assert "verts" in text
 
 
-def test_from_converts_on_the_fly_for_calibrate_align_eval(tmp_path, model, model_path, runner):
+def test_from_converts_on_the_fly_for_calibrate_align_eval(tmp_path, bev_scene, model_path, runner):
     """`--from bev` reads the tool's own files directly: same results as importing first."""
-    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-             for _ in range(6)]
-    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    src = F.write_bev(tmp_path / "bev", bev_scene, (W, H))
     common = ["--from", "bev", "--smpl-model", model_path, "--image-size", str(W), str(H)]
     result = invoke(runner, "calibrate", src, *common, "--out", tmp_path / "cam.yaml", "--json")
     assert result.exit_code == 0, result.stderr
@@ -644,7 +633,7 @@ def _per_format(fmts: list[str]) -> list:
 
 
 @pytest.fixture(scope="module")
-def imported_runs(tmp_path_factory, model, camera, model_path, runner):
+def imported_runs(tmp_path_factory, model, camera, model_path, smplx_on_smpl_path, runner):
     """``imported_runs(fmt)``: that format's :class:`ImportedRun`, made on first use (one import and one
     calibrate, align and eval per format for the module's tests; none of them may make a temporary
     directory or file)."""
@@ -652,14 +641,14 @@ def imported_runs(tmp_path_factory, model, camera, model_path, runner):
 
     def imported_run(fmt: str) -> ImportedRun:
         if fmt not in built:
-            built[fmt] = _imported_run(fmt, tmp_path_factory.mktemp(fmt), model, camera, model_path, runner)
+            built[fmt] = _imported_run(fmt, tmp_path_factory.mktemp(fmt), model, camera,
+                                       _model_for(fmt, model_path, smplx_on_smpl_path), runner)
         return built[fmt]
 
     return imported_run
 
 
 def _imported_run(fmt: str, root: Path, model, camera, model_path: Path, runner) -> ImportedRun:
-    model_path = _model_for(fmt, model_path)
     (root / "in").mkdir()
     src = _write(fmt, root / "in", _from_scene(model, camera), model, camera)
     size = ["--image-size", W, H] if fmt in ("cliff", "multihmr", "wham") else []
@@ -775,7 +764,7 @@ def test_from_shows_the_import_warnings_once_also_from_workers(tmp_path, model, 
     results["verts"][1, 5] = np.nan
     np.savez(bad, results=results)
     cam_yaml = tmp_path / "camera.yaml"
-    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=F.BEV_FOCAL_PX))
     imported = invoke(runner, "import", src, tmp_path / "imported", "--from", "bev")
     summary = invoke(runner, "import", src, tmp_path / "imp2", "--from", "bev", "--json")
     expected = json.loads(summary.stdout)["warnings"]
@@ -830,7 +819,7 @@ def test_from_errors_in_a_frame_exit_2_with_one_line(tmp_path, scene, model, cam
     results["verts"] = "not an array"
     np.savez(bad, results=results)
     cam_yaml = tmp_path / "camera.yaml"
-    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=F.BEV_FOCAL_PX))
     for jobs in (1, 2):
         text = _one_line_error(invoke(runner, "align", "--in", src, "--from", "bev", "--image-size", W, H, "--camera",
                                       cam_yaml, "--out", tmp_path / "al", "--jobs", jobs))

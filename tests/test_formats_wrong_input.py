@@ -15,7 +15,6 @@ from pathlib import Path
 import _fixtures_torch as T
 import _fixtures_wham_hybrik as WH
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
 from _cli import invoke

@@ -24,6 +24,7 @@ import zipfile
 import zlib
 from pathlib import Path
 
+import _body_models as B
 import _format_fixtures as F
 import numpy as np
 import pytest
@@ -289,11 +290,9 @@ def test_agora_pickle_of_shared_references(tmp_path):
 
 
 @pytest.mark.slow
-def test_bev_npz_extra_member_is_never_read(tmp_path):
+def test_bev_npz_extra_member_is_never_read(tmp_path, scene):
     """A BEV result with an extra 3.5 GiB member: imported from 'results' alone, in bounded memory
     (the campaign saw exit 0 after 49 s at 7.45 GB)."""
-    model = F.load_model(F.write_synthetic_smpl(tmp_path / "SMPL.npz"))
-    scene = F.default_scene(model, F.scene_camera())
     F.write_bev(tmp_path / "bev", scene[:1], (640, 480))
     good = next((tmp_path / "bev").glob("*.npz"))
     with zipfile.ZipFile(good) as archive:
@@ -318,7 +317,7 @@ def test_parameters_for_gigabytes_of_meshes_are_refused_before_posing(tmp_path):
                         shape=np.zeros((n, 10)), global_t=np.tile([0.0, 0.0, 10.0], (n, 1)),
                         pred_joints=np.zeros((n, 45, 3)), focal_l=np.full(n, 800.0), detection_all=detections)
     assert src.stat().st_size < 1 << 20
-    model = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
+    model = B.write_synthetic_smpl(tmp_path / "SMPL.npz")  # named in the message
     for command in (("import", src, tmp_path / "out"), ("calibrate", src, "--out", tmp_path / "camera.yaml")):
         assert_refused(run(*command, "--from", "cliff", "--image-size", 640, 480, "--smpl-model", model),
                        "cliff.npz: posing 5000 people on SMPL.npz (6591 vertices) needs 754.3 MiB of meshes",
