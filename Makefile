@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 OUT    ?= out
 SAMPLE := sample_data
 
-.PHONY: install run test bench bench-quick fuzz sample clean
+.PHONY: install run test test-slow bench bench-quick fuzz sample clean
 
 $(STAMP): pyproject.toml
 	@bash tools/system_deps.sh
@@ -20,8 +20,13 @@ install: $(STAMP)
 run: install
 	@bash tools/pipeline.sh $(BIN)/rotavat $(SAMPLE) $(OUT)
 
+# make test: everything but the real-process tests (pytest -m slow), on every core (pytest-xdist);
+# make test-slow: those alone, one at a time (they measure memory, processes and time). CI runs both.
 test: install
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto -m "not slow"
+
+test-slow: install
+	$(BIN)/python -m pytest -m slow
 
 bench: install
 	$(BIN)/python benchmarks/run_all.py

@@ -7,9 +7,9 @@ import re
 import shlex
 from pathlib import Path
 
+import _cli
 import typer
 
-from rotavat_cli.cli import app
 from rotavat_cli.sequence import read_camera_yaml, write_camera_yaml
 
 FINDINGS = ("camera height 0.11 m is under 0.3 m",
@@ -45,7 +45,7 @@ def named_commands(message: str) -> list[list[str]]:
 
 def assert_named_flags_exist(message: str) -> None:
     """Every --flag a message names after ``rotavat CMD`` is an option of CMD."""
-    group = typer.main.get_command(app)
+    group = _cli.command()
     ctx = typer.Context(group)
     commands = {name: group.get_command(ctx, name) for name in group.list_commands(ctx)}
     for args in named_commands(message):

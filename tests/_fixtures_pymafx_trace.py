@@ -16,56 +16,12 @@ from pathlib import Path
 import _format_fixtures as F
 import numpy as np
 
-from rotavat_cli.synth.bodies import BODIES_PATH
 
 PYMAFX_FOCAL_PX = 5000.0  # apps/demo_smplx.py: convert_to_full_img_cam(..., focal_length=5000.)
 TRACE_FOCAL_ON_512 = 548.0  # simple_romp/trace2/utils/utils.py: focal_length = 548 on the 512 px input
 TRACE_HIPS = (35, 36)  # SMPL_ALL_44 'R_Hip', 'L_Hip': TRACE root-aligns j3d on their mean
 TRACE_FEET = tuple(range(29, 35))  # L_BigToe, L_SmallToe, L_Heel, R_BigToe, R_SmallToe, R_Heel
 TRACE_HEAD_TOP = 38
-
-# SMPL-X's 55 kinematic joints: SMPL's first 22, jaw and eyes on the head (15), then 15 joints per hand
-# in index, middle, pinky, ring, thumb order, three deep, on each wrist (20, 21) (vchoutas/smplx kintree).
-_SMPLX_PARENTS = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 15, 15, 15,
-                  *[p for wrist, first in ((20, 25), (21, 40))
-                    for f in range(first, first + 15, 3) for p in (wrist, f, f + 1)])
-
-
-# ---- synthetic SMPL-X-layout model ------------------------------------------------------------------
-def write_synthetic_smplx(path: Path, n_betas: int = 10, seed: int = 1) -> Path:
-    """An SMPL-X-layout .npz (55 joints, SMPL-X kinematic tree) on the packaged body mesh 0.
-
-    Joints 0-21 sit where the SMPL synthetic model has them; face joints 1-3 cm off the head joint,
-    hand joints 2-6 cm along each forearm past the wrist. J_regressor: mean of the 6 vertices nearest
-    each joint; weights: nearest joint, one-hot; no pose correctives (rigid poses are exact).
-    """
-    rng = np.random.default_rng(seed)
-    with np.load(BODIES_PATH, allow_pickle=False) as bodies:
-        verts = bodies["vertices"][0].astype(np.float64)
-        body = bodies["joints"][0].astype(np.float64)
-        faces = bodies["faces"].astype(np.int64)
-    joints = np.zeros((55, 3))
-    joints[:22] = body[:22]
-    joints[22:25] = body[15] + np.array([[0, -0.02, 0.03], [0.02, 0.01, 0.03], [-0.02, 0.01, 0.03]])
-    for wrist, elbow, first in ((20, 18, 25), (21, 19, 40)):
-        along = (body[wrist] - body[elbow]) / np.linalg.norm(body[wrist] - body[elbow])
-        for k in range(15):
-            joints[first + k] = body[wrist] + along * (0.02 + 0.02 * (k % 3)) + 0.005 * (k // 3) * np.array([0, 0, 1.0])
-    n_verts = len(verts)
-    dist = np.linalg.norm(verts[:, None] - joints[None], axis=-1)  # (V, 55)
-    regressor = np.zeros((55, n_verts))
-    for j in range(55):
-        regressor[j, np.argsort(dist[:, j])[:6]] = 1.0 / 6.0
-    weights = np.zeros((n_verts, 55))
-    weights[np.arange(n_verts), dist.argmin(axis=1)] = 1.0
-    phases = rng.uniform(1, 4, (1, 3, n_betas)), rng.uniform(0, 6, (1, 3, n_betas))
-    shapedirs = 0.01 * np.sin(verts[:, :, None] * phases[0] + phases[1])
-    kintree = np.array([[4294967295, *_SMPLX_PARENTS[1:]], list(range(55))], dtype=np.uint32)
-    np.savez_compressed(path, v_template=verts.astype(np.float32), shapedirs=shapedirs.astype(np.float32),
-                        posedirs=np.zeros((n_verts, 3, 9 * 54), np.float32), J_regressor=regressor.astype(np.float32),
-                        weights=weights.astype(np.float32), kintree_table=kintree, f=faces.astype(np.uint32))
-    return path
-
 
 # ---- PyMAF-X ---------------------------------------------------------------------------------------
 TORCH_MAGIC = 0x1950A86A20F9469CFC6C  # torch/serialization.py: legacy stream magic number

@@ -18,47 +18,9 @@ import _format_fixtures as F
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from rotavat_cli.formats.smpl import SMPL_PARENTS, BodyModel
+from rotavat_cli.formats.smpl import BodyModel
 
 W, H = 640, 480
-
-
-# ---- synthetic SMPL-H model -----------------------------------------------------------------------
-def _hand_parents(wrist: int, first: int) -> list[int]:
-    """SMPL-H's 15 joints of one hand: five fingers (index, middle, pinky, ring, thumb) of three joints
-    each, every finger's first joint a child of the wrist (smplx joint_names.py SMPLH_JOINT_NAMES)."""
-    parents = []
-    for finger in range(5):
-        base = first + 3 * finger
-        parents += [wrist, base, base + 1]
-    return parents
-
-
-SMPLH_PARENTS = tuple(SMPL_PARENTS[:22]) + tuple(_hand_parents(20, 22)) + tuple(_hand_parents(21, 37))
-
-
-def write_synthetic_smplh(path: Path, smpl_path: Path) -> Path:
-    """An SMPL-H-layout .npz (52 joints, 16 betas) with the synthetic SMPL body of ``smpl_path``.
-
-    Body joints 0-21 are SMPL's; every finger joint rests at SMPL's hand joint of its side (22 / 23),
-    and the vertices SMPL skins to its hand joints follow the middle finger's first joint (25 / 40),
-    so a body at rest is the same mesh as with the SMPL file.
-    """
-    with np.load(smpl_path, allow_pickle=False) as smpl:
-        d = {k: smpl[k] for k in smpl.files}
-    n_verts = d["v_template"].shape[0]
-    regressor = np.concatenate([d["J_regressor"][:22], np.repeat(d["J_regressor"][22:23], 15, axis=0),
-                                np.repeat(d["J_regressor"][23:24], 15, axis=0)])
-    weights = np.zeros((n_verts, 52), d["weights"].dtype)
-    weights[:, :22] = d["weights"][:, :22]
-    weights[:, 25], weights[:, 40] = d["weights"][:, 22], d["weights"][:, 23]
-    shapedirs = np.concatenate([d["shapedirs"], np.zeros((n_verts, 3, 6), d["shapedirs"].dtype)], axis=2)
-    posedirs = np.zeros((n_verts, 3, 9 * 51), d["posedirs"].dtype)
-    posedirs[:, :, :9 * 21] = d["posedirs"][:, :, :9 * 21]
-    kintree = np.array([[4294967295] + list(SMPLH_PARENTS[1:]), list(range(52))], dtype=np.uint32)
-    np.savez_compressed(path, v_template=d["v_template"], shapedirs=shapedirs, posedirs=posedirs,
-                        J_regressor=regressor, weights=weights, kintree_table=kintree, f=d["f"])
-    return path
 
 
 # ---- the world the tools store ------------------------------------------------------------------------

@@ -28,7 +28,6 @@ from pathlib import Path
 import _format_fixtures as F
 import numpy as np
 
-from rotavat_cli.formats.smpl import SMPL_PARENTS
 
 MAGIC_NUMBER = 0x1950A86A20F9469CFC6C
 PROTOCOL_VERSION = 1001
@@ -207,8 +206,16 @@ def torch_zip_bytes(obj, name: str = "archive", byteorder: str = "little", drop:
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as archive:
         for record, data in records.items():
             if record not in drop:
-                archive.writestr(f"{name}/{record}", data)
+                archive.writestr(_member(f"{name}/{record}"), data)
     return buf.getvalue()
+
+
+def _member(name: str) -> zipfile.ZipInfo:
+    """A stored zip member dated 1980-01-01 (as ``np.savez`` dates its members): the same object gives the
+    same bytes whenever it is written (``writestr`` of a bare name stamps the current time)."""
+    info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+    info.compress_type, info.external_attr = zipfile.ZIP_STORED, 0o600 << 16
+    return info
 
 
 def legacy_bytes(obj, protocol: int = 2) -> bytes:
@@ -238,35 +245,6 @@ def np_save_tensors(path: Path, obj, protocol: int = 3) -> Path:
     np.lib.format.write_array_header_1_0(buf, np.lib.format.header_data_from_array_1_0(array))
     pickle.dump(array, buf, protocol=protocol)
     path.write_bytes(_renamed(buf.getvalue()))
-    return path
-
-
-# ---- a synthetic SMPL-X-layout model ------------------------------------------------------------------
-# SMPL-X's kinematic tree (vchoutas/smplx, the official model files): body 0-21 as SMPL, jaw 22 and
-# eyes 23-24 on the head (15), 15 joints per hand on the wrists (20, 21), three per finger.
-SMPLX_PARENTS = SMPL_PARENTS[:22] + (15, 15, 15) + tuple(
-    p for wrist in (20, 21) for f in range(5) for p in (wrist, 25 + 15 * (wrist - 20) + 3 * f, 26 + 15 * (wrist - 20) + 3 * f))
-
-
-def write_synthetic_smplx(path: Path, smpl_path: Path) -> Path:
-    """An SMPL-X-layout .npz (55 joints) on the synthetic SMPL model of ``smpl_path``: the same mesh,
-    shape space and body joints 0-21; SMPL's hand joints become SMPL-X 28 / 43 (the middle fingers'
-    first joints, which rotavat maps back to SMPL's hands), the other new joints copy the head or
-    wrists. Posing with a zero body pose gives the SMPL model's mesh and joints exactly."""
-    with np.load(smpl_path, allow_pickle=False) as smpl:
-        arrays = dict(smpl)
-    reg24, w24 = arrays["J_regressor"], arrays["weights"]
-    source = [15] * 3 + [20] * 15 + [21] * 15  # joints 22..54 copy these SMPL rows
-    source[28 - 22], source[43 - 22] = 22, 23
-    regressor = np.concatenate([reg24[:22], reg24[source]])
-    weights = np.zeros((len(w24), 55), w24.dtype)
-    weights[:, :22] = w24[:, :22]
-    weights[:, 28] += w24[:, 22]  # SMPL's hand columns move to the middle fingers' first joints
-    weights[:, 43] += w24[:, 23]
-    kintree = np.array([[4294967295] + list(SMPLX_PARENTS[1:]), list(range(55))], dtype=np.uint32)
-    posedirs = np.zeros((len(w24), 3, 9 * 54), np.float32)
-    np.savez_compressed(path, v_template=arrays["v_template"], shapedirs=arrays["shapedirs"], posedirs=posedirs,
-                        J_regressor=regressor.astype(np.float32), weights=weights, kintree_table=kintree, f=arrays["f"])
     return path
 
 
@@ -351,4 +329,4 @@ def bent_elbow_pose(n: int) -> np.ndarray:
 
 
 __all__ = ["Call", "Global", "Storage", "Tensor", "bent_elbow_pose", "gvhmr_K", "gvhmr_results", "legacy_bytes",
-           "np_save_tensors", "tensor", "torch_zip_bytes", "transposed", "write_gvhmr", "write_synthetic_smplx", "write_tram"]
+           "np_save_tensors", "tensor", "torch_zip_bytes", "transposed", "write_gvhmr", "write_tram"]

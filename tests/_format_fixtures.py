@@ -5,8 +5,8 @@ camera conventions listed in ``docs/formats.md`` (with the source file of each t
 can check that ``rotavat import`` undoes them. A scene is a list of frames; a frame is a list of
 :class:`Person` (camera-frame ground truth computed independently of the readers).
 
-The body model is synthetic: SMPL's file layout and kinematic tree on the packaged body mesh
-(``rotavat_cli/data/bodies.npz``), so no licensed model is needed.
+The body model is synthetic (``_body_models.py``): SMPL's file layout and kinematic tree on the
+packaged body mesh (``rotavat_cli/data/bodies.npz``), so no licensed model is needed.
 """
 
 from __future__ import annotations
@@ -19,44 +19,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from rotavat_cli.camera import Camera
-from rotavat_cli.formats.smpl import SMPL_PARENTS, BodyModel, load_body_model
+from rotavat_cli.formats.smpl import BodyModel, load_body_model
 from rotavat_cli.rotations import axis_angle_to_matrix
-from rotavat_cli.synth.bodies import BODIES_PATH
-
-
-# ---- synthetic SMPL-format model --------------------------------------------------------------
-def write_synthetic_smpl(path: Path, n_betas: int = 10, seed: int = 0, dtype=np.float32) -> Path:
-    """An SMPL-layout .npz (24 joints, SMPL kinematic tree) built on the packaged body mesh 0.
-
-    J_regressor: mean of the 6 vertices nearest each body joint; weights: nearest joint, one-hot;
-    shapedirs: smooth random fields; posedirs: random in the first 9 columns only (small file).
-    """
-    rng = np.random.default_rng(seed)
-    with np.load(BODIES_PATH, allow_pickle=False) as bodies:
-        verts = bodies["vertices"][0].astype(np.float64)
-        joints = bodies["joints"][0].astype(np.float64)
-        faces = bodies["faces"].astype(np.int64)
-    n_verts = len(verts)
-    dist = np.linalg.norm(verts[:, None] - joints[None], axis=-1)  # (V, 24)
-    regressor = np.zeros((24, n_verts))
-    for j in range(24):
-        regressor[j, np.argsort(dist[:, j])[:6]] = 1.0 / 6.0
-    weights = np.zeros((n_verts, 24))
-    weights[np.arange(n_verts), dist.argmin(axis=1)] = 1.0
-    shapedirs = 0.01 * np.sin(verts[:, :, None] * rng.uniform(1, 4, (1, 3, n_betas)) + rng.uniform(0, 6, (1, 3, n_betas)))
-    posedirs = np.zeros((n_verts, 3, 207))
-    posedirs[:, :, :9] = 0.002 * rng.standard_normal((n_verts, 3, 9))
-    kintree = np.array([[4294967295] + list(SMPL_PARENTS[1:]), list(range(24))], dtype=np.uint32)
-    np.savez_compressed(path, v_template=verts.astype(dtype), shapedirs=shapedirs.astype(dtype),
-                        posedirs=posedirs.astype(dtype), J_regressor=regressor.astype(dtype),
-                        weights=weights.astype(dtype), kintree_table=kintree, f=faces.astype(np.uint32))
-    return path
 
 
 # ---- scene -------------------------------------------------------------------------------------
+W, H = 640, 480  # the test image of the format fixtures (conftest.py: the session's model, camera and scenes)
+BEV_FOCAL_PX = 443.4 / 512 * W  # BEV's focal rule on the 640-px test image
+
+
 @dataclass
 class Person:
     """One person: SMPL parameters and its camera-frame mesh/joints (OpenCV, metres)."""
@@ -102,6 +75,16 @@ def _matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
         return np.zeros(3)
     axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / (2 * np.sin(angle))
     return axis * angle
+
+
+def bev_scene(model: BodyModel, frames: int, people: int, seed: int = 3) -> list[list[Person]]:
+    """``frames`` frames of ``people`` people (ids 0..people-1) standing at random spots 6-16 m in front of
+    BEV's camera on the test image (:data:`BEV_FOCAL_PX`); the spots are drawn frame after frame, so a
+    longer scene of the same seed starts with the shorter one."""
+    cam = scene_camera((W, H), BEV_FOCAL_PX)
+    rng = np.random.default_rng(seed)
+    return [[standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(people)]
+            for _ in range(frames)]
 
 
 def default_scene(model: BodyModel, camera: Camera) -> list[list[Person]]:
@@ -483,27 +466,3 @@ def measurement_views() -> list[tuple[np.ndarray, np.ndarray]]:
                 views.append((R, np.array([0.0, 0.0, dist]) - R @ np.array([0.0, 0.9, 0.0])))
     return views
 
-
-# ---- the formats' shared pytest fixtures (a test module imports the ones it uses) -----------------
-W, H = 640, 480  # the test image of the format fixtures
-
-
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory) -> Path:
-    """The synthetic SMPL-layout model file."""
-    return write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
-
-
-@pytest.fixture(scope="module")
-def model(model_path):
-    return load_model(model_path)
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return scene_camera((W, H), 500.0)
-
-
-@pytest.fixture(scope="module")
-def scene(model, camera):
-    return default_scene(model, camera)

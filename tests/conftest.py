@@ -1,25 +1,74 @@
-"""Shared fixtures: small hand-made sequences and a CLI runner."""
+"""Shared fixtures: a CLI runner (tests/_cli.py runs the CLI in-process), the session's synthetic body
+models and format scene (built once per test process), and small hand-made sequences."""
 
 from __future__ import annotations
 
 import hashlib
 from pathlib import Path
 
+import _body_models as B
+import _format_fixtures as F
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from rotavat_cli.cli import app
 
-
-@pytest.fixture
+@pytest.fixture(scope="session")
 def runner() -> CliRunner:
+    """typer's test runner (it keeps no state between runs): ``_cli.invoke(runner, ARGS)``."""
     return CliRunner()
 
 
-def invoke(runner: CliRunner, *args: str):
-    """Run the CLI in-process; returns the click Result."""
-    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+# ---- synthetic body models and the formats' scene (tests/_body_models.py, tests/_format_fixtures.py) ---
+@pytest.fixture(scope="session")
+def model_path(tmp_path_factory) -> Path:
+    """The synthetic SMPL-layout model file."""
+    return B.write_synthetic_smpl(tmp_path_factory.mktemp("models") / "SMPL_SYNTH.npz")
+
+
+@pytest.fixture(scope="session")
+def model(model_path):
+    """The synthetic SMPL model, loaded."""
+    return F.load_model(model_path)
+
+
+@pytest.fixture(scope="session")
+def smplx_on_smpl_path(model_path) -> Path:
+    """The synthetic SMPL-X-layout model on the SMPL model's mesh (GVHMR's parameters need SMPL-X)."""
+    return B.write_smplx_on_smpl(model_path.with_name("SMPLX_SYNTH.npz"), model_path)
+
+
+@pytest.fixture(scope="session")
+def smplh_path(model_path) -> Path:
+    """The synthetic SMPL-H-layout model on the SMPL model's body (SLAHMR's and GLAMR's parameters)."""
+    return B.write_synthetic_smplh(model_path.with_name("SMPLH_SYNTH.npz"), model_path)
+
+
+@pytest.fixture(scope="session")
+def camera():
+    """The formats' scene camera: 640x480, 500 px, 15 deg down, 3 m high."""
+    return F.scene_camera((F.W, F.H), 500.0)
+
+
+@pytest.fixture(scope="session")
+def scene(model, camera):
+    """:func:`_format_fixtures.default_scene`: tracks 3 and 5, then 3 alone, then nobody (read-only)."""
+    return _read_only(F.default_scene(model, camera))
+
+
+@pytest.fixture(scope="session")
+def bev_scene(model):
+    """:func:`_format_fixtures.bev_scene`: 6 frames of 5 people in front of BEV's camera, seed 3 (read-only)."""
+    return _read_only(F.bev_scene(model, 6, 5))
+
+
+def _read_only(frames: list) -> list:
+    """A scene the session shares, its arrays made read-only (a test that changed them would change the
+    other tests' scene)."""
+    for person in (p for frame in frames for p in frame):
+        for array in (person.pose, person.betas, person.transl, person.verts_cam, person.joints_cam):
+            array.flags.writeable = False
+    return frames
 
 
 def tree_hash(path: Path) -> str:

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence, aligned_meta
 from rotavat_cli.camera import Camera, camera_parameters

@@ -14,7 +14,8 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 import yaml
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli.alignment import AlignOptions, align_sequence
 from rotavat_cli.batch import MARKER, aggregate_rows, discover_sequences
@@ -93,10 +94,7 @@ def test_discovery_finds_npz_and_obj_sequences_and_skips_the_rest(tmp_path):
     assert discover_sequences(root / "cam1") == [(".", root / "cam1")]  # ROOT itself is one sequence
 
 
-def test_discovery_with_an_importer_format(tmp_path):
-    model = F.load_model(F.write_synthetic_smpl(tmp_path / "SMPL.npz"))
-    camera = F.scene_camera((640, 480), 500.0)
-    scene = F.default_scene(model, camera)
+def test_discovery_with_an_importer_format(tmp_path, scene):
     F.write_bev(tmp_path / "root" / "day1" / "cam1", scene, (640, 480))  # a folder of per-image results
     (tmp_path / "root" / "day2").mkdir()
     F.write_cliff(tmp_path / "root" / "day2" / "video_cliff.npz", scene, (640, 480))
@@ -267,15 +265,10 @@ def test_align_without_the_calibrate_step_uses_each_sequence_s_own_camera(data, 
         assert aligned == given
 
 
-def test_import_format_sequences_are_converted_into_the_output_tree(tmp_path, runner):
-    model_path = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
-    model = F.load_model(model_path)
-    cam = F.scene_camera((640, 480), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    for rel in ("site/cam1", "cam2"):
-        scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-                 for _ in range(4)]
-        F.write_bev(tmp_path / "bev" / rel, scene, (640, 480))
+def test_import_format_sequences_are_converted_into_the_output_tree(tmp_path, runner, model, model_path):
+    scene = F.bev_scene(model, 8, 5)
+    for rel, frames in (("site/cam1", scene[:4]), ("cam2", scene[4:])):
+        F.write_bev(tmp_path / "bev" / rel, frames, (640, 480))
     result = invoke(runner, "batch", tmp_path / "bev", "--out", tmp_path / "out", "--from", "bev", "--smpl-model", model_path,
                     "--image-size", "640", "480", "--steps", "calibrate,align", "--jobs", "1", "--json")
     assert result.exit_code == 0, result.stderr
@@ -287,6 +280,7 @@ def test_import_format_sequences_are_converted_into_the_output_tree(tmp_path, ru
 
 
 # ---- Dask -----------------------------------------------------------------------------------------
+@pytest.mark.slow  # a real Dask cluster: its scheduler and worker processes
 def test_dask_cluster_results_equal_the_local_ones(dataset, tmp_path, runner):
     """A real LocalCluster on loopback, 2 worker processes, per-chunk tasks: meshes equal byte for byte."""
     distributed = pytest.importorskip("distributed")
@@ -310,6 +304,7 @@ def test_dask_cluster_results_equal_the_local_ones(dataset, tmp_path, runner):
             == json.loads((tmp_path / "dask" / "batch_report.json").read_text())["aggregate"])
 
 
+@pytest.mark.slow  # a real Dask cluster: its scheduler and worker processes
 def test_rotavat_local_cluster_workers_run_without_dask_malloc_trim_and_housekeeping(monkeypatch):
     """rotavat's own LocalCluster: one BLAS thread per worker as Dask sets it, glibc's malloc left as is,
     no stack profiler and a slow event-loop tick in the workers."""
@@ -349,18 +344,13 @@ def test_pool_workers_get_one_blas_thread_and_the_driver_env_is_restored(monkeyp
     assert os.environ["MKL_NUM_THREADS"] == "3"
 
 
-def test_ground_truth_in_a_tool_format_is_found_and_imported_with_gt_from(tmp_path, runner):
+def test_ground_truth_in_a_tool_format_is_found_and_imported_with_gt_from(tmp_path, runner, model, model_path):
     """--gt-from: GT/<rel> in a format's own files (here a folder per sequence) is found by its importer,
     imported into OUT/<rel>/gt, and scores the prediction (the same scene: every person matched, 0 mm)."""
-    model_path = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
-    model = F.load_model(model_path)
-    cam = F.scene_camera((640, 480), 443.4 / 512 * 640)
-    rng = np.random.default_rng(5)
-    for rel in ("site/cam1", "cam2"):
-        scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(4)]
-                 for _ in range(3)]
-        F.write_bev(tmp_path / "pred" / rel, scene, (640, 480))
-        F.write_bev(tmp_path / "gt" / rel, scene, (640, 480))
+    scene = F.bev_scene(model, 6, 4, seed=5)
+    for rel, frames in (("site/cam1", scene[:3]), ("cam2", scene[3:])):
+        F.write_bev(tmp_path / "pred" / rel, frames, (640, 480))
+        F.write_bev(tmp_path / "gt" / rel, frames, (640, 480))
     args = ["--out", tmp_path / "out", "--from", "bev", "--smpl-model", model_path, "--image-size", "640", "480",
             "--steps", "eval", "--jobs", "1", "--json"]
     result = invoke(runner, "batch", tmp_path / "pred", "--gt-root", tmp_path / "gt", "--gt-from", "bev", *args)

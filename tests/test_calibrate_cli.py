@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 from _synthetic_pairs import synthetic_pairs
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.calibration import CalibrateOptions, calibrate_sequence, fit_camera
 from rotavat_cli.calibration.objective import BodyAxes

@@ -7,10 +7,8 @@ import json
 
 import _format_fixtures as F
 import numpy as np
-from _format_fixtures import model, model_path  # noqa: F401 (pytest fixtures)
-from conftest import invoke
+from _cli import invoke
 
-from rotavat_cli.cli import app
 from rotavat_cli.sequence import Frame, open_sequence, write_frame
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 from rotavat_cli.words import count
@@ -20,11 +18,7 @@ W, H = F.W, F.H
 
 def _bev_photo(folder, model):
     """A BEV image-mode output of 5 standing people (the tool's own file)."""
-    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-             for _ in range(2)]
-    return F.write_bev(folder, scene, (W, H))
+    return F.write_bev(folder, F.bev_scene(model, 2, 5), (W, H))
 
 
 def test_outputs_of_a_from_source_go_to_the_current_folder_not_the_data_folder(tmp_path, model, model_path,
@@ -53,7 +47,7 @@ def test_quiet_silences_notes_and_results_but_keeps_warnings(tmp_path, runner):
     result = invoke(runner, "info", pred, "-q")
     assert result.exit_code == 0 and "frames of 2 image sizes" in result.stderr  # the warning stays ...
     assert "per frame (2 sizes: 1280x720, 1666x2500)" in result.stdout  # ... and the table says what sizes are
-    wide = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "240"})  # the help, unwrapped
+    wide = invoke(runner, "calibrate", "--help", env={"COLUMNS": "240"})  # the help, unwrapped
     assert "No progress bar, no notes and no summary or table on stdout; warnings and errors still go to stderr" in \
         wide.stdout
 
@@ -76,11 +70,11 @@ def test_the_head_column_warning_keeps_quiet_on_a_clean_synthetic_scene(tmp_path
 def test_help_at_80_columns_gives_each_option_a_readable_line(runner):
     """At 80 columns rich's panel gave option help ~17 characters and cut it ('(bottom-/top-ce…'): a narrow
     terminal now gets click's plain layout; a wide one keeps the panels."""
-    narrow = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "80"}).stdout
+    narrow = invoke(runner, "calibrate", "--help", env={"COLUMNS": "80"}).stdout
     assert max(len(line) for line in narrow.splitlines()) <= 80 and "…" not in narrow
     assert "The camera's known focal length (px)." in narrow  # one line, not 17-character shreds
     assert "(bottom-/top-centre of person boxes; refine," in " ".join(narrow.split())
-    wide = runner.invoke(app, ["calibrate", "--help"], env={"COLUMNS": "200"}).stdout
+    wide = invoke(runner, "calibrate", "--help", env={"COLUMNS": "200"}).stdout
     assert "╭─ Options" in wide and "[default: 1.7]" in wide and "[default: 1.7]" in narrow
 
 

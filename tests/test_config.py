@@ -49,7 +49,7 @@ def test_bad_config_names_key_and_file(tmp_path: Path, text, message):
 
 
 def test_cli_config_error_exits_2(tmp_path: Path, runner):
-    from conftest import invoke
+    from _cli import invoke
 
     cfg = tmp_path / "bad.yaml"
     cfg.write_text("synth:\n  peeple: 3\n")

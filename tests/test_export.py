@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.render import (R_CV_FROM_GL, RenderStyle, build_scene, export_frame, frustum_segments_world,

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence
 from rotavat_cli.alignment.transform import apply_transforms, method_rays_cam, rotavat_transforms

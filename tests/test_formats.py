@@ -9,17 +9,18 @@ import hashlib
 import json
 import pickle
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import _fixtures_torch as T
 import _fixtures_wham_hybrik as WH
 import _fixtures_pymafx_trace as PT
 import _fixtures_slahmr_glamr as SG
 import numpy as np
 import pytest
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli import unpickle
 from rotavat_cli.camera import horizon_v_px
@@ -108,20 +109,18 @@ def _expected(fmt: str, camera):
     raise AssertionError(fmt)
 
 
-def _model_for(fmt: str, model_path: Path) -> Path:
+def _model_for(fmt: str, model_path: Path, smplx_path: Path) -> Path:
     """The model file a format's parameters need: GVHMR's are SMPL-X (the synthetic SMPL-X on the same mesh)."""
-    if fmt != "gvhmr":
-        return model_path
-    smplx = model_path.with_name("SMPLX_SYNTH.npz")
-    return smplx if smplx.exists() else T.write_synthetic_smplx(smplx, model_path)
+    return smplx_path if fmt == "gvhmr" else model_path
 
 
 def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
+    """``fmt``'s files of ``scene`` imported with the model file ``model_path`` (GVHMR's: SMPL-X)."""
     src = _write(fmt, tmp_path, scene, model, camera)
     if fmt in ("cliff", "multihmr", "wham"):
         kw.setdefault("image_size", (W, H))
     out = tmp_path / "out"
-    summary = import_sequence(src, out, fmt, smpl_model=_model_for(fmt, model_path), **kw)
+    summary = import_sequence(src, out, fmt, smpl_model=model_path, **kw)
     return src, out, summary
 
 
@@ -134,9 +133,10 @@ def test_available_formats():
 
 
 @pytest.mark.parametrize("fmt", ALL)
-def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model, camera, model_path, runner):
+def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model, camera, model_path, smplx_on_smpl_path,
+                                                    runner):
     """People placed at known camera-frame positions come out there: OpenCV axes, metres, right focal."""
-    src, out, summary = _import(fmt, tmp_path, scene, model, camera, model_path)
+    src, out, summary = _import(fmt, tmp_path, scene, model, camera, _model_for(fmt, model_path, smplx_on_smpl_path))
     assert detect_format(src) == fmt
     seq = open_sequence(out)
     focal, pp, size = _expected(fmt, camera)
@@ -206,7 +206,7 @@ def test_track_ids_are_kept(fmt, tmp_path, scene, model, camera, model_path):
 def test_imported_sequence_feeds_align_eval_and_render(tmp_path, scene, model, camera, model_path, runner):
     _, out, _ = _import("bev", tmp_path, scene, model, camera, model_path)
     cam_yaml = tmp_path / "camera.yaml"
-    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=F.BEV_FOCAL_PX))
     aligned = tmp_path / "aligned"
     result = invoke(runner, "align", "--in", out, "--camera", cam_yaml, "--out", aligned, "--quiet")
     assert result.exit_code == 0, result.output
@@ -237,13 +237,9 @@ def test_bedlam_and_agora_ground_truth_serve_eval(tmp_path, scene, model, camera
     assert invoke(runner, "eval", agora, "--gt", agora, "--out", tmp_path / "m2", "--quiet").exit_code == 0
 
 
-def test_calibrate_accepts_an_imported_sequence(tmp_path, model, model_path, runner):
+def test_calibrate_accepts_an_imported_sequence(tmp_path, bev_scene, model_path, runner):
     """A larger scene imported from BEV calibrates close to the true camera."""
-    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-             for _ in range(6)]
-    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    src = F.write_bev(tmp_path / "bev", bev_scene, (W, H))
     out = tmp_path / "out"
     import_sequence(src, out, "bev", smpl_model=model_path, image_size=(W, H))
     result = invoke(runner, "calibrate", out, "--quiet")
@@ -390,10 +386,9 @@ def test_parameter_formats_without_a_model_import_joints_only(tmp_path, scene, m
     assert "keypoints_2d" in next(open_sequence(tmp_path / "out_bedlam").frames()).data
 
 
-def test_wrong_model_family_is_refused(tmp_path, scene, model, camera):
+def test_wrong_model_family_is_refused(tmp_path, scene, model, camera, model_path):
     model_file = tmp_path / "x.npz"
-    F.write_synthetic_smpl(model_file)
-    data = dict(np.load(model_file, allow_pickle=False))
+    data = dict(np.load(model_path, allow_pickle=False))
     data["kintree_table"] = data["kintree_table"][:, :23]
     data["J_regressor"] = data["J_regressor"][:23]
     data["weights"] = data["weights"][:, :23]
@@ -542,13 +537,9 @@ def test_wrong_types_inside_a_valid_pickle_exit_2(tmp_path, runner):
     assert "verts" in text
 
 
-def test_from_converts_on_the_fly_for_calibrate_align_eval(tmp_path, model, model_path, runner):
+def test_from_converts_on_the_fly_for_calibrate_align_eval(tmp_path, bev_scene, model_path, runner):
     """`--from bev` reads the tool's own files directly: same results as importing first."""
-    cam = F.scene_camera((W, H), 443.4 / 512 * 640)
-    rng = np.random.default_rng(3)
-    scene = [[F.standing_person(model, cam, rng.uniform(-3, 3), -rng.uniform(6, 16), pid) for pid in range(5)]
-             for _ in range(6)]
-    src = F.write_bev(tmp_path / "bev", scene, (W, H))
+    src = F.write_bev(tmp_path / "bev", bev_scene, (W, H))
     common = ["--from", "bev", "--smpl-model", model_path, "--image-size", str(W), str(H)]
     result = invoke(runner, "calibrate", src, *common, "--out", tmp_path / "cam.yaml", "--json")
     assert result.exit_code == 0, result.stderr
@@ -573,42 +564,6 @@ def _accept(fmt: str) -> list[str]:
     return ["--accept-camera"] if fmt in ("4dhumans", "pymafx") else []
 
 
-@pytest.mark.parametrize("fmt", ALL)
-def test_every_format_goes_through_calibrate_align_eval_render(fmt, tmp_path, model, camera, model_path, runner):
-    """Each imported format is accepted by the whole chain; aligned feet end up on the calibrated ground."""
-    rng = np.random.default_rng(5)
-    scene = [[F.standing_person(model, camera, rng.uniform(-3, 3), -rng.uniform(6, 14), pid) for pid in range(5)]
-             for _ in range(4)]
-    _, seq, _ = _import(fmt, tmp_path, scene, model, camera, model_path)
-    cam_yaml, aligned = tmp_path / "camera.yaml", tmp_path / "aligned"
-    result = invoke(runner, "calibrate", seq, "--out", cam_yaml, "--quiet")
-    assert result.exit_code == 0, result.output
-    result = invoke(runner, "align", "--in", seq, "--camera", cam_yaml, "--out", aligned, "--quiet", *_accept(fmt))
-    assert result.exit_code == 0, result.output
-    est, _ = read_camera_yaml(cam_yaml)
-    with open(aligned / "people.csv") as rows:  # people align left unchanged (e.g. foot_above_horizon) say why there
-        flagged = {(r["frame"], int(r["person_id"])) for r in csv.DictReader(rows) if r["flag"] and
-                   r["flag"] != "implausible_stature"}
-    seated_people = 0
-    for frame in open_sequence(aligned).frames():
-        feet, _ = foot_head_points(frame.data["vertices"])
-        seated = np.array([(frame.name, int(i)) not in flagged for i in frame.person_ids], bool).reshape(-1)
-        seated_people += int(seated.sum())
-        np.testing.assert_allclose(est.height_above_ground(feet[seated]), 0.0, atol=1e-4)  # float32 storage
-    assert seated_people >= 10
-    result = invoke(runner, "eval", seq, aligned, "--gt", seq, "--out", tmp_path / "m", "--quiet")
-    assert result.exit_code == 0, result.output
-    before, after = json.loads((tmp_path / "m" / "metrics.json").read_text())["predictions"]
-    people = sum(frame.n_people for frame in open_sequence(seq).frames())  # 4D-Humans skips its ghost track
-    assert people >= 15 and before["matched"] == after["matched"] == people and before["metrics"]["w_mpjpe"] < 1e-3
-    assert after["metrics"]["pa_mpjpe"] < 1.0  # RotAvat moves bodies rigidly (plus one scale)
-    result = invoke(runner, "render", seq, aligned, "--camera", cam_yaml, "--renderer", "fallback", "--size", "160", "120",
-                    "--out", tmp_path / "render", "--no-gif", "--no-glb", *_accept(fmt))
-    assert result.exit_code == 0, result.output
-    assert len(list((tmp_path / "render").glob("*.png"))) == 1
-
-
-# ---- --from: the tool's output read as a sequence, each frame converted when read -----------------
 def _files_under(folder: Path) -> dict[str, str]:
     """Every file under ``folder`` (or the file itself) with the hash of its bytes."""
     files = [folder] if folder.is_file() else sorted(p for p in folder.rglob("*") if p.is_file())
@@ -656,59 +611,137 @@ def _report(result) -> dict:
     return [{k: v for k, v in row.items() if k not in ("pred", "gt")} for row in rows]
 
 
-@pytest.mark.parametrize("fmt", ALL)
-def test_from_gives_what_import_then_run_gives(fmt, tmp_path, model, camera, model_path, runner, monkeypatch):
-    """calibrate/align/eval --from FMT give byte for byte the camera.yaml, aligned sequence and metrics
-    of importing first; no temporary directory or file is made, the input is never touched."""
-    model_path = _model_for(fmt, model_path)
-    (tmp_path / "in").mkdir()
-    src = _write(fmt, tmp_path / "in", _from_scene(model, camera), model, camera)
+# ---- each format imported once, then through the chain, as a sequence and with --from --------------
+@dataclass(frozen=True)
+class ImportedRun:
+    """One format's files of :func:`_from_scene` and what rotavat made of them, all under ``root``."""
+
+    root: Path
+    src: Path  # the tool's files (under in/)
+    imported: Path  # their import
+    camera: Path  # calibrate of the import
+    aligned: Path  # align --jobs 1 of the import with that camera
+    report: list  # eval of the import against itself: the --json rows without their paths (_report)
+    model_path: Path  # the --smpl-model the format's parameters need
+    size: list  # --image-size W H for the formats that do not store it, else []
+
+
+def _per_format(fmts: list[str]) -> list:
+    """``fmts`` as parameters whose tests run on one pytest-xdist worker per format (``make test`` runs
+    ``--dist loadgroup``), where that format's :func:`imported_runs` entry is built once."""
+    return [pytest.param(fmt, marks=pytest.mark.xdist_group(f"formats-{fmt}")) for fmt in fmts]
+
+
+@pytest.fixture(scope="module")
+def imported_runs(tmp_path_factory, model, camera, model_path, smplx_on_smpl_path, runner):
+    """``imported_runs(fmt)``: that format's :class:`ImportedRun`, made on first use (one import and one
+    calibrate, align and eval per format for the module's tests; none of them may make a temporary
+    directory or file)."""
+    built: dict[str, ImportedRun] = {}
+
+    def imported_run(fmt: str) -> ImportedRun:
+        if fmt not in built:
+            built[fmt] = _imported_run(fmt, tmp_path_factory.mktemp(fmt), model, camera,
+                                       _model_for(fmt, model_path, smplx_on_smpl_path), runner)
+        return built[fmt]
+
+    return imported_run
+
+
+def _imported_run(fmt: str, root: Path, model, camera, model_path: Path, runner) -> ImportedRun:
+    (root / "in").mkdir()
+    src = _write(fmt, root / "in", _from_scene(model, camera), model, camera)
     size = ["--image-size", W, H] if fmt in ("cliff", "multihmr", "wham") else []
-    opts = ["--from", fmt, "--smpl-model", model_path, *size]
-    imported = tmp_path / "imported"
+    imported, cam_yaml, aligned = root / "imported", root / "cam_imported.yaml", root / "al_imported"
     import_sequence(src, imported, fmt, smpl_model=model_path, image_size=(W, H) if size else None)
-    before = _files_under(tmp_path / "in")
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        _refuse_temporary_dirs(monkeypatch)
+        _ok(invoke(runner, "calibrate", imported, "--out", cam_yaml, "--quiet"))
+        _ok(invoke(runner, "align", "--in", imported, "--camera", cam_yaml, "-q", *_accept(fmt), "--out", aligned,
+                   "--jobs", 1))
+        report = _report(_ok(invoke(runner, "eval", imported, "--gt", imported, "--out", root / "m_imported", "--json")))
+    return ImportedRun(root, src, imported, cam_yaml, aligned, report, model_path, size)
+
+
+def _tree(root: Path) -> dict[str, str]:
+    """Every path under ``root``: a file's hash, or 'dir'."""
+    return {**{str(p.relative_to(root)): "dir" for p in root.rglob("*") if p.is_dir()}, **_files_under(root)}
+
+
+@pytest.mark.parametrize("fmt", _per_format(ALL))
+def test_every_format_goes_through_calibrate_align_eval_render(fmt, tmp_path, imported_runs, runner):
+    """Each imported format is accepted by the whole chain (calibrate, align and eval of its
+    :class:`ImportedRun`, then render); aligned feet end up on the calibrated ground."""
+    run = imported_runs(fmt)
+    seq, cam_yaml, aligned = run.imported, run.camera, run.aligned
+    est, _ = read_camera_yaml(cam_yaml)
+    with open(aligned / "people.csv") as rows:  # people align left unchanged (e.g. foot_above_horizon) say why there
+        flagged = {(r["frame"], int(r["person_id"])) for r in csv.DictReader(rows) if r["flag"] and
+                   r["flag"] != "implausible_stature"}
+    seated_people = 0
+    for frame in (f for f in open_sequence(aligned).frames() if f.n_people):  # the scene's third frame has no one
+        feet, _ = foot_head_points(frame.data["vertices"])
+        seated = np.array([(frame.name, int(i)) not in flagged for i in frame.person_ids], bool).reshape(-1)
+        seated_people += int(seated.sum())
+        np.testing.assert_allclose(est.height_above_ground(feet[seated]), 0.0, atol=1e-4)  # float32 storage
+    assert seated_people >= 10
+    result = invoke(runner, "eval", seq, aligned, "--gt", seq, "--out", tmp_path / "m", "--quiet")
+    assert result.exit_code == 0, result.output
+    before, after = json.loads((tmp_path / "m" / "metrics.json").read_text())["predictions"]
+    people = sum(frame.n_people for frame in open_sequence(seq).frames())  # 4D-Humans skips its ghost track
+    assert people >= 15 and before["matched"] == after["matched"] == people and before["metrics"]["w_mpjpe"] < 1e-3
+    assert after["metrics"]["pa_mpjpe"] < 1.0  # RotAvat moves bodies rigidly (plus one scale)
+    result = invoke(runner, "render", seq, aligned, "--camera", cam_yaml, "--renderer", "fallback", "--size", "160", "120",
+                    "--out", tmp_path / "render", "--no-gif", "--no-glb", *_accept(fmt))
+    assert result.exit_code == 0, result.output
+    assert len(list((tmp_path / "render").glob("*.png"))) == 1
+
+
+# ---- --from: the tool's output read as a sequence, each frame converted when read -----------------
+@pytest.mark.parametrize("fmt", _per_format(ALL))
+def test_from_gives_what_import_then_run_gives(fmt, tmp_path, imported_runs, runner, monkeypatch):
+    """calibrate/align/eval --from FMT give byte for byte the camera.yaml, aligned sequence and metrics
+    of importing first (:class:`ImportedRun`); no temporary directory or file is made, the input is never
+    touched."""
+    run = imported_runs(fmt)
+    opts = ["--from", fmt, "--smpl-model", run.model_path, *run.size]
+    before = _tree(run.root)  # the tool's files, their import and its results
     _refuse_temporary_dirs(monkeypatch)
 
-    cams = [tmp_path / "cam_imported.yaml", tmp_path / "cam_from.yaml"]
-    _ok(invoke(runner, "calibrate", imported, "--out", cams[0], "--quiet"))
-    _ok(invoke(runner, "calibrate", src, *opts, "--out", cams[1], "--quiet"))
-    assert cams[0].read_bytes() == cams[1].read_bytes()
+    cam_from = tmp_path / "cam_from.yaml"
+    _ok(invoke(runner, "calibrate", run.src, *opts, "--out", cam_from, "--quiet"))
+    assert run.camera.read_bytes() == cam_from.read_bytes()
 
-    camera_given = ["--camera", cams[0], "-q", *_accept(fmt)]
-    _ok(invoke(runner, "align", "--in", imported, *camera_given, "--out", tmp_path / "al_imported", "--jobs", 1))
-    _ok(invoke(runner, "align", "--in", src, *opts, *camera_given, "--out", tmp_path / "al_from", "--jobs", 2))
-    aligned = _files_under(tmp_path / "al_imported")
+    camera_given = ["--camera", run.camera, "-q", *_accept(fmt)]
+    _ok(invoke(runner, "align", "--in", run.src, *opts, *camera_given, "--out", tmp_path / "al_from", "--jobs", 2))
+    aligned = _files_under(run.aligned)  # align --jobs 1 of the import
     assert len(aligned) >= 9 + 4 and _files_under(tmp_path / "al_from") == aligned  # frames, people.csv, meta, camera
     if fmt == "spec":  # the camera SPEC carries, used when no --camera is given
-        _ok(invoke(runner, "align", "--in", imported, "--out", tmp_path / "al2_imported", "-q"))
-        _ok(invoke(runner, "align", "--in", src, *opts, "--out", tmp_path / "al2_from", "-q"))
+        _ok(invoke(runner, "align", "--in", run.imported, "--out", tmp_path / "al2_imported", "-q"))
+        _ok(invoke(runner, "align", "--in", run.src, *opts, "--out", tmp_path / "al2_from", "-q"))
         assert _files_under(tmp_path / "al2_from") == _files_under(tmp_path / "al2_imported")
 
-    gt = ["--gt", imported]
-    reports = [_report(_ok(invoke(runner, "eval", imported, *gt, "--out", tmp_path / "m_imported", "--json"))),
-               _report(_ok(invoke(runner, "eval", src, *opts, *gt, "--out", tmp_path / "m_from", "--json")))]
-    assert reports[0] == reports[1] and reports[0][0]["matched"] == 36
+    gt = ["--gt", run.imported]
+    report = _report(_ok(invoke(runner, "eval", run.src, *opts, *gt, "--out", tmp_path / "m_from", "--json")))
+    assert run.report == report and report[0]["matched"] == 36
     if fmt in ("agora", "bedlam"):  # ground truth read with --gt-from
-        gt_from = ["--gt", src, "--gt-from", fmt, "--smpl-model", model_path]
-        again = _report(_ok(invoke(runner, "eval", imported, *gt_from, "--out", tmp_path / "m_gt_from", "--json")))
-        assert again == reports[0]
-    assert _files_under(tmp_path / "in") == before
-    outputs = ["in", "imported", "cam_imported.yaml", "cam_from.yaml", "al_imported", "al_from", "m_imported", "m_from"]
+        gt_from = ["--gt", run.src, "--gt-from", fmt, "--smpl-model", run.model_path]
+        again = _report(_ok(invoke(runner, "eval", run.imported, *gt_from, "--out", tmp_path / "m_gt_from", "--json")))
+        assert again == run.report
+    assert _tree(run.root) == before  # the input, the import and its results untouched, nothing added there
+    outputs = ["cam_from.yaml", "al_from", "m_from"]
     outputs += ["al2_imported", "al2_from"] if fmt == "spec" else []
     outputs += ["m_gt_from"] if fmt in ("agora", "bedlam") else []
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(outputs)  # nothing else was written
 
 
-@pytest.mark.parametrize("fmt", ALL)
-def test_imported_sequence_is_what_import_writes(fmt, tmp_path, model, camera, model_path):
+@pytest.mark.parametrize("fmt", _per_format(ALL))
+def test_imported_sequence_is_what_import_writes(fmt, imported_runs):
     """Frame by frame (in any order, twice), meta.yaml content and camera: those of import + open_sequence."""
-    model_path = _model_for(fmt, model_path)
-    src = _write(fmt, tmp_path, _from_scene(model, camera), model, camera)
-    options = {"smpl_model": model_path, "image_size": (W, H) if fmt in ("cliff", "multihmr", "wham") else None}
-    import_sequence(src, tmp_path / "out", fmt, **options)
-    written = open_sequence(tmp_path / "out")
-    with imported_sequence(src, fmt, **options) as seq:
+    run = imported_runs(fmt)
+    options = {"smpl_model": run.model_path, "image_size": (W, H) if run.size else None}
+    written = open_sequence(run.imported)
+    with imported_sequence(run.src, fmt, **options) as seq:
         assert seq.frame_names == written.frame_names and seq.image_size == written.image_size
         assert seq.intrinsics == written.intrinsics and seq.focal_kind == written.focal_kind
         assert seq.camera == written.camera and seq.camera_fit == written.camera_fit
@@ -731,7 +764,7 @@ def test_from_shows_the_import_warnings_once_also_from_workers(tmp_path, model, 
     results["verts"][1, 5] = np.nan
     np.savez(bad, results=results)
     cam_yaml = tmp_path / "camera.yaml"
-    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=F.BEV_FOCAL_PX))
     imported = invoke(runner, "import", src, tmp_path / "imported", "--from", "bev")
     summary = invoke(runner, "import", src, tmp_path / "imp2", "--from", "bev", "--json")
     expected = json.loads(summary.stdout)["warnings"]
@@ -786,7 +819,7 @@ def test_from_errors_in_a_frame_exit_2_with_one_line(tmp_path, scene, model, cam
     results["verts"] = "not an array"
     np.savez(bad, results=results)
     cam_yaml = tmp_path / "camera.yaml"
-    write_camera_yaml(cam_yaml, camera.replace(focal_px=443.4 / 512 * 640))
+    write_camera_yaml(cam_yaml, camera.replace(focal_px=F.BEV_FOCAL_PX))
     for jobs in (1, 2):
         text = _one_line_error(invoke(runner, "align", "--in", src, "--from", "bev", "--image-size", W, H, "--camera",
                                       cam_yaml, "--out", tmp_path / "al", "--jobs", jobs))

@@ -13,7 +13,7 @@ import _fixtures_torch as T
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence, imported_sequence
@@ -23,24 +23,6 @@ from rotavat_cli.sequence import open_sequence
 W, H = 640, 480
 TOL_M = 1e-4  # float32 parameters and storage of metre-scale coordinates, plus LBS round-off
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
-
-
-@pytest.fixture(scope="module")
-def models(tmp_path_factory) -> tuple[Path, Path]:
-    """(synthetic SMPL .npz, synthetic SMPL-X .npz on the same mesh)."""
-    folder = tmp_path_factory.mktemp("models")
-    smpl = F.write_synthetic_smpl(folder / "SMPL_SYNTH.npz")
-    return smpl, T.write_synthetic_smplx(folder / "SMPLX_SYNTH.npz", smpl)
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return F.scene_camera((W, H), 500.0)
-
-
-@pytest.fixture(scope="module")
-def scene(models, camera):
-    return F.default_scene(F.load_model(models[0]), camera)
 
 
 @pytest.fixture(scope="module")
@@ -58,10 +40,10 @@ def _one_line_error(result) -> str:
 
 
 # ---- GVHMR ---------------------------------------------------------------------------------------
-def test_gvhmr_person_comes_out_in_the_camera_frame(tmp_path, models, track, runner):
+def test_gvhmr_person_comes_out_in_the_camera_frame(tmp_path, smplx_on_smpl_path, track, runner):
     src = T.write_gvhmr(tmp_path / "outputs" / "demo" / "tennis", track, (W, H))
     assert detect_format(src) == "gvhmr" and detect_format(src.parent) == "gvhmr"
-    summary = import_sequence(src.parent, tmp_path / "out", "gvhmr", smpl_model=models[1])
+    summary = import_sequence(src.parent, tmp_path / "out", "gvhmr", smpl_model=smplx_on_smpl_path)
     seq = open_sequence(tmp_path / "out")
     intr = seq.intrinsics.with_defaults()
     assert seq.meta["source"] == "gvhmr" and seq.focal_kind == "assumed" and seq.meta["focal_rule"] == "cliff"
@@ -78,12 +60,12 @@ def test_gvhmr_person_comes_out_in_the_camera_frame(tmp_path, models, track, run
     assert invoke(runner, "info", tmp_path / "out").exit_code == 0
 
 
-def test_gvhmr_body_pose_is_the_21_body_joints_after_the_root(tmp_path, models, track):
+def test_gvhmr_body_pose_is_the_21_body_joints_after_the_root(tmp_path, smplx_on_smpl_path, track):
     """body_pose (63) poses SMPL-X joints 1-21; the bent elbow moves the arm and nothing is read from elsewhere."""
-    model = F.load_model(models[1])
+    model = F.load_model(smplx_on_smpl_path)
     bent = T.bent_elbow_pose(len(track))
     src = T.write_gvhmr(tmp_path / "g", track, (W, H), body_pose=bent)
-    with imported_sequence(src, "gvhmr", smpl_model=models[1]) as seq:
+    with imported_sequence(src, "gvhmr", smpl_model=smplx_on_smpl_path) as seq:
         frame = seq.read_frame(seq.frame_names[1])
     full = np.zeros((1, 55, 3))
     full[0, 0], full[0, 1:22] = track[1].pose[0], bent[1]
@@ -93,10 +75,10 @@ def test_gvhmr_body_pose_is_the_21_body_joints_after_the_root(tmp_path, models, 
     assert moved.max() > 0.05 and np.median(moved) < 1e-4  # the forearm moved, the body did not
 
 
-def test_gvhmr_focal_not_from_its_rule_is_kept_without_a_rule(tmp_path, models, track):
+def test_gvhmr_focal_not_from_its_rule_is_kept_without_a_rule(tmp_path, smplx_on_smpl_path, track):
     K = np.array([[700.0, 0, W / 2], [0, 700.0, H / 2], [0, 0, 1]])
     src = T.write_gvhmr(tmp_path / "g", track, (W, H), K=K)
-    summary = import_sequence(src, tmp_path / "out", "gvhmr", smpl_model=models[1], image_size=(W + 2, H))
+    summary = import_sequence(src, tmp_path / "out", "gvhmr", smpl_model=smplx_on_smpl_path, image_size=(W + 2, H))
     seq = open_sequence(tmp_path / "out")
     assert seq.intrinsics.focal_px == 700.0 and "focal_rule" not in seq.meta and seq.focal_kind == "assumed"
     assert seq.intrinsics.image_size == (W + 2, H) and seq.intrinsics.principal_point == (W / 2, H / 2)
@@ -104,28 +86,28 @@ def test_gvhmr_focal_not_from_its_rule_is_kept_without_a_rule(tmp_path, models, 
     assert any("differs from the 640x480 of K_fullimg" in w for w in summary["warnings"])
 
 
-def test_gvhmr_needs_an_smplx_model(tmp_path, models, track):
+def test_gvhmr_needs_an_smplx_model(tmp_path, model_path, track):
     src = T.write_gvhmr(tmp_path / "g", track, (W, H))
     with pytest.raises(InputError, match=r"hmr4d_results\.pt: GVHMR stores SMPL-X parameters only \(no joints, no 2D "
                                          r"keypoints\): pass --smpl-model"):
         import_sequence(src, tmp_path / "out", "gvhmr")
     with pytest.raises(InputError, match=r"SMPL-X; --smpl-model SMPL_SYNTH\.npz has 24 joints \(need 55\)"):
-        import_sequence(src, tmp_path / "out", "gvhmr", smpl_model=models[0])
+        import_sequence(src, tmp_path / "out", "gvhmr", smpl_model=model_path)
 
 
-def test_gvhmr_hostile_archive_exits_2_without_running_code(tmp_path, models, track, runner):
+def test_gvhmr_hostile_archive_exits_2_without_running_code(tmp_path, smplx_on_smpl_path, track, runner):
     marker = tmp_path / "pwned"
     results = T.gvhmr_results(track, (W, H))
     results["net_outputs"] = T.Call(T.Global("os", "system"), (f"touch {marker}",))
     src = tmp_path / "hmr4d_results.pt"
     src.write_bytes(T.torch_zip_bytes(results, name="hmr4d_results"))
-    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", models[1]))
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", smplx_on_smpl_path))
     assert "torch archive: refused to unpickle global 'os.system'" in text
     assert not marker.exists() and not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "drop_storage"])
-def test_gvhmr_broken_archive_exits_2_with_one_line(tmp_path, models, track, runner, damage):
+def test_gvhmr_broken_archive_exits_2_with_one_line(tmp_path, smplx_on_smpl_path, track, runner, damage):
     src = T.write_gvhmr(tmp_path / "g", track, (W, H))
     if damage == "truncate":
         F.truncate(src, 0.6)
@@ -133,18 +115,18 @@ def test_gvhmr_broken_archive_exits_2_with_one_line(tmp_path, models, track, run
         src.write_bytes(np.random.default_rng(1).bytes(300))
     else:
         src.write_bytes(T.torch_zip_bytes(T.gvhmr_results(track, (W, H)), name="hmr4d_results", drop=("data/3",)))
-    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", models[1]))
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", smplx_on_smpl_path))
     assert str(src) in text
     if damage != "garbage":
         assert "torch archive" in text
 
 
 @pytest.mark.skipif(not (REALFILES / "gvhmr").is_dir(), reason="shared real files absent")
-def test_real_gvhmr_output_imports(tmp_path, models):
+def test_real_gvhmr_output_imports(tmp_path, smplx_on_smpl_path):
     """GVHMR's own demo output (812x720 video, 312 frames, one person), posed on the synthetic SMPL-X body."""
     src = REALFILES / "gvhmr" / "tennis" / "hmr4d_results.pt"
     assert detect_format(src) == "gvhmr"
-    summary = import_sequence(src, tmp_path / "out", "gvhmr", smpl_model=models[1])
+    summary = import_sequence(src, tmp_path / "out", "gvhmr", smpl_model=smplx_on_smpl_path)
     assert summary["frames"] == 312 and summary["people"] == 312 and summary["warnings"] == []
     seq = open_sequence(tmp_path / "out")
     assert seq.intrinsics.image_size == (812, 720) and seq.meta["focal_rule"] == "cliff"
@@ -155,10 +137,10 @@ def test_real_gvhmr_output_imports(tmp_path, models):
 
 
 # ---- TRAM ----------------------------------------------------------------------------------------
-def test_tram_people_come_out_in_the_camera_frame(tmp_path, models, scene, runner):
+def test_tram_people_come_out_in_the_camera_frame(tmp_path, model_path, scene, runner):
     src = T.write_tram(tmp_path / "results" / "demo", scene, (W, H))
     assert detect_format(src) == "tram" and detect_format(src / "hps") == "tram"
-    summary = import_sequence(src, tmp_path / "out", "tram", smpl_model=models[0])
+    summary = import_sequence(src, tmp_path / "out", "tram", smpl_model=model_path)
     seq = open_sequence(tmp_path / "out")
     intr = seq.intrinsics.with_defaults()
     assert seq.meta["source"] == "tram" and seq.focal_kind == "assumed" and seq.meta["focal_rule"] == "tram"
@@ -180,12 +162,12 @@ def _jpeg_header(width: int, height: int) -> bytes:
     return b"\xff\xd8\xff\xc0\x00\x11\x08" + height.to_bytes(2, "big") + width.to_bytes(2, "big") + b"\x03" + bytes(9)
 
 
-def test_tram_searched_focal_moving_camera_and_images(tmp_path, models, scene):
+def test_tram_searched_focal_moving_camera_and_images(tmp_path, model_path, scene):
     src = T.write_tram(tmp_path / "demo", scene, (W, H), focal=900.0, moving=True)
     (src / "images").mkdir()
     for i in range(3):
         (src / "images" / f"{i:04d}.jpg").write_bytes(_jpeg_header(W, H))
-    summary = import_sequence(src, tmp_path / "out", "tram", smpl_model=models[0])
+    summary = import_sequence(src, tmp_path / "out", "tram", smpl_model=model_path)
     seq = open_sequence(tmp_path / "out")
     assert seq.intrinsics.focal_px == 900.0 and "focal_rule" not in seq.meta and seq.focal_kind == "assumed"
     assert "SLAM reprojection search" in seq.meta["import"]["focal_from"]
@@ -193,35 +175,35 @@ def test_tram_searched_focal_moving_camera_and_images(tmp_path, models, scene):
     assert any("camera moving (up to 0.50 m, 0.0 deg)" in w for w in summary["warnings"])
 
 
-def test_tram_needs_an_smpl_model(tmp_path, models, scene):
+def test_tram_needs_an_smpl_model(tmp_path, smplx_on_smpl_path, scene):
     src = T.write_tram(tmp_path / "demo", scene, (W, H))
     with pytest.raises(InputError, match=r"demo: TRAM stores SMPL parameters only \(no joints, no 2D keypoints\)"):
         import_sequence(src, tmp_path / "out", "tram")
     with pytest.raises(InputError, match=r"SMPL; --smpl-model SMPLX_SYNTH\.npz has 55 joints \(need 24\)"):
-        import_sequence(src, tmp_path / "out", "tram", smpl_model=models[1])
+        import_sequence(src, tmp_path / "out", "tram", smpl_model=smplx_on_smpl_path)
 
 
-def test_tram_track_with_repeated_frames_is_refused(tmp_path, models, scene):
+def test_tram_track_with_repeated_frames_is_refused(tmp_path, model_path, scene):
     src = T.write_tram(tmp_path / "demo", scene, (W, H))
     eye = np.broadcast_to(np.eye(3, dtype=np.float32), (2, 24, 3, 3)).copy()
     T.np_save_tensors(src / "hps" / "hps_track_1.npy", {
         "pred_rotmat": T.tensor(eye), "pred_shape": T.tensor(np.zeros((2, 10), np.float32)),
         "pred_trans": T.tensor(np.ones((2, 1, 3), np.float32)), "frame": T.tensor(np.array([1, 1]))})
     with pytest.raises(InputError, match=r"hps_track_1\.npy: 'frame' must hold distinct, non-negative image indices"):
-        import_sequence(src, tmp_path / "out", "tram", smpl_model=models[0])
+        import_sequence(src, tmp_path / "out", "tram", smpl_model=model_path)
 
 
-def test_tram_hostile_track_exits_2_without_running_code(tmp_path, models, scene, runner):
+def test_tram_hostile_track_exits_2_without_running_code(tmp_path, model_path, scene, runner):
     marker = tmp_path / "pwned"
     src = T.write_tram(tmp_path / "demo", scene, (W, H))
     T.np_save_tensors(src / "hps" / "hps_track_0.npy", {"pred_rotmat": T.Call(T.Global("os", "system"), (f"touch {marker}",))})
-    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", models[0]))
+    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", model_path))
     assert "hps_track_0.npy: refused to unpickle global 'os.system'" in text
     assert not marker.exists() and not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("damage", ["truncate", "garbage"])
-def test_tram_broken_files_exit_2_with_one_line(tmp_path, models, scene, runner, damage):
+def test_tram_broken_files_exit_2_with_one_line(tmp_path, model_path, scene, runner, damage):
     for name in ("camera.npy", "hps/hps_track_1.npy"):
         src = T.write_tram(tmp_path / name.replace("/", "_"), scene, (W, H))
         file = src / name
@@ -229,5 +211,5 @@ def test_tram_broken_files_exit_2_with_one_line(tmp_path, models, scene, runner,
             F.truncate(file, 0.6)
         else:
             file.write_bytes(np.random.default_rng(1).bytes(300))
-        text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", models[0]))
+        text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", model_path))
         assert file.name in text

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import _body_models as B
 import _fixtures_pymafx_trace as PT
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli import unpickle
 from rotavat_cli.errors import InputError
@@ -28,7 +28,7 @@ REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
 
 @pytest.fixture(scope="module")
 def smplx_path(tmp_path_factory) -> Path:
-    return PT.write_synthetic_smplx(tmp_path_factory.mktemp("model") / "SMPLX_SYNTH.npz")
+    return B.write_synthetic_smplx(tmp_path_factory.mktemp("model") / "SMPLX_SYNTH.npz")
 
 
 @pytest.fixture(scope="module")

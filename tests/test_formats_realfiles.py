@@ -14,7 +14,7 @@ from pathlib import Path
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli import unpickle
 from rotavat_cli.camera import project_cam_to_px

@@ -7,13 +7,12 @@ from __future__ import annotations
 import json
 import pickle
 import shutil
-from pathlib import Path
 
 import _fixtures_slahmr_glamr as G
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli import unpickle
 from rotavat_cli.camera import world_to_cam
@@ -27,27 +26,6 @@ from rotavat_cli.sequence import open_sequence
 W, H = G.W, G.H
 TOL_M = 1e-4  # float32 storage (~1e-6 m at 10 m) plus LBS round-off
 TOL_PX = 0.02  # float32 pixels
-
-
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory) -> Path:
-    return F.write_synthetic_smpl(tmp_path_factory.mktemp("model") / "SMPL_SYNTH.npz")
-
-
-@pytest.fixture(scope="module")
-def smplh_path(model_path) -> Path:
-    return G.write_synthetic_smplh(model_path.parent / "SMPLH_SYNTH.npz", model_path)
-
-
-@pytest.fixture(scope="module")
-def model(model_path):
-    return F.load_model(model_path)
-
-
-@pytest.fixture(scope="module")
-def scene(model):
-    """Three frames: tracks 3 and 5, then 3 alone, then nobody (tests/_format_fixtures.py)."""
-    return F.default_scene(model, F.scene_camera((W, H), 500.0))
 
 
 def _assert_people(frame, truth, tol=TOL_M):

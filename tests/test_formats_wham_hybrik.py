@@ -9,10 +9,9 @@ from pathlib import Path
 
 import _fixtures_wham_hybrik as WH
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli import unpickle
 from rotavat_cli.errors import InputError
@@ -122,9 +121,9 @@ def test_wham_malformed_files_are_refused_in_one_line(damage, needle, tmp_path, 
     assert needle in text and "wham_output.pkl" in text
 
 
-def test_wham_refuses_a_non_smpl_model(tmp_path, scene):
-    model_file = F.write_synthetic_smpl(tmp_path / "x.npz")
-    data = dict(np.load(model_file, allow_pickle=False))
+def test_wham_refuses_a_non_smpl_model(tmp_path, scene, model_path):
+    model_file = tmp_path / "x.npz"
+    data = dict(np.load(model_path, allow_pickle=False))
     data["kintree_table"], data["J_regressor"] = data["kintree_table"][:, :23], data["J_regressor"][:23]
     data["weights"], data["posedirs"] = data["weights"][:, :23], data["posedirs"][:, :, : 9 * 22]
     np.savez(model_file, **data)

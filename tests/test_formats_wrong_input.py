@@ -15,10 +15,9 @@ from pathlib import Path
 import _fixtures_torch as T
 import _fixtures_wham_hybrik as WH
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.formats import available_formats, other_format
 from rotavat_cli.formats.file_kinds import file_kind

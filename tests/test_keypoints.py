@@ -5,7 +5,6 @@ different sizes; Multi-HMR's demo file names; a BEV file read as ROMP)."""
 from __future__ import annotations
 
 import _format_fixtures as F
-from _format_fixtures import camera, model, model_path, scene  # noqa: F401 (pytest fixtures)
 import numpy as np
 import pytest
 

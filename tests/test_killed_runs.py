@@ -3,8 +3,9 @@ writer was SIGKILLed are removed by the next write of the same output, even whil
 is a zombie nobody has reaped (its pid still answers ``kill(pid, 0)``); a live writer's are never
 touched; worker processes exit when the process that started them is killed.
 
-Every child here is a real process killed with SIGKILL; nothing waits on a fixed delay: states are
-polled with generous timeouts (the tests must hold on a loaded 2-core machine).
+Every child here is a real process killed with SIGKILL (those tests are marked ``slow``: ``make
+test-slow``); nothing waits on a fixed delay: states are polled with generous timeouts (the tests must
+hold on a loaded 2-core machine).
 """
 
 from __future__ import annotations
@@ -83,6 +84,7 @@ def _kill_unreaped(child: subprocess.Popen) -> None:
     os.kill(child.pid, 0)  # a zombie still answers kill(pid, 0): a pid check would call it alive
 
 
+@pytest.mark.slow
 def test_staging_of_a_killed_unreaped_run_is_removed_by_the_next_run(tmp_path):
     out = tmp_path / "aligned"
     child, stage = _start(_STAGING_CHILD, str(out))
@@ -100,6 +102,7 @@ def test_staging_of_a_killed_unreaped_run_is_removed_by_the_next_run(tmp_path):
         child.wait()
 
 
+@pytest.mark.slow
 def test_staging_of_a_live_run_is_kept(tmp_path):
     out = tmp_path / "aligned"
     child, stage = _start(_STAGING_CHILD, str(out))
@@ -112,6 +115,7 @@ def test_staging_of_a_live_run_is_kept(tmp_path):
         child.wait()
 
 
+@pytest.mark.slow
 def test_temporary_of_a_killed_writer_is_removed_by_the_next_write_of_that_file(tmp_path):
     """calibrate's SEQ/camera.yaml: a SIGKILL during its atomic write left '.camera.yaml.*.tmp' in SEQ."""
     seq = tmp_path / "seq"
@@ -216,6 +220,7 @@ main()
 """
 
 
+@pytest.mark.slow
 def test_align_workers_exit_when_align_is_killed(tmp_path):
     from rotavat_cli.synth import SynthOptions, write_synth_scene
 
@@ -234,5 +239,6 @@ time.sleep(120)
 """
 
 
+@pytest.mark.slow
 def test_batch_pool_workers_exit_when_the_driver_is_killed(tmp_path):
     _assert_workers_die_with_their_parent([sys.executable, "-c", _POOL], 2)

@@ -4,8 +4,9 @@ Every case of the hostile-input campaign is rebuilt here as a small file (a zip 
 repeated deflate blocks, a lying header a few hundred bytes; nothing large is ever written) and run
 through the real command in a subprocess whose peak resident memory is measured (``os.wait4``):
 each ends with exit status 2, one line on stderr naming the file and the number, and a peak far
-below what the file declares. Raising a limit with ``--config`` lets a large-but-legitimate input
-through; the usual fixtures are unaffected (the other test modules).
+below what the file declares (these are marked ``slow``: ``make test-slow``). Raising a limit with
+``--config`` lets a large-but-legitimate input through; the usual fixtures are unaffected (the other
+test modules).
 """
 
 from __future__ import annotations
@@ -23,10 +24,12 @@ import zipfile
 import zlib
 from pathlib import Path
 
+import _body_models as B
 import _format_fixtures as F
 import numpy as np
 import pytest
-from conftest import invoke, tetra_frame
+from _cli import invoke
+from conftest import tetra_frame
 
 from rotavat_cli import limits, unpickle
 from rotavat_cli.calibration import GridSpec
@@ -195,6 +198,7 @@ def shared_nest(depth: int, fanout: int) -> list:
 
 
 # ---- the campaign's cases, through the real commands --------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["info", "align"])
 def test_npz_zip_bomb_in_a_frame(tmp_path, command):
     """3.9 MB of deflate that inflates to 3.7 GiB of vertices (the campaign's 3.2 MB -> 4 GB)."""
@@ -207,12 +211,14 @@ def test_npz_zip_bomb_in_a_frame(tmp_path, command):
     assert_refused(run(*args), "000003.npz: member 'vertices' declares 3.7 GiB", "limit 1.0 GiB: limits.max_array_mb")
 
 
+@pytest.mark.slow
 def test_frame_member_nobody_uses_is_still_refused_in_a_contract_frame(tmp_path):
     """Contract frames keep every key (align copies them through): a 3.5 GiB 'junk' member is refused by name."""
     seq = contract_sequence(tmp_path / "seq", [bomb_member("junk", "u1", ((3 << 30) + (1 << 29),))])
     assert_refused(run("info", seq), "000003.npz: member 'junk' declares 3.5 GiB", "limit 1.0 GiB: limits.max_array_mb")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shape, needle", [
     ((1, 1_600_000_000, 3), "member 'vertices' declares 17.9 GiB"),  # the campaign's 19 GB header
     ((4_000_000, 1000, 3), "member 'vertices' declares 44.7 GiB"),  # ... and its 48 GB one
@@ -224,6 +230,7 @@ def test_npz_member_header_declaring_gigabytes(tmp_path, shape, needle):
     assert_refused(run("info", seq), needle, "000003.npz", "limits.max_array_mb")
 
 
+@pytest.mark.slow
 def test_npz_header_lying_below_the_limit_is_caught_against_the_member_size(tmp_path):
     """12 MB declared, 64 bytes present: refused from the zip directory, before allocating 12 MB."""
     seq = contract_sequence(tmp_path / "seq", [liar_member("junk", "<f4", (1000, 1000, 3))])
@@ -231,6 +238,7 @@ def test_npz_header_lying_below_the_limit_is_caught_against_the_member_size(tmp_
     assert "12,000,000 bytes" in line and "the member holds 64" in line
 
 
+@pytest.mark.slow
 def test_inflating_beyond_the_declared_size_allocates_nothing_more(tmp_path):
     """A member declaring 400 bytes whose deflate stream inflates to 64 MiB: zipfile stops at the
     declared size, the CRC check fails, nothing beyond 400 bytes is kept."""
@@ -243,6 +251,7 @@ def test_inflating_beyond_the_declared_size_allocates_nothing_more(tmp_path):
     assert_refused(run("info", seq), "000003.npz: not a readable .npz file", "CRC")
 
 
+@pytest.mark.slow
 def test_multihmr_npy_header_declaring_48_gb(tmp_path):
     src = tmp_path / "mhmr"
     src.mkdir()
@@ -254,6 +263,7 @@ def test_multihmr_npy_header_declaring_48_gb(tmp_path):
                    "img_0001.npy", "corrupt or truncated array", "251,400 bytes", "100 follow")
 
 
+@pytest.mark.slow
 def test_pickle_list_of_a_range(tmp_path):
     """78 bytes asking for list(range(400_000_000)) (5.9 GB once built)."""
     src = tmp_path / "agora"
@@ -266,6 +276,7 @@ def test_pickle_list_of_a_range(tmp_path):
                    "limit 20,000,000: limits.max_pickle_items")
 
 
+@pytest.mark.slow
 def test_agora_pickle_of_shared_references(tmp_path):
     """Under 1 KB: one 2-float list referenced 8 times, that list 8 times, ... 10 levels deep. The
     unpickler builds 80 references; converting it to an array would make 2 billion floats (17 GB)."""
@@ -279,11 +290,10 @@ def test_agora_pickle_of_shared_references(tmp_path):
                    "limits.max_pickle_items")
 
 
-def test_bev_npz_extra_member_is_never_read(tmp_path):
+@pytest.mark.slow
+def test_bev_npz_extra_member_is_never_read(tmp_path, scene):
     """A BEV result with an extra 3.5 GiB member: imported from 'results' alone, in bounded memory
     (the campaign saw exit 0 after 49 s at 7.45 GB)."""
-    model = F.load_model(F.write_synthetic_smpl(tmp_path / "SMPL.npz"))
-    scene = F.default_scene(model, F.scene_camera())
     F.write_bev(tmp_path / "bev", scene[:1], (640, 480))
     good = next((tmp_path / "bev").glob("*.npz"))
     with zipfile.ZipFile(good) as archive:
@@ -296,6 +306,7 @@ def test_bev_npz_extra_member_is_never_read(tmp_path):
     assert len(list((tmp_path / "out").glob("*.npz"))) == 1
 
 
+@pytest.mark.slow
 def test_parameters_for_gigabytes_of_meshes_are_refused_before_posing(tmp_path):
     """A 0.1 MB CLIFF file naming 5,000 people in one image: posing them would need 754 MiB of
     float64 meshes (and 4 GiB of skinning transforms at once); refused, one line, bounded memory."""
@@ -307,7 +318,7 @@ def test_parameters_for_gigabytes_of_meshes_are_refused_before_posing(tmp_path):
                         shape=np.zeros((n, 10)), global_t=np.tile([0.0, 0.0, 10.0], (n, 1)),
                         pred_joints=np.zeros((n, 45, 3)), focal_l=np.full(n, 800.0), detection_all=detections)
     assert src.stat().st_size < 1 << 20
-    model = F.write_synthetic_smpl(tmp_path / "SMPL.npz")
+    model = B.write_synthetic_smpl(tmp_path / "SMPL.npz")  # named in the message
     for command in (("import", src, tmp_path / "out"), ("calibrate", src, "--out", tmp_path / "camera.yaml")):
         assert_refused(run(*command, "--from", "cliff", "--image-size", 640, 480, "--smpl-model", model),
                        "cliff.npz: posing 5000 people on SMPL.npz (6591 vertices) needs 754.3 MiB of meshes",
@@ -315,6 +326,7 @@ def test_parameters_for_gigabytes_of_meshes_are_refused_before_posing(tmp_path):
     assert not (tmp_path / "out").exists() and not (tmp_path / "camera.yaml").exists()
 
 
+@pytest.mark.slow
 def test_compressed_pickle_bomb(tmp_path):
     """A 2.3 MB zlib-compressed 'joblib' file inflating to 2.2 GiB: unpickled as it inflates, refused at
     its first byte that is no pickle's, never held; what follows a whole pickle is inflated (and
@@ -330,6 +342,7 @@ def test_compressed_pickle_bomb(tmp_path):
         unpickle.load_file(tmp_path / "phalp.pkl")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["wham", "gvhmr", "bev"])
 def test_compressed_pickle_under_the_limit_is_refused_as_it_inflates(tmp_path, fmt):
     """A 1 MB file whose pickle inflates to 1 GiB of zeros, under limits.max_file_mb: WHAM's zlib
@@ -356,6 +369,7 @@ def test_compressed_pickle_under_the_limit_is_refused_as_it_inflates(tmp_path, f
     assert_refused(run("import", "--from", fmt, src, tmp_path / "out", "--image-size", 640, 480), needle)
 
 
+@pytest.mark.slow
 def test_grid_steps_from_config(tmp_path, npz_seq):
     (tmp_path / "grid.yaml").write_text("calibrate:\n  grid:\n    steps: [5000, 5000, 5000]\n")
     assert_refused(run("calibrate", npz_seq, "--config", tmp_path / "grid.yaml", "--out", tmp_path / "cam.yaml"),

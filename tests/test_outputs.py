@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli.outputs import MARKER, STAGING_OWNER, written_by_rotavat
 
@@ -148,6 +149,7 @@ def test_stale_staging_of_a_killed_run_is_removed(scene, tmp_path, runner):
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".al.")) == [".al.partial-notours"]
 
 
+@pytest.mark.slow
 def test_thousands_of_jobs_start_no_more_workers_than_cores(scene, tmp_path):
     """--jobs 10000 in a subprocess limited to 64 processes: it must finish and say how many it used."""
     import resource

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError

@@ -6,7 +6,7 @@ import re
 import shlex
 from pathlib import Path
 
-from conftest import invoke
+from _cli import invoke
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 from PIL import Image
 
 from rotavat_cli.camera import Camera
@@ -394,13 +395,12 @@ def test_cli_refuses_an_unknown_view_listing_the_registry(runner, scene, tmp_pat
     assert result.exit_code == 2 and f"choose from {', '.join(VIEWS)}" in " ".join(result.stderr.split())
 
 
-def test_render_and_export_read_a_tool_output_with_from(runner, tmp_path):
+def test_render_and_export_read_a_tool_output_with_from(runner, tmp_path, model, model_path, camera):
     """--from on render (the first SEQ) and export: the same pictures and glTF as after `rotavat import`."""
     import _format_fixtures as F
 
-    camera = F.scene_camera()
-    model_path = F.write_synthetic_smpl(tmp_path / "smpl.npz")  # BEV's meshes take their faces from the model
-    src = F.write_bev(tmp_path / "bev", F.default_scene(F.load_model(model_path), camera), camera.image_size)
+    # BEV's meshes take their faces from the model (model_path)
+    src = F.write_bev(tmp_path / "bev", F.default_scene(model, camera), camera.image_size)
     imported = tmp_path / "x" / "bev"  # named like the source: the row labels are the same
     assert invoke(runner, "import", "--from", "bev", src, imported, "--smpl-model", model_path, "-q").exit_code == 0
     cam = tmp_path / "cam.yaml"
@@ -947,16 +947,14 @@ def test_side_and_top_windows_frame_the_plausible_people_and_mark_the_flagged(ru
     assert warnings == [f"{tmp_path / 'odd' / 'people.csv'}: no person_id, flag column: no person is marked as flagged"]
 
 
-def test_render_without_a_camera_names_commands_that_run(runner, tmp_path):
+def test_render_without_a_camera_names_commands_that_run(runner, tmp_path, model, model_path, camera):
     """Issue 24: `render --from bev FILE` without a camera named `rotavat calibrate FILE`, which fails (not a
     folder); the commands it names now run as written, with the user's paths and --from/--image-size/--smpl-model."""
     import shlex
 
     import _format_fixtures as F
 
-    camera = F.scene_camera()
-    model_path = F.write_synthetic_smpl(tmp_path / "smpl.npz")
-    src = F.write_bev(tmp_path / "bev", F.default_scene(F.load_model(model_path), camera), camera.image_size)
+    src = F.write_bev(tmp_path / "bev", F.default_scene(model, camera), camera.image_size)
     reader = ["--from", "bev", "--image-size", *map(str, camera.image_size), "--smpl-model", str(model_path)]
     result = invoke(runner, "render", src, *reader, "--size", "160", "90")
     assert result.exit_code == 2 and "Traceback" not in result.stderr, result.output

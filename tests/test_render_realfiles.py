@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke
+from _cli import invoke
 from PIL import Image
 
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
@@ -27,11 +27,9 @@ pytestmark = pytest.mark.skipif(not (BEV_FILE.is_file() and PHOTO.is_file()),
 
 
 @pytest.fixture(scope="module")
-def aligned_photo(tmp_path_factory) -> tuple[Path, Path, Path]:
+def aligned_photo(tmp_path_factory, runner) -> tuple[Path, Path, Path]:
     """(imported sequence, its aligned output, a folder holding the photo named like the frame)."""
-    from typer.testing import CliRunner
-
-    runner, root = CliRunner(), tmp_path_factory.mktemp("flickr")
+    root = tmp_path_factory.mktemp("flickr")
     seq = root / "college"
     for args in (["import", "--from", "bev", BEV_FILE, seq, "--image-size", "500", "332"], ["calibrate", seq],
                  ["align", seq, "--accept-camera"]):

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import invoke, tetra_frame, tree_hash
+from _cli import invoke
+from conftest import tetra_frame, tree_hash
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.errors import InputError
@@ -228,28 +229,47 @@ def test_a_sequence_over_any_frame_source(tmp_path: Path):
     assert not (tmp_path / "nowhere").exists()
 
 
-def test_frames_of_another_image_size_are_refused_by_calibrate_and_align(tmp_path, runner):
-    """Photos of different sizes imported as one sequence are not one static camera: calibrate and align
-    refuse them with one line naming the frame (BEV's image mode writes each photo's own size)."""
+def _photo_of_another_size(scene: Path) -> Path:
+    """A synthetic scene in ``scene`` whose frame 000002 of pred/ says its photo is 1666x2500 (the others
+    1280x720, as BEV's image mode writes each photo's own size); its pred/ folder."""
     from rotavat_cli.synth import SynthOptions, write_synth_scene
 
-    write_synth_scene(tmp_path / "s", SynthOptions(seed=3, frames=4, people=5))
-    seq = open_sequence(tmp_path / "s" / "pred")
+    write_synth_scene(scene, SynthOptions(seed=3, frames=4, people=5))
+    seq = open_sequence(scene / "pred")
     frame = seq.read_frame(seq.frame_names[2])
-    write_frame(tmp_path / "s" / "pred", frame.replace(image_size=np.array([1666, 2500])), "npz")
-    cal = invoke(runner, "calibrate", tmp_path / "s" / "pred", "--out", tmp_path / "cam.yaml")
+    write_frame(scene / "pred", frame.replace(image_size=np.array([1666, 2500])), "npz")
+    return scene / "pred"
+
+
+def test_frames_of_another_image_size_are_refused_by_calibrate_and_align(tmp_path, runner):
+    """Photos of different sizes imported as one sequence are not one static camera: calibrate and align
+    refuse them with one line naming the frame, and the step to calibrate that frame alone."""
+    pred = _photo_of_another_size(tmp_path / "s")
+    cal = invoke(runner, "calibrate", pred, "--out", tmp_path / "cam.yaml")
     assert cal.exit_code == 2 and "image size 1666x2500 differs from 1280x720" in cal.stderr
     assert cal.stderr.count("\n") == 1 and "000002" in cal.stderr
-    step = cal.stderr.strip().split(", e.g. ", 1)[1]  # the step it names runs as written
+    step = cal.stderr.strip().split(", e.g. ", 1)[1]  # run as written by the slow test below
     assert step.startswith("mkdir ") and step.endswith("rotavat calibrate pred_000002")
+    aligned = invoke(runner, "align", "--in", pred, "--camera", tmp_path / "s" / "gt" / "camera.yaml",
+                     "--out", tmp_path / "a")
+    assert aligned.exit_code == 2 and "not one static camera's" in aligned.stderr
+
+
+@pytest.mark.slow
+def test_the_step_named_for_a_frame_of_another_size_runs_as_written(tmp_path, runner):
+    """The step calibrate's refusal names (mkdir, cp, rotavat calibrate) runs in a shell as written, with
+    this environment's console script, and calibrates the frame at its own size."""
+    pred = _photo_of_another_size(tmp_path / "s")
+    cal = invoke(runner, "calibrate", pred, "--out", tmp_path / "cam.yaml")
+    step = cal.stderr.strip().split(", e.g. ", 1)[1]
     rotavat = Path(sys.executable).parent / "rotavat"  # the console script of this environment
     ran = subprocess.run(step.replace("rotavat calibrate", f"{rotavat} calibrate"), shell=True,
                          cwd=tmp_path / "s", capture_output=True, text=True)
     assert ran.returncode == 0, ran.stderr
     assert yaml.safe_load((tmp_path / "s" / "pred_000002" / "camera.yaml").read_text())["image_size"] == [1666, 2500]
-    aligned = invoke(runner, "align", "--in", tmp_path / "s" / "pred", "--camera", tmp_path / "s" / "gt" / "camera.yaml",
+    aligned = invoke(runner, "align", "--in", pred, "--camera", tmp_path / "s" / "gt" / "camera.yaml",
                      "--out", tmp_path / "a")
-    assert aligned.exit_code == 2 and "not one static camera's" in aligned.stderr
+    assert aligned.exit_code == 2 and "not one static camera's" in aligned.stderr  # the copy left pred/ as it was
 
 
 def test_info_warns_of_root_centred_and_behind_camera_people_and_of_several_image_sizes(tmp_path, runner):
@@ -295,6 +315,7 @@ def test_calibrate_leaves_out_root_centred_people_and_says_so(tmp_path, runner):
     assert len(result.stderr.strip().splitlines()) == 1 and f"rotavat eval {pred} --gt GT" in result.stderr
 
 
+@pytest.mark.slow
 def test_results_go_to_stdout_and_diagnostics_to_stderr(tmp_path):
     """`rotavat info SEQ > f.txt` keeps the table; warnings, progress and errors stay on stderr (real processes)."""
     import subprocess

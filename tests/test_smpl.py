@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import _format_fixtures as F
 import numpy as np
 import pytest
 
@@ -132,9 +131,9 @@ def test_posing_more_than_a_frame_may_hold_is_refused(chain):
             lbs(chain, np.zeros((11, 2)), np.zeros((11, 3, 3)))
 
 
-def test_float32_file_and_smpl_layout(tmp_path):
+def test_float32_file_and_smpl_layout(model_path):
     """The synthetic SMPL-layout model (24 joints, uint32 kintree) loads; identity pose = template."""
-    model = load_body_model(F.write_synthetic_smpl(tmp_path / "SMPL_SYNTH.npz"))
+    model = load_body_model(model_path)
     assert model.kind == "smpl" and model.n_joints == 24 and model.parents[0] == -1
     verts, joints = lbs(model, np.zeros((1, 10)), np.zeros((1, 24, 3)))
     np.testing.assert_allclose(verts[0], model.v_template, atol=1e-12)

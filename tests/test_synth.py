@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import invoke, tree_hash
+from _cli import invoke
+from conftest import tree_hash
 
 from rotavat_cli.landmarks import _points_by_geometry, foot_head_points
 from rotavat_cli.sequence import open_sequence

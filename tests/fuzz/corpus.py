@@ -51,6 +51,7 @@ TESTS_DIR = Path(__file__).resolve().parents[1]
 if str(TESTS_DIR) not in sys.path:
     sys.path.insert(0, str(TESTS_DIR))
 
+import _body_models as B  # noqa: E402
 import _fixtures_pymafx_trace as PT  # noqa: E402
 import _fixtures_slahmr_glamr as SG  # noqa: E402
 import _fixtures_torch as T  # noqa: E402
@@ -339,7 +340,7 @@ def model_bytes(kind: str = "smpl") -> bytes:
     tests/_fixtures_slahmr_glamr.py) .npz: the same mesh and body joints in each layout."""
     if kind == "smpl":
         return tiny_model_bytes()
-    writer = {"smplx": T.write_synthetic_smplx, "smplh": SG.write_synthetic_smplh}[kind]
+    writer = {"smplx": B.write_smplx_on_smpl, "smplh": B.write_synthetic_smplh}[kind]
     with tempfile.TemporaryDirectory() as tmp:
         smpl = Path(tmp) / "smpl.npz"
         smpl.write_bytes(tiny_model_bytes())

@@ -37,10 +37,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from typer.testing import CliRunner
+
 try:
     from . import corpus as C
 except ImportError:  # run as a script from tests/fuzz
     import corpus as C  # type: ignore[no-redef]
+from _cli import invoke  # noqa: E402 (tests/ is on sys.path once corpus is imported)
 
 KILL_FACTOR = 1.1  # a case's command is killed at 1.1x its RSS bound: past the bound is a violation already
 KILL_RSS_MB = 1100.0  # run_subprocess's default kill threshold (direct calls)
@@ -207,10 +210,6 @@ def _cwd(path: Path):
 
 def run_inprocess(args: list[str], cwd: Path, timeout: float) -> dict:
     """The CLI in this process (click's CliRunner): exit code, stdout, stderr, traceback."""
-    from typer.testing import CliRunner
-
-    from rotavat_cli.cli import app
-
     t0 = time.monotonic()
     tb, timed_out = "", False
     with _cwd(cwd), warnings.catch_warnings():
@@ -220,7 +219,7 @@ def run_inprocess(args: list[str], cwd: Path, timeout: float) -> dict:
         warnings.showwarning = _show_on_stderr
         try:
             with _alarm(timeout):
-                result = CliRunner().invoke(app, args, catch_exceptions=True)
+                result = invoke(CliRunner(), *args, catch_exceptions=True)
         except CaseTimeout:
             return {"exit_code": None, "stdout": "", "stderr": "", "traceback": "", "timed_out": True,
                     "seconds": time.monotonic() - t0}

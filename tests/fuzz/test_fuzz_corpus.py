@@ -1,14 +1,16 @@
 """The fixed fuzz corpus (issue 15): every hostile-input class, every rule (see harness.py).
 
-Run with ``make test`` (marked ``fuzz``: ``pytest -m fuzz`` selects it, ``-m "not fuzz"`` skips it);
-``make fuzz`` runs the longer randomized campaign (run_fuzz.py). Set ``ROTAVAT_FUZZ_REPORT=FILE``
+Run with ``make test`` (marked ``fuzz``: ``pytest -m fuzz`` selects it, ``-m "not fuzz"`` skips it; the
+cases run as real processes are marked ``slow`` too: ``make test-slow``); ``make fuzz`` runs the longer randomized campaign (run_fuzz.py). Set ``ROTAVAT_FUZZ_REPORT=FILE``
 to append one JSON line per case (command, exit, stderr, peak RSS, violations).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import time
 from pathlib import Path
 
 import pytest
@@ -28,28 +30,49 @@ def _report(rec: H.RunRecord) -> None:
             handle.write(json.dumps(rec.as_dict()) + "\n")
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+@pytest.mark.parametrize("case", [pytest.param(c, id=c.id, marks=[pytest.mark.slow] if c.subprocess else [])
+                                  for c in CASES])
 def test_case_keeps_every_rule(case: C.Case, tmp_path: Path) -> None:
+    """A case that measures memory or processes runs as a real ``rotavat`` process (marked slow)."""
     rec = H.run_case(case, tmp_path / "case")
     _report(rec)
     assert rec.ok, "\n" + rec.describe()
 
 
-def test_corpus_is_deterministic_and_small(tmp_path: Path) -> None:
-    """Two builds of every generator give the same bytes; no case writes more than 2 MB."""
+def test_corpus_is_deterministic_and_small(tmp_path: Path, monkeypatch) -> None:
+    """Two builds of every generator give the same bytes, the second as if a day later (a zip member
+    stamped with the clock differs, every time); no case writes more than 2 MB."""
     root = tmp_path / "r"
     for name, generate in C.GENERATORS.items():
-        first, second = generate(), generate()
+        first = generate()
+        with _a_day_later(monkeypatch):
+            second = generate()
         assert [c.id for c in first] == [c.id for c in second], name
         for a, b in zip(first, second):
-            fa, fb = a.resolve_files(), b.resolve_files()
+            fa = _files(a, root)
+            with _a_day_later(monkeypatch):
+                fb = _files(b, root)
             assert sorted(fa) == sorted(fb), a.id
-            total = 0
             for rel in fa:
-                ba, bb = (_bytes(x, root) for x in (fa[rel], fb[rel]))
-                assert ba == bb, f"{a.id}: {rel} differs between two builds"
-                total += len(ba)
+                assert fa[rel] == fb[rel], f"{a.id}: {rel} differs between two builds"
+            total = sum(len(content) for content in fa.values())
             assert total < 2_000_000, f"{a.id} writes {total} bytes"
+
+
+_CLOCK = time.time
+
+
+@contextlib.contextmanager
+def _a_day_later(monkeypatch):
+    """``time.time()`` a day ahead while inside."""
+    with monkeypatch.context() as later:
+        later.setattr(time, "time", lambda: _CLOCK() + 86_400.0)
+        yield
+
+
+def _files(case: C.Case, root: Path) -> dict[str, bytes]:
+    """The bytes of every file ``case`` writes."""
+    return {rel: _bytes(content, root) for rel, content in case.resolve_files().items()}
 
 
 def _bytes(content, root: Path) -> bytes:
@@ -86,6 +109,7 @@ def test_harness_sees_each_rule_break(tmp_path: Path) -> None:
     assert [r for r, _ in H.evaluate(case, tmp_path, run, before, before)] == ["R4 memory"]
 
 
+@pytest.mark.slow
 def test_harness_measures_memory_and_processes(tmp_path: Path, monkeypatch) -> None:
     import sys
 
