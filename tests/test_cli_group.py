@@ -4,7 +4,7 @@ an unknown command or a command's --help answer as users expect."""
 from __future__ import annotations
 
 import typer
-from conftest import invoke
+from _cli import invoke
 
 from rotavat_cli.cli import app
 from rotavat_cli.cli.commands import COMMANDS, command_entry
