@@ -20,10 +20,11 @@ install: $(STAMP)
 run: install
 	@bash tools/pipeline.sh $(BIN)/rotavat $(SAMPLE) $(OUT)
 
-# make test: everything but the real-process tests (pytest -m slow), on every core (pytest-xdist);
+# make test: everything but the real-process tests (pytest -m slow), on every core (pytest-xdist; a
+# format's tests share one worker: --dist loadgroup);
 # make test-slow: those alone, one at a time (they measure memory, processes and time). CI runs both.
 test: install
-	$(BIN)/python -m pytest -n auto -m "not slow"
+	$(BIN)/python -m pytest -n auto --dist loadgroup -m "not slow"
 
 test-slow: install
 	$(BIN)/python -m pytest -m slow
