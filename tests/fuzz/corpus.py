@@ -1999,25 +1999,10 @@ def _bz2_bomb_npz() -> bytes:
 
 
 @functools.lru_cache(maxsize=None)
-def _deflated_zeros(header: bytes, n_zeros: int, fill: bytes = b"\0") -> tuple[bytes, int]:
-    """Raw deflate of ``header`` + ``n_zeros`` fill bytes, and the CRC-32 of the whole."""
-    comp, crc, block = zlib.compressobj(9, zlib.DEFLATED, -15), zlib.crc32(header), fill * (1 << 22)
-    parts = [comp.compress(header)]
-    left = n_zeros
-    while left:
-        chunk = block if left >= len(block) else fill * left
-        parts.append(comp.compress(chunk))
-        crc = zlib.crc32(chunk, crc)
-        left -= len(chunk)
-    parts.append(comp.flush())
-    return b"".join(parts), crc
-
-
-@functools.lru_cache(maxsize=None)
 def _many_members_npz(n: int = 12, floats: int = 25_000_000) -> bytes:
     entries = [stored(k, v) for k, v in frame_members().items()]
     header = npy_header("<f4", (floats,))
-    data, crc = _deflated_zeros(header, 4 * floats)
+    data, crc, _ = _repeated_zeros(header, 4 * floats)
     for i in range(n):
         entries.append((f"extra_{i:02d}.npy", zipfile.ZIP_DEFLATED, crc, data, len(header) + 4 * floats))
     return zip_raw(entries)
@@ -2027,7 +2012,7 @@ def _many_members_npz(n: int = 12, floats: int = 25_000_000) -> bytes:
 def _header_bomb_npz(header_bytes: int = 800_000_000) -> bytes:
     entries = [stored(k, v) for k, v in frame_members().items() if k != "vertices.npy"]
     head = b"\x93NUMPY\x02\x00" + struct.pack("<I", header_bytes) + b"{'descr': '<f4', 'fortran_order': False, "
-    data, crc = _deflated_zeros(head, header_bytes - 42, b" ")
+    data, crc, _ = _repeated_zeros(head, header_bytes - 42, b" ")
     entries.insert(0, ("vertices.npy", zipfile.ZIP_DEFLATED, crc, data, len(head) + header_bytes - 42))
     return zip_raw(entries)
 
@@ -2056,24 +2041,25 @@ def _gvhmr_big_storage(nbytes: int) -> bytes:
     big = T.Tensor(T.Storage(np.zeros(1, np.float64), declared=numel), 0, (numel,), (1,))
     data = _gvhmr_bytes(lambda r: _set(r, net_outputs=_set(r["net_outputs"], extra=big)))
     name = next(n for n, b in _members_of(data).items() if "/data/" in n and len(b) == 8)
-    return _zip_with(data, name, _deflated_zeros(b"", numel * 8), numel * 8)
+    return _zip_with(data, name, _repeated_zeros(b"", numel * 8)[:2], numel * 8)
 
 
 @functools.lru_cache(maxsize=None)
-def _repeated_zeros(prefix: bytes, n_zeros: int) -> tuple[bytes, int, int]:
-    """Raw deflate of ``prefix`` + ``n_zeros`` zero bytes, built fast (a 16 MiB block compressed once
-    after a full flush, so it stands alone, then repeated: 1 GB in 1 MB and well under a second), and
-    the CRC-32 and Adler-32 of the whole (a zip member's and a zlib stream's checksums)."""
+def _repeated_zeros(prefix: bytes, n_zeros: int, fill: bytes = b"\0") -> tuple[bytes, int, int]:
+    """Raw deflate of ``prefix`` + ``n_zeros`` zero (or ``fill``) bytes, built fast (a 16 MiB block
+    compressed once after a full flush, so it stands alone, then repeated: 1 GB in 1 MB and well under a
+    second), and the CRC-32 and Adler-32 of the whole (a zip member's and a zlib stream's checksums)."""
     size = 1 << 24
     comp = zlib.compressobj(9, zlib.DEFLATED, -15)
     head = comp.compress(prefix) + comp.flush(zlib.Z_FULL_FLUSH)
     full, rest = divmod(n_zeros, size)
-    block = comp.compress(bytes(size)) + comp.flush(zlib.Z_FULL_FLUSH)
-    tail = comp.compress(bytes(rest)) + comp.flush(zlib.Z_FINISH)
-    crc, adler, zeros = zlib.crc32(prefix), zlib.adler32(prefix), bytes(size)
+    zeros = fill * size
+    block = comp.compress(zeros) + comp.flush(zlib.Z_FULL_FLUSH)
+    tail = comp.compress(fill * rest) + comp.flush(zlib.Z_FINISH)
+    crc, adler = zlib.crc32(prefix), zlib.adler32(prefix)
     for _ in range(full):
         crc, adler = zlib.crc32(zeros, crc), zlib.adler32(zeros, adler)
-    crc, adler = zlib.crc32(bytes(rest), crc), zlib.adler32(bytes(rest), adler)
+    crc, adler = zlib.crc32(fill * rest, crc), zlib.adler32(fill * rest, adler)
     return head + block * full + tail, crc, adler
 
 
