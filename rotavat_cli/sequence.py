@@ -243,7 +243,7 @@ def read_frame_npz(path: str | Path) -> Frame:
     """Read and validate one ``.npz`` frame: numeric arrays only (no pickle), every member's declared
     size checked against ``limits`` before it is read (``unpickle.npz.open_npz``)."""
     path = Path(path)
-    data = load_npz(path, allow_pickle=False, total_limit=(limits.current().max_frame_bytes, "limits.max_frame_mb"))
+    data = load_npz(path, objects=False, total_limit=(limits.current().max_frame_bytes, "limits.max_frame_mb"))
     validate_frame(data, str(path))
     return Frame(path.stem, data, str(path))
 

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from _cli import invoke
 
+from rotavat_cli import unpickle
 from rotavat_cli.formats import available_formats, other_format
 from rotavat_cli.formats.file_kinds import file_kind
 
@@ -87,7 +88,7 @@ def test_every_command_with_from_says_it(command, tmp_path, scene, runner):
 def test_a_damaged_file_read_with_its_own_from_gets_no_hint(tmp_path, scene, runner):
     """The reader's own complaint stands when the file is that format's (its sniffer recognises it)."""
     src = WH.write_hybrik(tmp_path / "res.pk", scene, (W, H))
-    data = pickle.loads(src.read_bytes())
+    data = dict(unpickle.load_file(src))  # the restricted reader, as the importer reads it
     data["pred_uvd"][..., 0] += 0.05
     src.write_bytes(pickle.dumps(data))
     text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "hybrik"))

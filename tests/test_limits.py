@@ -509,7 +509,7 @@ def test_npz_reading_checks(tmp_path):
     assert data["a"].tolist() == [[0, 1, 2], [3, 4, 5]] and data["f"].tolist() == [[0, 1, 2], [3, 4, 5]]
     assert data["o"][0] == {"k": 1} and set(data) == {"a", "f", "o"}
     with pytest.raises(InputError, match=r"member 'o' is an object array: cannot read without pickle"):
-        unpickle.load_npz(path, keys=["o"], allow_pickle=False)
+        unpickle.load_npz(path, keys=["o"], objects=False)
     with pytest.raises(InputError, match=r"x\.npz \['big'\]: corrupt or truncated array"):
         unpickle.load_npz(path)
     (tmp_path / "t.npz").write_text("just some text\n")

@@ -105,7 +105,7 @@ def _model_arrays(path: Path) -> dict[str, np.ndarray]:
             raise file_error(path, f"not an SMPL-family .npz model (missing {', '.join(missing)})")
         keys = _REQUIRED + (("f",) if "f" in npz.keys() else ())
         try:
-            return npz.read(keys, allow_pickle=False)
+            return npz.read(keys, objects=False)
         except InputError as exc:
             if "object array" in str(exc):
                 raise file_error(path, "a key is a pickled object (e.g. a scipy sparse matrix); re-save the "

@@ -60,13 +60,13 @@ def read_npy_header(stream: BinaryIO, source: str) -> tuple[np.dtype, tuple[int,
     return dtype, shape, fortran, 8 + size_bytes + hlen
 
 
-def read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle: bool) -> np.ndarray:
+def read_npy(stream: BinaryIO, size: int, source: str, what: str, objects: bool) -> np.ndarray:
     """One array from a ``.npy`` stream of ``size`` bytes (a file, a zip member, bytes).
 
     The header is checked before any data is read: the declared array against
     ``limits.max_array_mb``, and against ``size`` (a header may not announce more data than the
     stream holds). Numeric data is read in bounded chunks into an array of exactly the declared
-    size; object arrays go through the restricted unpickler (``allow_pickle``) or are refused.
+    size; object arrays go through the restricted unpickler (``objects``) or are refused.
     ``what`` names the array in size messages (``path`` or ``path: member 'key'``).
     """
     dtype, shape, fortran, offset = read_npy_header(stream, source)
@@ -74,7 +74,7 @@ def read_npy(stream: BinaryIO, size: int, source: str, what: str, allow_pickle: 
     if why is not None:
         raise InputError(f"{what} {why}")
     if dtype.hasobject:
-        if not allow_pickle:
+        if not objects:
             raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
         array = load_stream(chunked(stream), source, drain=True)  # unpickled as it is read (a deflated member)
         if not isinstance(array, np.ndarray) or array.shape != shape:
@@ -104,7 +104,7 @@ def _check_text(array: np.ndarray, what: str) -> np.ndarray:
 
 def load_npy_bytes(raw: bytes, source: str) -> np.ndarray:
     """Array from ``.npy`` bytes; object arrays go through the restricted unpickler."""
-    return read_npy(io.BytesIO(raw), len(raw), source, source, allow_pickle=True)
+    return read_npy(io.BytesIO(raw), len(raw), source, source, objects=True)
 
 
 def load_npy(path: str | Path) -> np.ndarray:
@@ -113,6 +113,6 @@ def load_npy(path: str | Path) -> np.ndarray:
     size = file_size(path)
     try:
         with open(path, "rb") as handle:
-            return read_npy(handle, size, str(path), str(path), allow_pickle=True)
+            return read_npy(handle, size, str(path), str(path), objects=True)
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None

@@ -1,6 +1,7 @@
 """``.npz`` archives: the one place that reads their members (declared zip sizes, ``.npy`` headers,
-then the data in bounded chunks). Contract frames (``sequence.read_frame_npz``) use it too, with
-``allow_pickle=False``; object members go through the restricted unpickler.
+then the data in bounded chunks). Object members go through the restricted unpickler, or with
+``objects=False`` (contract frames, ``sequence.read_frame_npz``) are refused, as numpy's
+``allow_pickle=False`` would.
 
 >>> load_npz("no/such/frame.npz")
 Traceback (most recent call last):
@@ -55,7 +56,7 @@ class NpzArchive:
                              f"({info.compress_type}; numpy writes stored or deflated members)")
         return self._archive.open(info), info
 
-    def _check(self, key: str, allow_pickle: bool) -> int:
+    def _check(self, key: str, objects: bool) -> int:
         """Declared sizes of one member, checked without reading its data; its uncompressed size."""
         limit = _limits.current().max_file_bytes
         with self._open(key)[0] as stream:
@@ -66,7 +67,7 @@ class NpzArchive:
             why = array_refusal(dtype, shape)
             if why is not None:
                 raise InputError(f"{what} {why}")
-            if dtype.hasobject and not allow_pickle:
+            if dtype.hasobject and not objects:
                 raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
             if info.file_size > limit:
                 raise InputError(f"{what} holds {human_bytes(info.file_size)} uncompressed "
@@ -77,7 +78,7 @@ class NpzArchive:
                                  f"data, the member holds {max(0, info.file_size - offset):,})")
         return info.file_size
 
-    def read(self, keys: Iterable[str] | None = None, allow_pickle: bool = True,
+    def read(self, keys: Iterable[str] | None = None, objects: bool = True,
              total_limit: tuple[int, str] | None = None) -> dict[str, np.ndarray]:
         """The members ``keys`` (default all; absent keys are skipped) as arrays, all checked before any is read.
 
@@ -86,7 +87,7 @@ class NpzArchive:
         wanted = list(self.members) if keys is None else [k for k in dict.fromkeys(keys) if k in self.members]
         limit, key_name = total_limit or (_limits.current().max_file_bytes, "limits.max_file_mb")
         try:
-            total = sum(self._check(key, allow_pickle) for key in wanted)
+            total = sum(self._check(key, objects) for key in wanted)
             if total > limit:
                 raise InputError(f"{self.path}: members total {human_bytes(total)} uncompressed "
                                  f"(limit {human_bytes(limit)}: {key_name})")
@@ -95,7 +96,7 @@ class NpzArchive:
                 stream, info = self._open(key)
                 with stream:
                     out[key] = read_npy(stream, info.file_size, f"{self.path} ['{key}']", f"{self.path}: member '{key}'",
-                                        allow_pickle)
+                                        objects)
             return out
         except _NPZ_ERRORS as exc:
             raise InputError(f"{self.path}: not a readable .npz file ({exc})") from None
@@ -123,10 +124,10 @@ def open_npz(path: str | Path) -> Iterator[NpzArchive]:
         yield NpzArchive(path, archive)
 
 
-def load_npz(path: str | Path, keys: Iterable[str] | None = None, allow_pickle: bool = True,
+def load_npz(path: str | Path, keys: Iterable[str] | None = None, objects: bool = True,
              total_limit: tuple[int, str] | None = None) -> dict[str, np.ndarray]:
     """Read the members ``keys`` (default: all) of an ``.npz`` file, every declared size checked
-    first; object arrays go through the restricted unpickler (or are refused without ``allow_pickle``).
+    first; object arrays go through the restricted unpickler (or are refused without ``objects``).
     total_limit: as :meth:`NpzArchive.read`."""
     with open_npz(path) as npz:
-        return npz.read(keys, allow_pickle, total_limit)
+        return npz.read(keys, objects, total_limit)

@@ -920,7 +920,7 @@ def _npz_edit(fmt: str, member: str, edit: Callable[[dict], dict], objects: bool
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "member.npz"
             path.write_bytes(all_files[member])
-            data = unpickle.load_npz(path, allow_pickle=objects)
+            data = unpickle.load_npz(path, objects=objects)
         all_files[member] = npz_bytes(edit(data))
         return all_files
 
