@@ -13,12 +13,12 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import reprlib
 from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
 from .errors import InputError
+from .option_rules import is_number, short_repr
 from .yaml_io import read_yaml
 
 __all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default"]
@@ -69,8 +69,6 @@ def merge_config(base: dict, override: dict, source: str, prefix: str = "") -> d
 # Keys whose value is a name or a number (the default is a name): their kind, not a bound.
 _NAME_OR_NUMBER = {"synth.hps_focal"}
 _MAX_LIST = 64  # longest list a config key takes (lists are [W, H], ranges, grid steps, colours ...)
-_SHORT = reprlib.Repr()
-_SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 40
 
 
 def _check_type(default: Any, value: Any, key: str, source: str) -> Any:
@@ -78,24 +76,24 @@ def _check_type(default: Any, value: Any, key: str, source: str) -> Any:
     list) and its numbers are finite. What a value may be (bounds, names) each options class says."""
     if value is None:
         if default is not None:
-            raise InputError(f"{source}: key '{key}' must be like {_SHORT.repr(default)}, got null")
+            raise InputError(f"{source}: key '{key}' must be like {short_repr(default)}, got null")
         return value
     if default is None:
         ok = _is_scalar(value) or (isinstance(value, list) and len(value) <= _MAX_LIST and all(map(_is_scalar, value)))
-    elif key in _NAME_OR_NUMBER and _is_number(value):
+    elif key in _NAME_OR_NUMBER and is_number(value):
         ok = True
     elif isinstance(default, bool):
         ok = isinstance(value, bool)
     elif isinstance(default, (int, float)):
-        ok = _is_number(value)
+        ok = is_number(value)
     elif isinstance(default, list):  # same length, each item of its default item's kind
         ok = isinstance(value, list) and len(value) == len(default) and all(map(_same_kind, default, value))
     else:
         ok = isinstance(value, type(default))
     if not ok:
-        raise InputError(f"{source}: key '{key}' must be like {_SHORT.repr(default)}, got {_SHORT.repr(value)}")
+        raise InputError(f"{source}: key '{key}' must be like {short_repr(default)}, got {short_repr(value)}")
     for number in (value if isinstance(value, list) else [value]):
-        if _is_number(number) and not math.isfinite(number):
+        if is_number(number) and not math.isfinite(number):
             raise InputError(f"{source}: key '{key}' must be finite, got {number}")
     return value
 
@@ -104,13 +102,9 @@ def _same_kind(default: Any, value: Any) -> bool:
     """A list item fits its default item: a number for a number, a name for a name, a flag for a flag."""
     if isinstance(default, bool) or isinstance(value, bool):
         return isinstance(default, bool) and isinstance(value, bool)
-    if _is_number(default):
-        return _is_number(value)
-    return _is_scalar(value) and not _is_number(value) if isinstance(default, str) else _is_scalar(value)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if is_number(default):
+        return is_number(value)
+    return _is_scalar(value) and not is_number(value) if isinstance(default, str) else _is_scalar(value)
 
 
 def _is_scalar(value: Any) -> bool:

@@ -28,10 +28,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Rule", "check_fields", "check_rules"]
+__all__ = ["Rule", "check_fields", "check_rules", "is_number", "short_repr"]
 
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxstring, _SHORT.maxother = 2, 4, 40, 40
+short_repr = _SHORT.repr  # a value as messages quote it: a long list or text shortened
 
 
 @dataclass(frozen=True)
@@ -66,21 +67,21 @@ class Rule:
                 return None
             if self.or_number and isinstance(value, str):
                 value = _as_number(value)
-            if not (self.or_number and _is_number(value)):
+            if not (self.or_number and is_number(value)):
                 alternatives = ", ".join(self.names) + (" or a number" if self.or_number else "")
-                return f"must be one of {alternatives}, got {_SHORT.repr(value)}"
+                return f"must be one of {alternatives}, got {short_repr(value)}"
         items = list(value) if isinstance(value, (list, tuple)) else [value]
         for item in items:
-            if (self.low is not None or self.high is not None) and not self.names and not _is_number(item):
-                return f"must be a number, got {_SHORT.repr(item)}"
-            if _is_number(item):
+            if (self.low is not None or self.high is not None) and not self.names and not is_number(item):
+                return f"must be a number, got {short_repr(item)}"
+            if is_number(item):
                 if not math.isfinite(item):
                     return f"must be finite, got {item}"
                 below = self.low is not None and (item <= self.low if self.open_low else item < self.low)
                 if below or (self.high is not None and item > self.high):
                     span = self.span()
-                    return f"must be {'within ' if '..' in span else ''}{span}, got {_SHORT.repr(item)}"
-        if self.ordered and len(items) == 2 and all(map(_is_number, items)):
+                    return f"must be {'within ' if '..' in span else ''}{span}, got {short_repr(item)}"
+        if self.ordered and len(items) == 2 and all(map(is_number, items)):
             lo, hi = items
             if not (lo < hi if self.ordered == "<" else lo <= hi):
                 return f"must be [low, high] with low {self.ordered} high, got {list(value)}"
@@ -110,7 +111,7 @@ def check_fields(options: object, rules: Mapping[str, Rule], prefix: str = "") -
     check_rules({name: getattr(options, name) for name in rules if hasattr(options, name)}, rules, prefix)
 
 
-def _is_number(value: Any) -> bool:
+def is_number(value: Any) -> bool:
     """A real number (numpy's too), not a flag."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool) and type(value).__name__ != "bool_"
 
