@@ -25,6 +25,7 @@ BENCHMARKS = {
     "bench_focal.py": ([], ["--quick"]),
     "bench_onedepth.py": ([], ["--quick"]),
     "bench_stature.py": ([], ["--quick"]),
+    "bench_view.py": ([], ["--quick"]),
 }
 
 

@@ -18,7 +18,7 @@ from typing import IO
 from .outputs import (STAGING_OWNER, TEMP_TAG, in_own_staging, mark_output_dir, own_staging, own_temporary, release,
                       remove_stale_staging)
 
-__all__ = ["atomic_open", "atomic_write_text", "staged_directory"]
+__all__ = ["atomic_open", "atomic_path", "atomic_write_text", "staged_directory"]
 
 
 @contextlib.contextmanager
@@ -28,12 +28,28 @@ def atomic_open(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
     The temporary, ``.<name>.rotavat-XXXXXXXX.tmp``, is locked until it is renamed; temporaries of
     ``path`` that killed writers left are removed first (:func:`rotavat_cli.outputs.remove_stale_staging`).
     """
+    with _atomic(path) as (fd, _):
+        with os.fdopen(fd, mode) as handle:
+            yield handle
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """:func:`atomic_open` for a writer that opens its file by name (a library's file sink): the path of the
+    temporary, renamed to ``path`` when the block succeeds and deleted when it fails (locked meanwhile)."""
+    with _atomic(path) as (fd, tmp):
+        os.close(fd)
+        yield Path(tmp)
+
+
+@contextlib.contextmanager
+def _atomic(path: str | os.PathLike) -> Iterator[tuple[int, str]]:
+    """A locked temporary beside ``path`` (descriptor, path), renamed to ``path`` after the block, else deleted."""
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = _temporary(target)
     try:
-        with os.fdopen(fd, mode) as handle:
-            yield handle
+        yield fd, tmp
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
     except BaseException:

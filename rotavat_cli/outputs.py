@@ -160,6 +160,9 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     _check_writable_place(path)
 
 
+RRD_APPLICATION_ID = "rotavat"  # the application id of the Rerun recordings rotavat writes (rotavat view)
+
+
 def mark_output_dir(folder: str | os.PathLike, command: str) -> None:
     """Write the marker that says rotavat wrote this output folder (and may replace it later)."""
     info = {"written_by": WRITTEN_BY, "command": command}  # no time: reruns stay byte-identical
@@ -174,8 +177,9 @@ def is_rotavat_dir(folder: str | os.PathLike) -> bool:
 
 def written_by_rotavat(path: str | os.PathLike, signature: bytes | None = None) -> bool:
     """True for a file rotavat wrote: its YAML header line, ``"written_by": "rotavat ..."`` in JSON,
-    a ``<!-- written by rotavat -->`` Markdown header, a glTF whose generator is rotavat, a file
-    starting with ``signature``, or any file in a folder carrying the marker."""
+    a ``<!-- written by rotavat -->`` Markdown header, a glTF whose generator is rotavat, a Rerun recording
+    (.rrd) whose application id is rotavat, a file starting with ``signature``, or any file in a folder
+    carrying the marker."""
     path = Path(path)
     if is_rotavat_dir(path.parent):
         return True
@@ -190,6 +194,8 @@ def written_by_rotavat(path: str | os.PathLike, signature: bytes | None = None) 
         return True
     if head[:4] == b"glTF":
         return _glb_generator(path).startswith("rotavat")
+    if head[:4] == b"RRF2":  # the store info that opens the file carries the application id
+        return b"\x0a" + bytes([len(RRD_APPLICATION_ID)]) + RRD_APPLICATION_ID.encode() in head  # protobuf field 1
     if path.suffix == ".json":
         try:
             with open(path, encoding="utf-8") as handle:

@@ -133,28 +133,30 @@ def align_remedies(seq: str | Path, out: str | Path | None = None, reader_flags:
                     f"{align} {ACCEPT_FLAG}")
 
 
-def render_remedies(seq: str | Path, own: bool, aligned: bool = False, reader_flags: tuple[str, ...] = ()) -> Remedies:
-    """``rotavat render``'s for one row: ``own`` = the row's own camera.yaml (else ``--camera``); ``aligned`` = the
-    row is align's output (its camera is the one it was aligned into: align its input again); ``reader_flags``:
-    the row is an HPS tool's output read with ``--from`` (its calibration goes to a file given with --camera)."""
-    accept = f"add {ACCEPT_FLAG} to the render command"
+def render_remedies(seq: str | Path, own: bool, aligned: bool = False, reader_flags: tuple[str, ...] = (),
+                    command: str = "render") -> Remedies:
+    """``rotavat render``'s (or another ``command`` drawing rows in their cameras: ``view``) for one row: ``own`` =
+    the row's own camera.yaml (else ``--camera``); ``aligned`` = the row is align's output (its camera is the one it
+    was aligned into: align its input again); ``reader_flags``: the row is an HPS tool's output read with ``--from``
+    (its calibration goes to a file given with --camera)."""
+    accept = f"add {ACCEPT_FLAG} to the {command} command"
     if reader_flags:
         if own:  # the camera its format carried: nothing given on the command line replaces it
             return Remedies("", "", "", accept)
         camera_file = Path(str(seq).rstrip("/\\") + "_camera.yaml")
         return Remedies(_join("rotavat", "calibrate", seq, *reader_flags, "--out", camera_file),
-                        f"then render with --camera {shlex.quote(str(camera_file))}",
-                        f"render --camera FILE (a camera.yaml you wrote: {CAMERA_DOC})", accept)
+                        f"then {command} with --camera {shlex.quote(str(camera_file))}",
+                        f"{command} --camera FILE (a camera.yaml you wrote: {CAMERA_DOC})", accept)
     if aligned:
         return Remedies("rotavat calibrate INPUT", f"then rotavat align INPUT --out {shlex.quote(str(seq))}, INPUT being "
                         f"the sequence {shlex.quote(str(seq))} was aligned from", "", accept)
     calibrate = _join("rotavat", "calibrate", seq)
     camera_yaml = Path(seq) / "camera.yaml"
     if own:
-        return Remedies(calibrate, f"it rewrites {shlex.quote(str(camera_yaml))}; then render again",
+        return Remedies(calibrate, f"it rewrites {shlex.quote(str(camera_yaml))}; then {command} again",
                         f"replace {shlex.quote(str(camera_yaml))} by a camera.yaml you wrote ({CAMERA_DOC})", accept)
-    return Remedies(calibrate, f"then render again: a row's own {camera_yaml.name} is used before --camera",
-                    f"render --camera FILE (a camera.yaml you wrote: {CAMERA_DOC})", accept)
+    return Remedies(calibrate, f"then {command} again: a row's own {camera_yaml.name} is used before --camera",
+                    f"{command} --camera FILE (a camera.yaml you wrote: {CAMERA_DOC})", accept)
 
 
 def batch_remedies(root: str | Path, out: str | Path) -> Remedies:

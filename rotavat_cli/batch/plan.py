@@ -16,25 +16,27 @@ from ..metrics.evaluate import MATCHES
 from ..option_rules import Rule, check_fields
 from ..plain import to_plain
 from ..render.sequences import FigureOptions
+from ..view.recording import ViewOptions, require_rerun
 from ..yaml_io import read_yaml
 from .discover import discover_sequences, fingerprint, frames_hint
 
 __all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "BatchOptions", "parse_steps",
            "make_plan", "completed_marker"]
 
-STEPS = ("calibrate", "align", "eval", "render")
+STEPS = ("calibrate", "align", "eval", "render", "view")
 EXECUTORS = ("local", "dask")
 MARKER = ".rotavat-complete"
 MARKER_VERSION = 1
 ALIGN_STAGING = ".aligned.chunks"  # align chunks' staging (aligned/ and render/ are staged beside them by staged_directory)
-OUTPUTS = {"calibrate": "camera.yaml", "align": "aligned/people.csv", "eval": "eval/metrics.json", "render": "render"}
+OUTPUTS = {"calibrate": "camera.yaml", "align": "aligned/people.csv", "eval": "eval/metrics.json", "render": "render",
+           "view": "view.rrd"}
 
 
 @dataclass(frozen=True)
 class BatchOptions:
     """What ``rotavat batch`` can vary; ``config`` is a merged configuration (calibrate/align/eval/render)."""
 
-    steps: tuple[str, ...] = STEPS
+    steps: tuple[str, ...] = field(default_factory=lambda: parse_steps(default_config()["batch"]["steps"]))  # view: when asked
     gt_root: Path | None = None
     fmt: str | None = None  # importer format of the sequences (--from)
     gt_fmt: str | None = None  # importer format of the ground truth under gt_root (--gt-from)
@@ -91,7 +93,8 @@ def _step_digests(plan: dict) -> dict[str, str]:
     align = {k: v for k, v in cfg["align"].items() if k != "jobs"}  # how many processes does not change the result
     camera = [plan["camera"]["yaml"]] if plan.get("camera") else []  # absent: the digests of earlier versions
     return {"calibrate": _digest([cfg["calibrate"], imp, *camera]), "align": _digest([cfg["calibrate"], align, imp, *camera]),
-            "eval": _digest([cfg["eval"], imp, plan["gt_root"]]), "render": _digest([cfg["render"], imp, *camera])}
+            "eval": _digest([cfg["eval"], imp, plan["gt_root"]]), "render": _digest([cfg["render"], imp, *camera]),
+            "view": _digest([cfg["view"], cfg["render"], imp, plan["gt_root"], *camera])}
 
 
 def completed_marker(job: dict, plan: dict) -> dict | None:
@@ -144,6 +147,10 @@ def make_plan(root: Path, out: Path, options: BatchOptions) -> tuple[dict, list[
     if "render" in steps:
         with input_errors("render"):
             FigureOptions.from_config(options.config["render"])
+    if "view" in steps:
+        with input_errors("view"):
+            ViewOptions.from_config(options.config["view"], options.config["render"])
+        require_rerun()  # before any work: one line naming the pip command
     found = discover_sequences(root, options.fmt, exclude=[out] + ([gt_root] if gt_root else []))
     gt_sources = dict(discover_sequences(gt_root, options.gt_fmt, exclude=[out])) \
         if options.gt_fmt and gt_root is not None and "eval" in steps else {}

@@ -45,7 +45,8 @@ from ..metrics.report import write_reports
 from ..plain import to_plain
 from ..render.sequences import FigureOptions, render_sequences
 from ..sequence import Sequence, open_sequence, write_camera_yaml
-from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION
+from ..view.recording import ViewOptions, record_sequences
+from .plan import ALIGN_STAGING, MARKER, MARKER_VERSION, OUTPUTS
 
 __all__ = ["TaskError", "run_task", "one_line", "task_prepare", "task_align_chunk", "task_align_merge", "task_eval_chunk",
            "task_finish"]
@@ -248,8 +249,24 @@ def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> 
     return {"part": part, "frames": stop - start}
 
 
+def _figure_rows(job: dict, steps: list[str], state: dict) -> tuple[dict[str, Path], Path | None]:
+    """The rows render and view show for a sequence, by name (``input``, ``aligned``, ``gt``: the ground truth
+    last), and the camera.yaml for the rows without one: the one align used, else the calibrated (or given) one."""
+    out = Path(job["out"])
+    rows = {"input": Path(job["seq"]), **({"aligned": out / "aligned"} if "align" in steps else {}),
+            **({"gt": Path(job["gt"])} if job["gt"] else {})}
+    camera = out / "aligned" / "camera.yaml" if "align" in steps else state["camera_file"]
+    return rows, Path(camera) if camera else None
+
+
+def _new_warnings(warnings: list[str], camera: Path | None) -> list[str]:
+    """A figure's warnings but the camera gate's on ``camera``: the camera align used passed the gate in
+    prepare (the row's camera says implausible/accepted already)."""
+    return [w for w in warnings if camera is None or str(camera) not in w]
+
+
 def task_finish(job: dict, plan: dict, state: dict) -> dict:
-    """Merge and write the metrics, render, and write the marker last; returns the sequence's report row."""
+    """Merge and write the metrics, render, record the view, and write the marker last; returns the sequence's report row."""
     _apply_limits(plan)
     out, steps = Path(job["out"]), plan["steps"]
     seconds = dict(state["seconds"])
@@ -270,18 +287,29 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         row["people"] = state["camera"]["pairs"]  # calibrate only: the foot/head pairs offered
     if "render" in steps:
         start = time.perf_counter()
-        paths = [Path(job["seq"])] + ([out / "aligned"] if "align" in steps else []) + ([Path(job["gt"])] if job["gt"] else [])
-        camera = out / "aligned" / "camera.yaml" if "align" in steps else state["camera_file"]
+        rows, camera = _figure_rows(job, steps, state)
+        paths = list(rows.values())
         with input_errors():
-            figure = FigureOptions.from_config(plan["config"]["render"], Path(camera) if camera else None)
+            figure = FigureOptions.from_config(plan["config"]["render"], camera)
         # the last row is the ground truth (its folder is rarely named gt): each row in its own camera
         figure = replace(figure, gt=str(len(paths)) if job["gt"] else "none", accept_camera=plan.get("accept_camera", False))
         with staged_directory(out / "render", "render") as staging:
             summary = render_sequences([open_sequence(p) for p in paths], staging, figure)
         row["render"] = {"renderer": summary.renderer, "files": [Path(f).name for f in summary.files]}
-        # the camera align used passed the gate in prepare (the row's camera says implausible/accepted); others' are new
-        row["warnings"] = [*row["warnings"], *(w for w in summary.warnings if camera is None or str(camera) not in w)]
+        row["warnings"] = [*row["warnings"], *_new_warnings(summary.warnings, camera)]
         seconds["render"] = time.perf_counter() - start
+    if "view" in steps:
+        start = time.perf_counter()
+        rows, camera = _figure_rows(job, steps, state)
+        with input_errors():
+            view = ViewOptions.from_config(plan["config"]["view"], plan["config"]["render"], camera)
+        view = replace(view, accept_camera=plan.get("accept_camera", False))
+        seqs = [open_sequence(p) for p in rows.values()]
+        summary = record_sequences(seqs[:-1] if job["gt"] else seqs, out / OUTPUTS["view"],
+                                   seqs[-1] if job["gt"] else None, view, labels=list(rows))
+        row["view"] = {"file": OUTPUTS["view"], "frames": summary.frames, "bytes": summary.bytes}
+        row["warnings"] = [*row["warnings"], *_new_warnings(summary.warnings, camera)]
+        seconds["view"] = time.perf_counter() - start
     row["seconds"] = {**seconds, "total": sum(seconds.values())}
     marker = {"version": MARKER_VERSION, "rotavat": __version__, "steps": list(steps),
               "options": {s: plan["digests"][s] for s in steps}, "inputs": job["inputs"],

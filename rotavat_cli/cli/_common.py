@@ -213,6 +213,10 @@ def section_rules(section: str) -> dict[str, Rule]:
         from ..render.sequences import FigureOptions
 
         return FigureOptions.RULES
+    if section == "view":
+        from ..view.recording import ViewOptions
+
+        return ViewOptions.RULES
     if section == "synth":
         from ..synth.scene import SynthOptions
 

@@ -24,7 +24,8 @@ from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplM
 def batch(
     root: Annotated[Path, typer.Argument(help="Dataset root: every folder of frames below it (or, with --from, every output of that tool) is a sequence.")],
     out: Annotated[Path | None, typer.Option(help="Output root mirroring ROOT's tree; default ROOT_batch beside ROOT.", file_okay=False)] = None,
-    steps: Annotated[str | None, typer.Option(help="Comma-separated steps: calibrate,align,eval,render (eval needs --gt-root).")] = None,
+    steps: Annotated[str | None, typer.Option(help="Comma-separated steps: calibrate,align,eval,render,view (eval needs --gt-root; view: pip install 'rotavat[view]').")] = None,
+    view: Annotated[bool, typer.Option("--view", help="Also write OUT/<sequence>/view.rrd beside its figures: a Rerun recording of the input, the aligned output and the ground truth over time (the view step).")] = False,
     gt_root: Annotated[Path | None, typer.Option("--gt-root", help="Ground truth mirroring ROOT's tree: GT/<rel> scores ROOT/<rel>.", file_okay=False)] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes (0 = one per core, the default; 1 = in this process).", min=0)] = None,
     executor: Annotated[str | None, typer.Option(help="local (a process pool here) or dask (a Dask cluster; pip install 'rotavat[dask]').")] = None,
@@ -61,6 +62,8 @@ def batch(
         if executor is not None:
             raise InputError("--scheduler is for --executor dask")
         options = replace(options, executor="dask")
+    if view:
+        options = replace(options, steps=(*options.steps, "view"))
     if gt_root is None and steps is None and "eval" in options.steps:  # default steps: no ground truth, no eval
         options = replace(options, steps=tuple(s for s in options.steps if s != "eval"))
         _say("eval skipped: no --gt-root", quiet or as_json)

@@ -43,6 +43,9 @@ COMMANDS: tuple[CommandEntry, ...] = (
     CommandEntry("render", "render", "render", "render",
                  "Draw the meshes from the camera (front) and orthographically from the side and top, where floating, "
                  "sunk and leaning bodies show."),
+    CommandEntry("view", "view", "view", "view",
+                 "Write a Rerun recording (.rrd) of sequences over time: before, after and truth in one 3D world, the "
+                 "camera and its uncertainty, tracks and their series."),
     CommandEntry("export", "export", "export", "render",
                  "Write one frame as a .glb (glTF 2.0, Y up, metres): people coloured by id, ground quad, camera "
                  "frustum and camera."),

@@ -14,6 +14,7 @@ matched by name in the others. People are meshes, point clouds (vertices without
 from __future__ import annotations
 
 import csv
+import re
 import shlex
 from collections.abc import Mapping
 from pathlib import Path
@@ -23,12 +24,12 @@ from PIL import Image, UnidentifiedImageError
 
 from ..camera import Camera, reexpress_cam
 from ..errors import InputError, input_errors
-from ..sequence import Sequence, read_camera_yaml
+from ..sequence import Frame, Sequence, read_camera_yaml
 from .skeleton import layout_name
 from .views import RowFrame
 
-__all__ = ["IMAGE_SUFFIXES", "OWN", "GIVEN_FILE", "select_frames", "frame_names", "row_labels", "sequence_camera",
-           "sequence_camera_fit", "sequence_layout", "no_camera", "people_flags", "read_row"]
+__all__ = ["IMAGE_SUFFIXES", "OWN", "GIVEN_FILE", "select_frames", "frame_names", "row_labels", "label_stem", "sequence_camera",
+           "sequence_camera_fit", "sequence_layout", "frame_image_path", "no_camera", "people_flags", "read_row"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 OWN, GIVEN_FILE = "own", "given"  # where a row's camera came from: the sequence's own, or the camera.yaml given (--camera)
@@ -79,6 +80,16 @@ def row_labels(paths: list[Path]) -> list[str]:
     return labels
 
 
+def label_stem(label: str) -> str:
+    """A row label as a name part of a file or a recording's entity path: runs of anything but letters,
+    digits, '.', '_' and '-' become one '_'.
+
+    >>> label_stem("a/pred #2"), label_stem("pred_aligned"), label_stem("///")
+    ('a_pred_2', 'pred_aligned', 'row')
+    """
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("_") or "row"
+
+
 def sequence_camera(seq: Sequence, camera_path: Path | None, own_first: bool = False) -> Camera | None:
     """The camera a sequence is drawn in: ``camera_path`` (a camera.yaml the user gave), else the
     sequence's own camera.yaml, else None. ``own_first``: the sequence's own camera wins and
@@ -98,12 +109,13 @@ def sequence_camera_fit(seq: Sequence, camera_path: Path | None,
     return None, {}, None
 
 
-def no_camera(seq: Sequence, what: str, reader_flags: tuple[str, ...] = (), rows: tuple[str, ...] = ()) -> InputError:
+def no_camera(seq: Sequence, what: str, reader_flags: tuple[str, ...] = (), rows: tuple[str, ...] = (),
+              command: str = "render") -> InputError:
     """The error for a view that needs a camera the sequence does not have, naming commands that run as
     written. A folder: ``rotavat calibrate SEQ`` writes its camera.yaml. An HPS tool's output read with
     ``--from`` (``reader_flags``: ``--from FMT [--image-size W H] [--smpl-model FILE]``, as given): calibrate
-    it with the same flags into ``<SEQ>_camera.yaml``, then render the ``rows`` (every SEQ, as given) with
-    ``--camera`` that file.
+    it with the same flags into ``<SEQ>_camera.yaml``, then render (or another ``command``: ``view``) the ``rows``
+    (every SEQ, as given) with ``--camera`` that file.
 
     >>> print(no_camera(Sequence(Path("bev/a.npz"), "npz", ("a",), origin="bev/a.npz"), "side views",
     ...                 ("--from", "bev"), ("bev/a.npz", "b")))
@@ -116,7 +128,7 @@ then `rotavat render bev/a.npz b --from bev --camera bev/a.npz_camera.yaml` (you
                           "or pass --camera camera.yaml")
     camera_file = str(seq.label).rstrip("/\\") + "_camera.yaml"
     calibrate = _join("rotavat", "calibrate", seq.label, *reader_flags, "--out", camera_file)
-    render = _join("rotavat", "render", *(rows or (seq.label,)), *reader_flags, "--camera", camera_file)
+    render = _join("rotavat", command, *(rows or (seq.label,)), *reader_flags, "--camera", camera_file)
     return InputError(f"{seq.label}: no camera for the {what}: run `{calibrate}`, then `{render}` (your other options "
                       "as before), or pass --camera FILE (a camera.yaml you wrote)")
 
@@ -157,16 +169,23 @@ def people_flags(seq: Sequence, warnings: list[str] | None = None) -> dict[tuple
     return flags
 
 
-def _frame_image(image_dir: Path, name: str) -> np.ndarray:
-    """The video frame ``image_dir/<name>.<png|jpg|...>`` as (H, W, 3) uint8."""
+def frame_image_path(image_dir: Path, name: str) -> Path:
+    """The video frame of frame ``name``: ``image_dir/<name>.<png|jpg|...>`` (:data:`IMAGE_SUFFIXES`, the
+    first in name order); InputError when there is none (images are matched to frames by name)."""
     for path in sorted(image_dir.glob(f"{name}.*")):
-        if path.suffix.lower() in IMAGE_SUFFIXES:
-            try:
-                with Image.open(path) as img:
-                    return np.asarray(img.convert("RGB"))
-            except (OSError, UnidentifiedImageError) as exc:
-                raise InputError(f"{path}: not a readable image ({exc})") from None
+        if path.suffix.lower() in IMAGE_SUFFIXES and path.is_file():
+            return path
     raise InputError(f"{image_dir}: no image named {name}.png/.jpg (images are matched to frames by name)")
+
+
+def _frame_image(image_dir: Path, name: str) -> np.ndarray:
+    """The video frame :func:`frame_image_path` finds, as (H, W, 3) uint8."""
+    path = frame_image_path(image_dir, name)
+    try:
+        with Image.open(path) as img:
+            return np.asarray(img.convert("RGB"))
+    except (OSError, UnidentifiedImageError) as exc:
+        raise InputError(f"{path}: not a readable image ({exc})") from None
 
 
 def sequence_layout(seq: Sequence, n_joints: int) -> str | None:
@@ -175,16 +194,17 @@ def sequence_layout(seq: Sequence, n_joints: int) -> str | None:
 
 
 def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_dir: Path | None = None,
-             flags: Mapping[tuple[str, int], str] | None = None) -> RowFrame:
+             flags: Mapping[tuple[str, int], str] | None = None, frame: Frame | None = None) -> RowFrame:
     """One row of a figure: frame ``name`` of ``seq`` with its intrinsics, camera and video frame.
 
     People are drawn from their meshes (``vertices`` + ``faces``), their vertices alone (a point
     cloud) or their ``joints`` (a skeleton); a frame with people but neither is refused. ``flags``
     (:func:`people_flags`) gives each person its flag by frame name and ``person_id`` ("" when absent).
+    ``frame``: that frame when the caller has read it already.
     """
     if name not in seq.frame_names:
         raise InputError(f"{seq.path}: has no frame named {name} (frames are matched by name across sequences)")
-    frame = seq.read_frame(name)
+    frame = seq.read_frame(name) if frame is None else frame
     verts, faces, joints = frame.get("vertices"), frame.get("faces"), frame.get("joints")
     if frame.n_people and verts is None and joints is None:
         raise InputError(f"{frame.source}: neither 'vertices' nor 'joints': nothing to draw")

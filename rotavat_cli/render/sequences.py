@@ -20,7 +20,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -41,7 +40,7 @@ from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
 from .raster import RENDERERS, open_rasterizer
-from .rows import OWN, frame_names, no_camera, people_flags, read_row, row_labels, sequence_camera_fit
+from .rows import OWN, frame_names, label_stem, no_camera, people_flags, read_row, row_labels, sequence_camera_fit
 from .style import RenderStyle
 from .tracks import plot_tracks, sequence_tracks
 from .video import require_mp4, write_gif, write_mp4
@@ -213,11 +212,6 @@ def _save_png(path: Path, image: np.ndarray) -> None:
         Image.fromarray(image).save(handle, format="PNG", optimize=False)
 
 
-def _file_stem(label: str) -> str:
-    """A row label as a file name part ('a/pred #2' -> 'a_pred_2')."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("_") or "row"
-
-
 _WINDOW_POINTS = 512  # pass 1 keeps at most about this many points per person (windows need extents, not meshes)
 
 
@@ -332,7 +326,7 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
     if opts.plots:
         for seq, label, cam in zip(seqs, labels, cameras):
             tracks = sequence_tracks(seq, cam, label, progress)
-            files.append(str(plot_tracks(out / f"tracks_{_file_stem(label)}.png", tracks, opts.style.palette)))
+            files.append(str(plot_tracks(out / f"tracks_{label_stem(label)}.png", tracks, opts.style.palette)))
     seconds = time.perf_counter() - start
     return FigureSummary(str(out), rasterizer.name, rasterizer.detail, rasterizer.note, labels, list(opts.views), names,
                          files, seconds, seconds / max(len(names), 1), None if gt is None else labels[gt], captions,

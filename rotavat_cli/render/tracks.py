@@ -35,7 +35,7 @@ from .geometry import nice_length_m
 from .rows import sequence_layout
 from .style import RGB, font, person_colors, rgb8
 
-__all__ = ["TRACK_SERIES", "Tracks", "sequence_tracks", "plot_tracks"]
+__all__ = ["TRACK_SERIES", "Tracks", "frame_track_values", "sequence_tracks", "plot_tracks"]
 
 # (key, panel title, unit, reference line, smallest span shown): what the plot shows, top to bottom
 TRACK_SERIES = (("foot_height_m", "foot height above the ground", "m", 0.0, 0.1),
@@ -70,16 +70,27 @@ def _feet_heads(seq: Sequence, frame: Frame, camera: Camera) -> tuple[np.ndarray
     return None if got is None else (got[0], got[1], f"joints ({layout} recipe)")
 
 
+def frame_track_values(seq: Sequence, frame: Frame, camera: Camera) -> tuple[dict[str, np.ndarray], np.ndarray, str] | None:
+    """One frame's track values in ``camera``'s world: ``{key: (P,)}`` for each :data:`TRACK_SERIES` key,
+    the (P, 3) mid-soles (camera frame) they were measured from, and where those came from; None for a
+    frame without people or without a way to find their mid-soles and crowns."""
+    got = _feet_heads(seq, frame, camera) if frame.n_people else None
+    if got is None:
+        return None
+    feet, heads, source = got
+    values = {"foot_height_m": camera.height_above_ground(feet), "lean_deg": lean_deg(feet, heads, camera.up_cam),
+              "stature_m": stature_m(feet, heads)}
+    return values, feet, source
+
+
 def sequence_tracks(seq: Sequence, camera: Camera, label: str, progress: Callable[[], None] | None = None) -> Tracks:
     """Foot height, lean and stature of every person of every frame of ``seq``, in ``camera``'s world."""
     tracks = Tracks(label, len(seq))
     for index, name in enumerate(seq.frame_names):
         frame = seq.read_frame(name)
-        got = _feet_heads(seq, frame, camera) if frame.n_people else None
+        got = frame_track_values(seq, frame, camera)
         if got is not None:
-            feet, heads, tracks.source = got
-            values = {"foot_height_m": camera.height_above_ground(feet), "lean_deg": lean_deg(feet, heads, camera.up_cam),
-                      "stature_m": stature_m(feet, heads)}
+            values, _, tracks.source = got
             for key, column in values.items():
                 for pid, value in zip(frame.person_ids, column):
                     if np.isfinite(value):

@@ -1,0 +1,22 @@
+"""Interactive 3D recordings of sequences over time: ``rotavat view`` writes a Rerun recording (.rrd).
+
+Modules (docs/render.md, "rotavat view"):
+
+- :mod:`.scene`: what the recording shows besides the people, in world metres (ground grid and ticks,
+  other grounds as planes, the camera's label, track paths); pure numpy;
+- :mod:`.recording`: :func:`record_sequences` (what ``rotavat view`` runs), its options, and the one module
+  that imports Rerun (the optional extra ``rotavat[view]``: :func:`require_rerun`).
+"""
+
+from ..lazy import public_names
+
+# Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
+_PUBLIC = {
+    ".scene": (
+        "GRID_MARGIN_M", "MAX_GRID_LINES", "camera_label", "eye_world", "grid_lines_world", "grid_step_m", "grid_ticks_world",
+        "ground_extent_m", "label_anchors_world", "plane_quad_world", "track_strips", "uncertainty_cameras",
+        "world_points_f32"
+    ),
+    ".recording": ("RERUN_INSTALL", "ViewOptions", "ViewSummary", "record_sequences", "require_rerun", "view_steps"),
+}
+__getattr__, __dir__, __all__ = public_names(__name__, _PUBLIC)

@@ -1,0 +1,242 @@
+"""What a recording shows besides the people, in world metres: the ground grid and its ticks, other
+grounds as planes (a row's own camera, the calibration's ±1 std), the camera's label, the tracks'
+ground trajectories. Pure numpy; nothing here knows Rerun (:mod:`.recording` logs what these return).
+
+The world is the scene camera's (docs/conventions.md, "World frame"): Y up, the ground at ``Y = 0``,
+the origin on the ground below the camera centre, the camera looking along −Z.
+
+>>> lo, hi = ground_extent_m(np.array([[0.4, 0.0, -6.2], [-1.5, 1.7, -3.0]]), margin_m=1.0)
+>>> lo.tolist(), hi.tolist()
+([-3.0, -8.0], [2.0, -2.0])
+>>> grid_lines_world(lo, hi, 1.0).shape     # 6 lines along Z (x = -3..2), 7 along X (z = -8..-2)
+(13, 2, 3)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..camera import Camera
+
+__all__ = ["GRID_MARGIN_M", "MAX_GRID_LINES", "ground_extent_m", "grid_step_m", "grid_lines_world", "grid_ticks_world",
+           "plane_quad_world", "uncertainty_cameras", "camera_label", "track_strips", "eye_world", "world_points_f32",
+           "label_anchors_world"]
+
+GRID_MARGIN_M = 2.0  # the grid reaches this far beyond the people and the camera
+MAX_GRID_LINES = 60  # per axis: a wider scene gets 2, 5, 10 ... m between lines
+_MAX_TICK_LABELS = 8  # per axis
+_LABEL_RAISE_M = 0.15  # a person's label floats this far above its top
+_STEEP_PLANE = 0.2  # a plane whose normal's world-up part is below this is not drawn (nearly vertical)
+
+
+def ground_extent_m(points_world: np.ndarray, margin_m: float = GRID_MARGIN_M) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi), each (2,) = (x, z) metres: the ground rectangle holding the (N, 3) world points (NaN rows
+    ignored) and ``margin_m`` around them, snapped outward to whole metres; 10 m x 10 m ahead of the
+    camera when there is no point."""
+    p = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)][:, [0, 2]]
+    if not len(p):
+        return np.array([-5.0, -10.0]), np.array([5.0, 0.0])
+    return np.floor(p.min(axis=0) - margin_m), np.ceil(p.max(axis=0) + margin_m)
+
+
+def _next_nice(step: float) -> float:
+    """The next of 1, 2, 5, 10, 20, 50 ... after ``step`` (itself one of them).
+
+    >>> _next_nice(1.0), _next_nice(2.0), _next_nice(5.0), _next_nice(50.0)
+    (2.0, 5.0, 10.0, 100.0)
+    """
+    decade = 10.0 ** math.floor(math.log10(step) + 1e-9)
+    return {1: 2.0, 2: 5.0, 5: 10.0}[round(step / decade)] * decade
+
+
+def _spaced(lo: np.ndarray, hi: np.ndarray, start: float, most: int) -> float:
+    """The first of ``start``, then 2, 5, 10 ... times it, that spaces the widest side of lo..hi into at most ``most`` steps."""
+    span = float(np.max(np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64)))
+    step = start
+    while span / step > most:
+        step = _next_nice(step)
+    return step
+
+
+def grid_step_m(lo: np.ndarray, hi: np.ndarray) -> float:
+    """Metres between grid lines: 1, or 2, 5, 10 ... when a side would need more than :data:`MAX_GRID_LINES`.
+
+    >>> grid_step_m(np.array([0.0, 0.0]), np.array([40.0, 10.0])), grid_step_m(np.array([0.0, 0.0]), np.array([150.0, 10.0]))
+    (1.0, 5.0)
+    """
+    return _spaced(lo, hi, 1.0, MAX_GRID_LINES)
+
+
+def _grid_values(lo: float, hi: float, step: float) -> np.ndarray:
+    """Multiples of ``step`` in [lo, hi]."""
+    return np.arange(math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9) + 1) * step
+
+
+def grid_lines_world(lo: np.ndarray, hi: np.ndarray, step: float) -> np.ndarray:
+    """(L, 2, 3) segments on the ground (Y = 0): one along Z at every multiple of ``step`` in x, one along X
+    at every multiple in z."""
+    xs, zs = _grid_values(lo[0], hi[0], step), _grid_values(lo[1], hi[1], step)
+    along_z = np.stack([np.stack([xs, np.zeros_like(xs), np.full_like(xs, lo[1])], axis=1),
+                        np.stack([xs, np.zeros_like(xs), np.full_like(xs, hi[1])], axis=1)], axis=1)
+    along_x = np.stack([np.stack([np.full_like(zs, lo[0]), np.zeros_like(zs), zs], axis=1),
+                        np.stack([np.full_like(zs, hi[0]), np.zeros_like(zs), zs], axis=1)], axis=1)
+    return np.concatenate([along_z, along_x])
+
+
+def grid_ticks_world(lo: np.ndarray, hi: np.ndarray, step: float) -> tuple[np.ndarray, list[str]]:
+    """Tick labels of the grid: (K, 3) points on the ground along its near edge (x ticks) and its right edge
+    (z ticks, as the distance ahead of the camera; the edge the viewer's eye starts near, :func:`eye_world`),
+    at most :data:`_MAX_TICK_LABELS` per axis.
+
+    >>> points, labels = grid_ticks_world(np.array([-2.0, -4.0]), np.array([2.0, 0.0]), 1.0)
+    >>> labels[:5], labels[5:]
+    (['x -2 m', 'x -1 m', 'x 0 m', 'x 1 m', 'x 2 m'], ['4 m ahead', '3 m ahead', '2 m ahead', '1 m ahead', '0 m ahead'])
+    """
+    every = _spaced(lo, hi, step, _MAX_TICK_LABELS - 1)
+    xs, zs = _grid_values(lo[0], hi[0], every), _grid_values(lo[1], hi[1], every)
+    points = np.concatenate([np.stack([xs, np.zeros_like(xs), np.full_like(xs, hi[1])], axis=1),
+                             np.stack([np.full_like(zs, hi[0]), np.zeros_like(zs), zs], axis=1)])
+    return points, [f"x {x:g} m" for x in xs] + [f"{-z + 0.0:g} m ahead" for z in zs]
+
+
+def plane_quad_world(ground_of: Camera, scene: Camera, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
+    """(4, 3) corners, in ``scene``'s world, of the ground of camera ``ground_of`` (both cameras of the one
+    physical camera frame) above the rectangle ``lo``..``hi`` (x, z); None when that ground is nearly
+    vertical in this world (its quad would reach to the sky).
+
+    >>> cam = Camera((640, 480), 500.0, None, math.radians(20.0), 0.0, 5.0)
+    >>> plane_quad_world(cam.replace(height_m=5.5), cam, np.array([-1.0, -4.0]), np.array([1.0, 0.0]))[:, 1].round(6).tolist()
+    [-0.5, -0.5, -0.5, -0.5]
+    """
+    corners = np.array([[lo[0], 0.0, lo[1]], [hi[0], 0.0, lo[1]], [hi[0], 0.0, hi[1]], [lo[0], 0.0, hi[1]]])
+    raised = corners + [0.0, 1.0, 0.0]
+    h0 = ground_of.height_above_ground(scene.cam_from_world(corners))  # affine in y: h(y) = h0 + (h1 - h0) y
+    slope = ground_of.height_above_ground(scene.cam_from_world(raised)) - h0
+    if np.min(np.abs(slope)) < _STEEP_PLANE:
+        return None
+    corners[:, 1] = -h0 / slope
+    return corners
+
+
+def uncertainty_cameras(camera: Camera, std: Mapping | None) -> dict[str, Camera]:
+    """The camera at ±1 std of its height and of its pitch, one change at a time (``std``: camera.yaml's
+    ``fit.std``, report units): ``{"height_minus_1sd": ..., "height_plus_1sd": ..., "pitch_minus_1sd": ...,
+    "pitch_plus_1sd": ...}`` (names that are entity paths as they stand),
+    without the parameters whose std is missing, zero or not finite."""
+    out: dict[str, Camera] = {}
+    for name, key, field, to_unit in (("height", "height_m", "height_m", 1.0), ("pitch", "pitch_deg", "pitch_rad", math.pi / 180)):
+        try:
+            sd = float((std or {}).get(key))
+        except (TypeError, ValueError):
+            continue
+        if not math.isfinite(sd) or sd <= 0:
+            continue
+        for sign, text in ((-1.0, "minus_1sd"), (1.0, "plus_1sd")):
+            value = getattr(camera, field) + sign * sd * to_unit
+            if field == "height_m" and value <= 0:
+                continue
+            out[f"{name}_{text}"] = camera.replace(**{field: value})
+    return out
+
+
+def _sd(std: Mapping, key: str) -> float | None:
+    """A finite positive std from ``fit.std``, else None."""
+    try:
+        value = float(std.get(key))
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) and value > 0 else None
+
+
+def camera_label(camera: Camera, fit: Mapping | None, source: str) -> str:
+    """The camera's label: where it came from, its focal with its ±1 std range, pitch, roll and height (each
+    with its std when the camera was fitted).
+
+    >>> cam = Camera((1280, 720), 1053.0, None, math.radians(13.5), 0.0, 2.74)
+    >>> camera_label(cam, {"method": "refine", "std": {"focal_px": 114.0, "pitch_deg": 1.5, "height_m": 0.17}}, "pred/camera.yaml")
+    'camera (refine fit, pred/camera.yaml): f 1053 ± 114 px (939-1167) · pitch 13.5 ± 1.5° · roll 0.0° · height 2.74 ± 0.17 m'
+    >>> camera_label(cam, {}, "gt/camera.yaml")
+    'camera (given, gt/camera.yaml): f 1053 px · pitch 13.5° · roll 0.0° · height 2.74 m'
+    """
+    std = (fit or {}).get("std") if isinstance((fit or {}).get("std"), Mapping) else {}
+    method = (fit or {}).get("method")
+    parts = []
+    f_sd = _sd(std, "focal_px")
+    parts.append(f"f {camera.focal_px:.0f} ± {f_sd:.0f} px ({camera.focal_px - f_sd:.0f}-{camera.focal_px + f_sd:.0f})"
+                 if f_sd else f"f {camera.focal_px:.0f} px")
+    for name, key, value, fmt, unit in (("pitch", "pitch_deg", math.degrees(camera.pitch_rad), ".1f", "°"),
+                                        ("roll", "roll_deg", math.degrees(camera.roll_rad), ".1f", "°"),
+                                        ("height", "height_m", camera.height_m, ".2f", " m")):
+        sd = _sd(std, key)
+        parts.append(f"{name} {value:{fmt}} ± {sd:{fmt}}{unit}" if sd else f"{name} {value:{fmt}}{unit}")
+    return f"camera ({f'{method} fit' if method else 'given'}, {source}): " + " · ".join(parts)
+
+
+def track_strips(frame_index: np.ndarray, points: np.ndarray, max_gap: int = 1) -> list[np.ndarray]:
+    """A track's path as line strips: (N,) frame indices (increasing) and (N, 3) points -> strips of >= 2
+    points, cut where the track skips more than ``max_gap`` frames or a point is not finite.
+
+    >>> [s[:, 0].tolist() for s in track_strips(np.array([0, 1, 2, 5, 6, 9]), np.arange(18.0).reshape(6, 3))]
+    [[0.0, 3.0, 6.0], [9.0, 12.0]]
+    """
+    index = np.asarray(frame_index, dtype=np.int64)
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    ok = np.isfinite(p).all(axis=1)
+    index, p = index[ok], p[ok]
+    cuts = np.flatnonzero(np.diff(index) > max_gap) + 1
+    return [piece for piece in np.split(p, cuts) if len(piece) >= 2]
+
+
+def eye_world(ground_xz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the viewer's eye starts: (position, look target), world metres. It looks at the middle of the
+    people's (N, 2) ground positions (x, z; the median: a far outlier does not move it), 0.9 m up, from
+    their right (the camera's x), a little above and toward the camera, as far as the bulk of the people spreads (10th to 90th
+    percentile) plus 4 m, between 6 and 40 m: floating, sunk and leaning bodies show from there.
+
+    >>> position, target = eye_world(np.array([[0.0, -8.0], [1.0, -9.0], [-1.0, -7.0]]))
+    >>> target.tolist(), bool(position[1] > target[1]) and bool(position[2] > target[2])
+    ([0.0, 0.9, -8.0], True)
+    """
+    p = np.asarray(ground_xz, dtype=np.float64).reshape(-1, 2)
+    p = p[np.isfinite(p).all(axis=1)]
+    if not len(p):
+        p = np.array([[0.0, -5.0]])
+    middle = np.median(p, axis=0)
+    spread = float(np.max(np.percentile(p, 90, axis=0) - np.percentile(p, 10, axis=0)))
+    d = min(max(spread + 4.0, 6.0), 40.0)
+    target = np.array([middle[0], 0.9, middle[1]])
+    return target + d * np.array([0.9, 0.4, 0.35]), target
+
+
+def world_points_f32(camera: Camera, points_cam: np.ndarray) -> np.ndarray:
+    """Camera-frame points (..., 3) -> world frame, float32 (what a recording stores: 0.1 mm at 1 km; twice as fast
+    as :meth:`Camera.world_from_cam` on a crowd's meshes)."""
+    R = np.asarray(camera.R_cam_from_world, dtype=np.float32)
+    t = np.asarray(camera.t_cam_from_world, dtype=np.float32)
+    return (np.asarray(points_cam, dtype=np.float32) - t) @ R
+
+
+_ANCHOR_POINTS = 256  # a label's place is found from about this many of a person's points
+
+
+def label_anchors_world(points_world: np.ndarray) -> np.ndarray:
+    """(P, N, 3) each person's points (world) -> (P, 3) where its label goes: above its highest point, at
+    the mean of its x and z (NaN for a person without finite points); from every k-th point of a large
+    mesh (the label floats 15 cm above: a centimetre of the top missed does not show)."""
+    p = np.asarray(points_world, dtype=np.float64)
+    p = p[:, ::max(1, p.shape[1] // _ANCHOR_POINTS)] if p.ndim == 3 else p
+    out = np.full((p.shape[0], 3), np.nan)
+    if p.shape[0] == 0 or p.shape[1] == 0:
+        return out
+    finite = np.isfinite(p).all(axis=-1)  # (P, N)
+    has = finite.any(axis=1)
+    safe = np.where(finite[..., None], p, 0.0)
+    count = np.maximum(finite.sum(axis=1), 1)[:, None]
+    out[:, [0, 2]] = safe[..., [0, 2]].sum(axis=1) / count
+    out[:, 1] = np.where(finite, p[..., 1], -np.inf).max(axis=1) + _LABEL_RAISE_M
+    out[~has] = np.nan
+    return out

@@ -1,0 +1,329 @@
+"""rotavat view: the recording's geometry (pure, always run) and a whole recording of a synthetic scene read
+back with Rerun's own reader (the optional extra rotavat[view]: skipped cleanly without it; CI installs it)."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from _cli import invoke
+
+from rotavat_cli.alignment import AlignOptions, align_sequence
+from rotavat_cli.camera import Camera
+from rotavat_cli.metrics.evaluate import EvalOptions, evaluate
+from rotavat_cli.outputs import written_by_rotavat
+from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
+from rotavat_cli.synth import SynthOptions, write_synth_scene
+from rotavat_cli.view import (camera_label, grid_lines_world, grid_step_m, grid_ticks_world, ground_extent_m,
+                              label_anchors_world, plane_quad_world, track_strips, uncertainty_cameras, world_points_f32)
+
+CAM = Camera((640, 360), 500.0, None, math.radians(15.0), math.radians(1.5), 3.0)
+
+
+# ---- geometry (no Rerun) ---------------------------------------------------------------------------------
+def test_ground_extent_holds_every_point_with_its_margin_on_whole_metres():
+    points = np.array([[0.3, 0.0, -7.6], [-2.2, 1.8, -1.1], [np.nan, 0.0, 0.0]])
+    lo, hi = ground_extent_m(points, margin_m=2.0)
+    assert lo.tolist() == [-5.0, -10.0] and hi.tolist() == [3.0, 1.0]  # floor(-2.2-2), floor(-7.6-2), ceil(0.3+2), ceil(-1.1+2)
+    assert [v.tolist() for v in ground_extent_m(np.full((2, 3), np.nan))] == [[-5.0, -10.0], [5.0, 0.0]]
+
+
+def test_grid_lines_lie_on_the_ground_one_per_metre_and_thin_out_for_a_wide_scene():
+    lo, hi = np.array([-3.0, -12.0]), np.array([4.0, 0.0])
+    lines = grid_lines_world(lo, hi, grid_step_m(lo, hi))
+    assert lines.shape == (8 + 13, 2, 3) and np.all(lines[..., 1] == 0.0)
+    xs = sorted({float(x) for x in lines[:8, :, 0].ravel()})
+    assert xs == [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]
+    assert grid_step_m(np.array([0.0, 0.0]), np.array([60.0, 5.0])) == 1.0
+    assert grid_step_m(np.array([0.0, 0.0]), np.array([61.0, 5.0])) == 2.0
+    assert grid_step_m(np.array([0.0, -400.0]), np.array([10.0, 0.0])) == 10.0
+
+
+def test_tick_labels_name_the_metres_they_sit_at():
+    points, labels = grid_ticks_world(np.array([-30.0, -40.0]), np.array([30.0, 0.0]), 1.0)
+    assert len(labels) == len(points) and len(labels) <= 2 * 8
+    for (x, y, z), text in zip(points, labels):
+        assert y == 0.0
+        value = float(text.split()[1]) if text.startswith("x ") else float(text.split()[0])
+        assert value == (x if text.startswith("x ") else -z)
+
+
+@pytest.mark.parametrize("change", [{"height_m": 3.4}, {"pitch_rad": math.radians(18.0)}, {"roll_rad": math.radians(-3.0)}])
+def test_another_cameras_ground_is_drawn_where_that_camera_puts_it(change):
+    other = CAM.replace(**change)
+    quad = plane_quad_world(other, CAM, np.array([-4.0, -15.0]), np.array([4.0, 0.0]))
+    heights = other.height_above_ground(CAM.cam_from_world(quad))  # each corner on the other camera's ground
+    np.testing.assert_allclose(heights, 0.0, atol=1e-9)
+    np.testing.assert_array_equal(quad[:, [0, 2]], [[-4, -15], [4, -15], [4, 0], [-4, 0]])
+    if "height_m" in change:  # a camera 0.4 m higher sees the ground 0.4 m lower
+        np.testing.assert_allclose(quad[:, 1], -0.4, atol=1e-9)
+
+
+def test_a_ground_standing_on_its_edge_is_not_drawn():
+    assert plane_quad_world(CAM.replace(pitch_rad=math.radians(-80.0)), CAM, np.array([-1.0, -5.0]), np.array([1.0, 0.0])) is None
+
+
+def test_uncertainty_cameras_move_one_parameter_by_one_std():
+    cams = uncertainty_cameras(CAM, {"height_m": 0.25, "pitch_deg": 2.0, "focal_px": 80.0})
+    assert sorted(cams) == ["height_minus_1sd", "height_plus_1sd", "pitch_minus_1sd", "pitch_plus_1sd"]
+    assert cams["height_minus_1sd"].height_m == pytest.approx(2.75) and cams["height_minus_1sd"].pitch_rad == CAM.pitch_rad
+    assert math.degrees(cams["pitch_plus_1sd"].pitch_rad) == pytest.approx(17.0) and cams["pitch_plus_1sd"].height_m == 3.0
+    assert uncertainty_cameras(CAM, {"height_m": float("nan"), "pitch_deg": 0.0}) == {}
+    assert uncertainty_cameras(CAM, None) == {}
+    assert sorted(uncertainty_cameras(CAM, {"height_m": 5.0})) == ["height_plus_1sd"]  # a camera under the ground is no camera
+
+
+def test_camera_label_gives_the_focal_range_of_one_std():
+    text = camera_label(CAM, {"method": "grid", "std": {"focal_px": 40.0, "height_m": 0.1}}, "c.yaml")
+    assert "f 500 ± 40 px (460-540)" in text and "height 3.00 ± 0.10 m" in text and "pitch 15.0°" in text
+    assert text.startswith("camera (grid fit, c.yaml)")
+
+
+def test_track_strips_break_at_gaps_and_drop_lone_points():
+    strips = track_strips(np.array([3, 4, 5, 7, 9, 10]), np.array([[i, 0, -i] for i in range(6)], float))
+    assert [s[:, 0].tolist() for s in strips] == [[0.0, 1.0, 2.0], [4.0, 5.0]]
+    assert [len(s) for s in track_strips(np.arange(4), np.array([[0, 0, 0], [np.nan] * 3, [1, 0, 0], [2, 0, 0]], float))] == [2]  # a NaN cuts too
+
+
+def test_label_anchors_float_above_each_person():
+    people = np.zeros((2, 1000, 3))
+    people[0, :, 1] = np.linspace(0.0, 1.7, 1000)
+    people[0, :, 0], people[0, :, 2] = 2.0, -5.0
+    people[1] = np.nan
+    anchors = label_anchors_world(people)
+    assert anchors[0, 0] == pytest.approx(2.0) and anchors[0, 2] == pytest.approx(-5.0)
+    assert 1.7 + 0.14 < anchors[0, 1] < 1.7 + 0.16
+    assert np.isnan(anchors[1]).all()
+
+
+def test_world_points_in_float32_match_the_cameras_own_transform():
+    pts = np.random.default_rng(0).normal([0, 1, 8], 2.0, (4, 50, 3))
+    got = world_points_f32(CAM, pts)
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, CAM.world_from_cam(pts), atol=5e-6)
+
+
+# ---- a whole recording, read back with Rerun's own reader ------------------------------------------------
+def _read(path: Path) -> dict[str, list[tuple[int | None, dict]]]:
+    """``{entity path: [(frame or None for static, {component: value}), ...]}`` through rerun.chunk.RrdReader."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, list] = defaultdict(list)
+    for chunk in RrdReader(path).stream():
+        columns = chunk.to_record_batch().to_pydict()
+        frames = columns.get("frame", [None] * chunk.num_rows)
+        for r in range(chunk.num_rows):
+            out[chunk.entity_path].append((frames[r], {k: v[r] for k, v in columns.items() if ":" in k}))
+    return out
+
+
+@pytest.fixture(scope="module")
+def view_scene(tmp_path_factory):
+    """A synthetic scene: pred (meshes, HPS-like), pred_aligned (align's output: flags), joints (joints only, person 1
+    gone in frame 2), gt (truth); the scene camera: the true one, 0.3 m higher, with a fit's std."""
+    pytest.importorskip("rerun")
+    root = tmp_path_factory.mktemp("view")
+    write_synth_scene(root, SynthOptions(seed=4, frames=4, people=3, image_size=(320, 180)))
+    gt = open_sequence(root / "gt")
+    align_sequence(open_sequence(root / "pred"), gt.camera, root / "pred_aligned", AlignOptions(jobs=1))
+    joints = root / "joints"
+    joints.mkdir()
+    shutil.copy(root / "pred" / "meta.yaml", joints / "meta.yaml")
+    pred = open_sequence(root / "pred")
+    for k, name in enumerate(pred.frame_names):
+        frame = pred.read_frame(name)
+        keep = np.array([pid != 1 or k != 2 for pid in frame.person_ids])
+        np.savez(joints / f"{name}.npz", joints=frame.data["joints"][keep], person_ids=frame.person_ids[keep],
+                 **{key: frame.data[key][keep] for key in ("focal_length",) if key in frame.data and np.ndim(frame.data[key])})
+    scene_camera = gt.camera.replace(height_m=gt.camera.height_m + 0.3)
+    write_camera_yaml(root / "scene_camera.yaml", scene_camera,
+                      {"method": "refine", "std": {"focal_px": 30.0, "pitch_deg": 1.0, "roll_deg": 0.5, "height_m": 0.2}})
+    return root, scene_camera
+
+
+@pytest.fixture(scope="module")
+def recorded(view_scene):
+    from rotavat_cli.view import ViewOptions, record_sequences
+
+    root, _ = view_scene
+    seqs = [open_sequence(root / name) for name in ("pred", "pred_aligned", "joints")]
+    calls = []
+    summary = record_sequences(seqs, root / "scene.rrd", open_sequence(root / "gt"),
+                               ViewOptions(camera_path=root / "scene_camera.yaml"), lambda: calls.append(1))
+    return summary, _read(root / "scene.rrd"), len(calls)
+
+
+def test_the_recording_holds_every_row_as_its_own_entity_tree(recorded):
+    summary, data, calls = recorded
+    assert summary.rows == ["pred", "pred_aligned", "joints", "gt"] and summary.gt == "gt"
+    assert summary.frames == 4 == calls
+    for row in ("pred", "pred_aligned", "gt"):
+        for pid in (0, 1, 2):
+            assert f"/world/{row}/people/{pid}/mesh" in data
+    for pid in (0, 1, 2):
+        assert f"/world/joints/people/{pid}/skeleton" in data and f"/world/joints/people/{pid}/joints" in data
+        assert f"/world/joints/people/{pid}/mesh" not in data
+    for path in ("/world", "/world/camera", "/world/camera/image", "/world/ground", "/world/ground/ticks",
+                 "/world/gt/ground", "/world/ground/uncertainty/height_minus_1sd",
+                 "/world/ground/uncertainty/pitch_plus_1sd",
+                 "/world/pred/tracks/0", "/plots/foot_height_m/pred/0", "/plots/lean_deg/pred_aligned/2",
+                 "/plots/stature_m/joints/1", "/plots/w_mpjpe_mm/pred/0"):
+        assert path in data, path
+    assert "/plots/w_mpjpe_mm/gt/0" not in data  # the truth is not scored against itself
+
+
+def test_each_entity_has_one_row_per_frame_its_person_is_in(recorded):
+    _, data, _ = recorded
+    def frames(path, component):
+        return sorted(f for f, row in data[path] if f is not None and row.get(component) is not None)
+    assert frames("/world/pred/people/0/mesh", "Mesh3D:vertex_positions") == [0, 1, 2, 3]
+    assert frames("/world/joints/people/0/skeleton", "LineStrips3D:strips") == [0, 1, 2, 3]
+    assert frames("/world/joints/people/1/skeleton", "LineStrips3D:strips") == [0, 1, 3]
+    assert frames("/world/joints/people/1", "Clear:is_recursive") == [2]  # gone in frame 2: nothing of it drawn
+    assert frames("/plots/foot_height_m/joints/1", "Scalars:scalars") == [0, 1, 3]
+    static = [row for f, row in data["/world/pred/people/0/mesh"] if f is None]
+    assert len(static) == 1 and len(static[0]["Mesh3D:triangle_indices"]) > 1000  # faces once, for every frame
+
+
+def test_a_vertex_lands_at_its_world_position_in_metres(view_scene, recorded):
+    root, scene_camera = view_scene
+    _, data, _ = recorded
+    gt = open_sequence(root / "gt")
+    frame = gt.read_frame(gt.frame_names[1])
+    p = int(np.flatnonzero(frame.person_ids == 2)[0])
+    expected = scene_camera.world_from_cam(frame.data["vertices"][p, 1234])
+    row = next(row for f, row in data["/world/gt/people/2/mesh"] if f == 1 and row.get("Mesh3D:vertex_positions"))
+    np.testing.assert_allclose(row["Mesh3D:vertex_positions"][1234], expected, atol=2e-5)
+    # the truth stands on its own ground: 0.3 m above the scene camera's, which puts the camera 0.3 m too high
+    feet_y = min(v[1] for v in row["Mesh3D:vertex_positions"])
+    assert feet_y == pytest.approx(0.3, abs=0.03)
+    quad = next(row for f, row in data["/world/gt/ground"] if row.get("Mesh3D:vertex_positions"))["Mesh3D:vertex_positions"]
+    np.testing.assert_allclose(np.array(quad)[:, 1], 0.3, atol=1e-5)
+
+
+def test_the_camera_carries_its_intrinsics_pose_and_uncertainty(view_scene, recorded):
+    _, scene_camera = view_scene
+    _, data, _ = recorded
+    pinhole = data["/world/camera/image"][0][1]
+    K = np.array(pinhole["Pinhole:image_from_camera"]).reshape(3, 3).T  # stored column-major
+    np.testing.assert_allclose(K, scene_camera.K, atol=1e-4)
+    assert pinhole["Pinhole:resolution"] == [[320.0, 180.0]]
+    pose = next(row for _, row in data["/world/camera"] if row.get("Transform3D:translation"))
+    np.testing.assert_allclose(pose["Transform3D:translation"], [[0.0, scene_camera.height_m, 0.0]], atol=1e-6)
+    R = np.array(pose["Transform3D:mat3x3"]).reshape(3, 3).T
+    np.testing.assert_allclose(R, scene_camera.R_cam_from_world.T, atol=1e-6)  # world from camera
+    label = next(row for _, row in data["/world/camera"] if row.get("Points3D:labels"))["Points3D:labels"][0]
+    f = scene_camera.focal_px
+    assert f"± 30 px ({f - 30:.0f}-{f + 30:.0f})" in label and "± 0.20 m" in label
+    low = next(row for _, row in data["/world/ground/uncertainty/height_minus_1sd"] if row.get("Mesh3D:vertex_positions"))
+    np.testing.assert_allclose(np.array(low["Mesh3D:vertex_positions"])[:, 1], 0.2, atol=1e-5)  # 0.2 m lower camera
+
+
+def test_per_person_w_mpjpe_series_equal_evals_numbers(view_scene, recorded):
+    root, _ = view_scene
+    _, data, _ = recorded
+    result = evaluate(open_sequence(root / "pred"), open_sequence(root / "gt"), EvalOptions(engine="numpy"))
+    cols = result.per_person
+    names = open_sequence(root / "gt").frame_names
+    want = {(names.index(n), int(pid)): w for n, pid, w in zip(cols["frame"], cols["person_id"], cols["w_mpjpe"])}
+    got = {}
+    for pid in (0, 1, 2):
+        for f, row in data[f"/plots/w_mpjpe_mm/pred/{pid}"]:
+            if f is not None and row.get("Scalars:scalars") is not None:
+                got[(f, pid)] = row["Scalars:scalars"][0]
+    assert got.keys() == want.keys()
+    for key, value in want.items():
+        assert got[key] == pytest.approx(value, rel=1e-9)
+
+
+def test_flagged_people_are_marked_in_their_labels(view_scene, recorded):
+    root, _ = view_scene
+    _, data, _ = recorded
+    import csv
+
+    flagged = [r for r in csv.DictReader(open(root / "pred_aligned" / "people.csv")) if r["flag"]]
+    labels = [t for _, row in data["/world/pred_aligned/labels"] for t in (row.get("Points3D:labels") or [])]
+    for record in flagged:
+        assert f"{int(float(record['person_id']))} {record['flag']}" in labels
+    assert {"0", "1", "2"} & set(labels) or flagged  # unflagged people are labelled by their id alone
+
+
+# ---- the command ------------------------------------------------------------------------------------------
+def test_view_writes_a_recording_rotavat_may_replace_and_refuses_a_strangers_file(view_scene, runner, tmp_path):
+    root, _ = view_scene
+    out = tmp_path / "cli.rrd"
+    args = ["view", str(root / "pred"), "--gt", str(root / "gt"), "--camera", str(root / "scene_camera.yaml"),
+            "--out", str(out), "--quiet"]
+    result = invoke(runner, *args)
+    assert result.exit_code == 0, result.output
+    assert written_by_rotavat(out)
+    assert invoke(runner, *args).exit_code == 0  # its own file: replaced without --force
+    stranger = tmp_path / "stranger.rrd"
+    stranger.write_bytes(b"RRF2" + b"\0" * 100)
+    result = invoke(runner, *args[:-3], "--out", str(stranger), "--quiet")
+    assert result.exit_code == 2 and "rotavat did not write it" in result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cli.rrd", "stranger.rrd"]  # no temporary left
+
+
+def test_view_without_a_camera_names_the_command_that_makes_one(view_scene, runner):
+    root, _ = view_scene
+    result = invoke(runner, "view", root / "pred", "--out", root / "x.rrd")
+    assert result.exit_code == 2
+    assert f"run `rotavat calibrate {root / 'pred'}`" in result.output and not (root / "x.rrd").exists()
+
+
+def test_a_missing_video_frame_leaves_no_file_half_written(view_scene, runner, tmp_path):
+    root, _ = view_scene
+    images = tmp_path / "images"
+    images.mkdir()
+    (images / "000000.png").write_bytes(b"not checked here")
+    out = tmp_path / "v.rrd"
+    result = invoke(runner, "view", root / "gt", "--image", images, "--out", out)
+    assert result.exit_code == 2 and "no image named 000001" in result.output
+    assert list(tmp_path.iterdir()) == [images]
+
+
+def test_view_without_the_extra_says_which_pip_command_installs_it(runner, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "rerun", None)  # import rerun fails as if not installed
+    result = invoke(runner, "view", tmp_path, "--out", tmp_path / "x.rrd")
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines() == ["error: rotavat view needs the Rerun SDK, which is not installed: "
+                                                  "pip install 'rotavat[view]'"]
+
+
+def test_view_config_section_is_checked(runner, tmp_path):
+    config = tmp_path / "c.yaml"
+    config.write_text(yaml.safe_dump({"view": {"image_plane_m": -1}}))
+    result = invoke(runner, "view", tmp_path, "--config", config)
+    assert result.exit_code == 2 and "image_plane_m" in result.output
+
+
+def test_batch_view_writes_one_recording_per_sequence_beside_its_figures(runner, tmp_path):
+    pytest.importorskip("rerun")
+    import json
+
+    for name, seed in (("a", 1), ("b", 2)):
+        write_synth_scene(tmp_path / "synth" / name, SynthOptions(seed=seed, frames=3, people=2, image_size=(320, 180)))
+        for side, root in (("pred", "P"), ("gt", "G")):
+            (tmp_path / root).mkdir(exist_ok=True)
+            shutil.move(tmp_path / "synth" / name / side, tmp_path / root / name)
+    out = tmp_path / "out"
+    args = ["batch", tmp_path / "P", "--gt-root", tmp_path / "G", "--view", "--jobs", "1", "--out", out, "--quiet"]
+    result = invoke(runner, *args)
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "batch_report.json").read_text())
+    for name in ("a", "b"):
+        assert (out / name / "render").is_dir()
+        data = _read(out / name / "view.rrd")
+        for row in ("input", "aligned", "gt"):
+            assert f"/world/{row}/people/0/mesh" in data and f"/world/{row}/people/1/mesh" in data
+        assert "/plots/w_mpjpe_mm/aligned/0" in data
+    assert {row["sequence"]: row["view"]["frames"] for row in report["rows"]} == {"a": 3, "b": 3}
+    again = invoke(runner, *args[:-1])
+    assert again.exit_code == 0 and "2 skipped" in again.output
