@@ -11,8 +11,10 @@ temporary folder, reads it once so every run starts from the page cache, then ti
 - npz, the baseline: the same reading, the same world transform the recording applies
   (:func:`rotavat_cli.view.scene.world_points_f32`, float32) and the same vertex bytes written with
   ``np.savez`` (uncompressed), one file per frame: a recording minus Rerun (and minus the normals);
-- npz with ``Camera.world_from_cam(v).astype(np.float32)`` (float64 arithmetic, about 3x slower on a
-  crowd's meshes), for reference only: the ratios are against the row above;
+- npz with ``Camera.world_from_cam(v).astype(np.float32)`` (float64 temporaries), for reference only: the
+  ratios are against the row above. Its extra cost is mostly page faults of fresh 3 MB temporaries, so it
+  depends on the allocator's state: 2-4x the float32 transform in a fresh process, about the same here,
+  after synth's large arrays have raised glibc's mmap threshold;
 - ``record_sequences`` (what ``rotavat view`` runs) with the default options (vertex normals on), and
   with ``normals=False``;
 - the whole command ``rotavat view PRED --camera GT/camera.yaml --out X.rrd --quiet`` in a fresh process

@@ -71,6 +71,22 @@ def beside(path: str | os.PathLike, suffix: str) -> Path:
     return src.with_name((src.stem if src.is_file() else src.name) + suffix)
 
 
+def imported_output(src: str | os.PathLike, suffix: str) -> Path:
+    """Where a command writes for an HPS tool's own output read with ``--from`` (``src``: its file or folder):
+    ``<name><suffix>`` in the current folder, never into the user's data folder; relative to the current
+    folder, as the user would type it.
+
+    >>> imported_output("/data/bev/a.npz", "_camera.yaml")
+    PosixPath('a_camera.yaml')
+    """
+    src = Path(src)
+    out = Path.cwd() / ((src.stem if src.suffix and not src.is_dir() else _resolved(src).name) + suffix)
+    try:
+        return out.relative_to(Path.cwd())
+    except ValueError:
+        return out
+
+
 def _resolved(path: str | os.PathLike) -> Path:
     """Absolute path with symlinks resolved (the path itself need not exist)."""
     return Path(path).expanduser().resolve(strict=False)

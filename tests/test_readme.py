@@ -22,7 +22,11 @@ def walkthrough_commands() -> list[list[str]]:
 def test_readme_walkthrough_runs(tmp_path, runner, monkeypatch):
     monkeypatch.chdir(tmp_path)
     commands = walkthrough_commands()
-    assert [c[0] for c in commands] == ["synth", "info", "calibrate", "align", "eval", "render", "export"]
+    assert [c[0] for c in commands] == ["synth", "info", "calibrate", "align", "eval", "render", "export", "view"]
+    try:
+        import rerun  # noqa: F401  (the view line needs the extra rotavat[view]; CI installs it)
+    except ImportError:
+        commands = [c for c in commands if c[0] != "view"]
     for args in commands:
         if args[0] == "synth":  # same command, smaller scene to keep the test fast
             args = [*args[:2], "--seed", "1", "--frames", "6", "--people", "5"]
@@ -33,3 +37,4 @@ def test_readme_walkthrough_runs(tmp_path, runner, monkeypatch):
     assert (tmp_path / "scene" / "eval" / "metrics.md").exists()
     assert (tmp_path / "scene" / "scene.glb").exists()
     assert any((tmp_path / "scene" / "figure").glob("*.png"))
+    assert (tmp_path / "scene" / "view.rrd").exists() == any(c[0] == "view" for c in commands)

@@ -947,14 +947,18 @@ def test_side_and_top_windows_frame_the_plausible_people_and_mark_the_flagged(ru
     assert warnings == [f"{tmp_path / 'odd' / 'people.csv'}: no person_id, flag column: no person is marked as flagged"]
 
 
-def test_render_without_a_camera_names_commands_that_run(runner, tmp_path, model, model_path, camera):
+def test_render_without_a_camera_names_commands_that_run(runner, tmp_path, model, model_path, camera, monkeypatch):
     """Issue 24: `render --from bev FILE` without a camera named `rotavat calibrate FILE`, which fails (not a
-    folder); the commands it names now run as written, with the user's paths and --from/--image-size/--smpl-model."""
+    folder); the commands it names now run as written, with the user's paths and --from/--image-size/--smpl-model.
+    Issue 26: the camera file they name goes to the current folder, never into the tool's data folder."""
     import shlex
 
     import _format_fixtures as F
 
-    src = F.write_bev(tmp_path / "bev", F.default_scene(model, camera), camera.image_size)
+    src = F.write_bev(tmp_path / "data" / "bev", F.default_scene(model, camera), camera.image_size)
+    data_before = sorted(p.name for p in (tmp_path / "data").rglob("*"))
+    (tmp_path / "work").mkdir()
+    monkeypatch.chdir(tmp_path / "work")
     reader = ["--from", "bev", "--image-size", *map(str, camera.image_size), "--smpl-model", str(model_path)]
     result = invoke(runner, "render", src, *reader, "--size", "160", "90")
     assert result.exit_code == 2 and "Traceback" not in result.stderr, result.output
@@ -965,7 +969,9 @@ def test_render_without_a_camera_names_commands_that_run(runner, tmp_path, model
         assert " ".join(reader) in command, command  # the reading flags, as given
         run = invoke(runner, *shlex.split(command)[1:], "-q")
         assert run.exit_code == 0, (command, run.stderr)
-    assert sorted((tmp_path / "bev_render").glob("*.png"))  # the named render's pictures (its default output)
+    assert "--camera bev_camera.yaml" in message and (tmp_path / "work" / "bev_camera.yaml").is_file()
+    assert sorted((tmp_path / "work" / "bev_render").glob("*.png"))  # the named render's pictures (its default output)
+    assert sorted(p.name for p in (tmp_path / "data").rglob("*")) == data_before  # nothing written into the data
 
 
 def test_render_notes_a_row_whose_own_camera_wins_over_camera(runner, scene, tmp_path):

@@ -327,3 +327,42 @@ def test_batch_view_writes_one_recording_per_sequence_beside_its_figures(runner,
     assert {row["sequence"]: row["view"]["frames"] for row in report["rows"]} == {"a": 3, "b": 3}
     again = invoke(runner, *args[:-1])
     assert again.exit_code == 0 and "2 skipped" in again.output
+
+
+def test_view_of_a_tools_output_without_a_camera_names_commands_that_run(runner, tmp_path, model, model_path, camera,
+                                                                        monkeypatch):
+    """`view --from bev FILE` without a camera names calibrate and view commands with the reading flags as given;
+    both run as written, and the camera file they name lands in the current folder, not the tool's data folder."""
+    pytest.importorskip("rerun")
+    import shlex
+
+    import _format_fixtures as F
+
+    src = F.write_bev(tmp_path / "data" / "bev", F.default_scene(model, camera), camera.image_size)
+    data_before = sorted(p.name for p in (tmp_path / "data").rglob("*"))
+    (tmp_path / "work").mkdir()
+    monkeypatch.chdir(tmp_path / "work")
+    reader = ["--from", "bev", "--image-size", *map(str, camera.image_size), "--smpl-model", str(model_path)]
+    result = invoke(runner, "view", src, *reader)
+    assert result.exit_code == 2, result.output
+    commands = " ".join(result.stderr.split()).split("`")[1::2]
+    assert [c.split()[:2] for c in commands] == [["rotavat", "calibrate"], ["rotavat", "view"]]
+    for command in commands:
+        run = invoke(runner, *shlex.split(command)[1:], "-q")
+        assert run.exit_code == 0, (command, run.stderr)
+    assert sorted(p.name for p in (tmp_path / "work").iterdir()) == ["bev_camera.yaml", "bev_view.rrd"]
+    assert sorted(p.name for p in (tmp_path / "data").rglob("*")) == data_before
+    data = _read(tmp_path / "work" / "bev_view.rrd")
+    assert any(path.startswith("/world/bev/people/") for path in data)
+
+
+def test_spawn_without_a_display_warns_and_keeps_the_recording(view_scene, runner, tmp_path, monkeypatch):
+    root, _ = view_scene
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    out = tmp_path / "s.rrd"
+    result = invoke(runner, "view", root / "gt", "--out", out, "--spawn", "--quiet")
+    assert result.exit_code == 0 and out.is_file()
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("warning: --spawn")]
+    assert len(warnings) == 1 and warnings[0].endswith(f" {out}") and "open the recording where there is one" in warnings[0]

@@ -32,10 +32,20 @@ echo "== 5. render the before/after figure (rows: prediction, aligned, ground tr
 "$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --ghost gt --frames 0 \
   --size 480 270 --out "$out/figure"
 
+echo "== 6. a 3D recording over time: the same rows in one world, the camera and its uncertainty (Rerun, rotavat[view])"
+if "$(dirname "$rotavat")/python" -c "import rerun" 2>/dev/null; then
+  "$rotavat" view "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --camera "$out/camera.yaml" --out "$out/view.rrd"
+  view_line="  view.rrd             the 3D recording: open it with  $(dirname "$rotavat")/rerun $out/view.rrd"
+else
+  view_line="  (no view.rrd: the Rerun SDK is not installed; pip install 'rotavat[view]')"
+  echo "$view_line"
+fi
+
 echo
 echo "outputs in $out/:"
 echo "  camera.yaml          the estimated camera"
 echo "  pred_aligned/        aligned meshes (npz), camera.yaml, people.csv"
 echo "  eval/metrics.md      before/after metrics (also metrics.json)"
 echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth (errors in the row captions)"
+echo "$view_line"
 exit 0

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
+from ..outputs import imported_output
 from .camera_choice import CALIBRATED, AlignCamera
 
 __all__ = ["IMPLAUSIBLE", "ACCEPTED", "ACCEPT_FLAG", "CAMERA_DOC", "KNOWN_FLAGS", "ImplausibleCameraError", "Remedies",
@@ -124,7 +125,7 @@ def align_remedies(seq: str | Path, out: str | Path | None = None, reader_flags:
     extra = (*reader_flags, *(("--config", config) if config else ()))
     align = _join("rotavat", "align", seq, *extra, *(("--out", out) if out else ()))
     if reader_flags:  # an HPS tool's output: calibrate needs --out, and align reads that file
-        camera_file = Path(str(seq).rstrip("/\\") + "_camera.yaml")
+        camera_file = imported_output(seq, "_camera.yaml")
         calibrate = _join("rotavat", "calibrate", seq, *extra, "--out", camera_file)
         then = f"then {align} --camera {shlex.quote(str(camera_file))}"
     else:
@@ -143,7 +144,7 @@ def render_remedies(seq: str | Path, own: bool, aligned: bool = False, reader_fl
     if reader_flags:
         if own:  # the camera its format carried: nothing given on the command line replaces it
             return Remedies("", "", "", accept)
-        camera_file = Path(str(seq).rstrip("/\\") + "_camera.yaml")
+        camera_file = imported_output(seq, "_camera.yaml")
         return Remedies(_join("rotavat", "calibrate", seq, *reader_flags, "--out", camera_file),
                         f"then {command} with --camera {shlex.quote(str(camera_file))}",
                         f"{command} --camera FILE (a camera.yaml you wrote: {CAMERA_DOC})", accept)

@@ -13,11 +13,11 @@ from rich.markup import escape
 from ..alignment.camera_gate import reader_flags
 from ..atomic import staged_directory
 from ..errors import input_errors
-from ..outputs import beside, check_output_dir
+from ..outputs import check_output_dir
 from ..render.views import FITS, VIEWS
 from ..render.sequences import GHOSTS, SCALES, FigureOptions, figure_steps, render_sequences
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
-                      input_sequence, print_json, progress_bar, progress_enabled, report, warn)
+                      default_output, input_sequence, print_json, progress_bar, progress_enabled, report, warn)
 
 
 def render(
@@ -27,7 +27,7 @@ def render(
     every: Annotated[int | None, typer.Option(help="Render every N-th frame instead.", min=1)] = None,
     views: Annotated[str | None, typer.Option(help=f"Columns, comma-separated: {', '.join(VIEWS)}.")] = None,
     image: Annotated[Path | None, typer.Option(help="Folder of video frames (matched by frame name) under the front view.", file_okay=False, exists=True)] = None,
-    out: Annotated[Path | None, typer.Option(help="Output folder; default <first SEQ>_render beside it.", file_okay=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Output folder; default <first SEQ>_render beside it (with --from: in the current folder).", file_okay=False)] = None,
     size: Annotated[tuple[int, int] | None, typer.Option(help="One panel's width and height (px).")] = None,
     renderer: Annotated[str | None, typer.Option(help="auto (OpenGL via EGL, else fallback) | gl | fallback (numpy).")] = None,
     fit: Annotated[str | None, typer.Option(help=f"Frame the views on: {' | '.join(FITS)} (camera: the whole image, and the camera inside the side and top views).")] = None,
@@ -55,7 +55,7 @@ def render(
         options = FigureOptions.from_config(opts, camera, image)
     options = dataclasses.replace(options, accept_camera=accept_camera,
                                   reader_flags=reader_flags(from_, image_size, smpl_model))
-    out = out or beside(seqs[0], "_render")
+    out = out or default_output(seqs[0], "_render", from_)
     check_output_dir(out, [*seqs, *([camera] if camera else []), *([image] if image else [])], force)
     with contextlib.ExitStack() as inputs:
         sequences = [inputs.enter_context(input_sequence(path, from_ if i == 0 else None, image_size, smpl_model,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -69,13 +70,19 @@ def view(
         return
     report(f"recorded {count(summary.frames, 'frame')} x {count(len(summary.rows), 'row')} "
            f"({count(summary.people, 'person-frame')}) in {summary.seconds:.2f} s: {summary.camera}", quiet)
-    report(f"wrote {summary.out} ({summary.bytes / 1e6:.1f} MB); open it with: rerun {summary.out}", quiet)
+    viewer = _viewer()
+    report(f"wrote {summary.out} ({summary.bytes / 1e6:.1f} MB); open it with: {shlex.quote(viewer or 'rerun')} "
+           f"{shlex.quote(summary.out)}", quiet)
 
 
 def _viewer() -> str | None:
-    """The Rerun viewer's executable: ``rerun`` beside this Python (the SDK's wheel installs it), else on PATH."""
+    """How to start the Rerun viewer, as typed: ``rerun`` when that is on PATH and is the one beside this Python
+    (the SDK's wheel installs it there), else that one's full path, else any ``rerun`` on PATH."""
     beside = Path(sys.executable).with_name("rerun")
-    return str(beside) if beside.is_file() and os.access(beside, os.X_OK) else shutil.which("rerun")
+    on_path = shutil.which("rerun")
+    if beside.is_file() and os.access(beside, os.X_OK):
+        return "rerun" if on_path and Path(on_path).resolve() == beside.resolve() else str(beside)
+    return on_path
 
 
 def _spawn_viewer(recording: Path, quiet: bool) -> None:
@@ -85,8 +92,8 @@ def _spawn_viewer(recording: Path, quiet: bool) -> None:
         warn(f"--spawn: no Rerun viewer found ({RERUN_INSTALL} installs it); open the recording later with: rerun {recording}")
         return
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        warn(f"--spawn: no display to open the viewer on; open the recording where there is one: rerun {recording}")
+        warn(f"--spawn: no display to open the viewer on; open the recording where there is one: {viewer} {recording}")
         return
-    subprocess.Popen([viewer, str(recording)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+    subprocess.Popen([shutil.which(viewer) or viewer, str(recording)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                      stderr=subprocess.DEVNULL, start_new_session=True)
     report(f"opened {recording} in the Rerun viewer", quiet)

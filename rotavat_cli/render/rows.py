@@ -24,6 +24,7 @@ from PIL import Image, UnidentifiedImageError
 
 from ..camera import Camera, reexpress_cam
 from ..errors import InputError, input_errors
+from ..outputs import imported_output
 from ..sequence import Frame, Sequence, read_camera_yaml
 from .skeleton import layout_name
 from .views import RowFrame
@@ -114,19 +115,20 @@ def no_camera(seq: Sequence, what: str, reader_flags: tuple[str, ...] = (), rows
     """The error for a view that needs a camera the sequence does not have, naming commands that run as
     written. A folder: ``rotavat calibrate SEQ`` writes its camera.yaml. An HPS tool's output read with
     ``--from`` (``reader_flags``: ``--from FMT [--image-size W H] [--smpl-model FILE]``, as given): calibrate
-    it with the same flags into ``<SEQ>_camera.yaml``, then render (or another ``command``: ``view``) the ``rows``
+    it with the same flags into ``<name>_camera.yaml`` in the current folder (never into the user's data folder:
+    :func:`rotavat_cli.outputs.imported_output`), then render (or another ``command``: ``view``) the ``rows``
     (every SEQ, as given) with ``--camera`` that file.
 
     >>> print(no_camera(Sequence(Path("bev/a.npz"), "npz", ("a",), origin="bev/a.npz"), "side views",
     ...                 ("--from", "bev"), ("bev/a.npz", "b")))
-    bev/a.npz: no camera for the side views: run `rotavat calibrate bev/a.npz --from bev --out bev/a.npz_camera.yaml`, \
-then `rotavat render bev/a.npz b --from bev --camera bev/a.npz_camera.yaml` (your other options as before), or pass \
+    bev/a.npz: no camera for the side views: run `rotavat calibrate bev/a.npz --from bev --out a_camera.yaml`, \
+then `rotavat render bev/a.npz b --from bev --camera a_camera.yaml` (your other options as before), or pass \
 --camera FILE (a camera.yaml you wrote)
     """
     if seq.origin is None or not reader_flags:
         return InputError(f"{seq.path}: no camera.yaml for the {what}: run `{_join('rotavat', 'calibrate', seq.path)}` "
                           "or pass --camera camera.yaml")
-    camera_file = str(seq.label).rstrip("/\\") + "_camera.yaml"
+    camera_file = imported_output(seq.label, "_camera.yaml")
     calibrate = _join("rotavat", "calibrate", seq.label, *reader_flags, "--out", camera_file)
     render = _join("rotavat", command, *(rows or (seq.label,)), *reader_flags, "--camera", camera_file)
     return InputError(f"{seq.label}: no camera for the {what}: run `{calibrate}`, then `{render}` (your other options "

@@ -64,7 +64,7 @@ W_MPJPE_SERIES = ("w_mpjpe_mm", "W-MPJPE", "mm")  # with a ground truth: per gro
 _SERIES = tuple((key, title, unit) for key, title, unit, *_ in TRACK_SERIES) + (W_MPJPE_SERIES,)
 _FLAG_RGB = (0.85, 0.1, 0.1)  # a flagged person's label
 _LABEL_RADIUS_M = 0.03
-_UNCERTAINTY_ALPHA = 12  # of 255: the ±1 std grounds
+_UNCERTAINTY_ALPHA = 6  # of 255: the ±1 std grounds
 _OWN_GROUND_ALPHA = 70  # a row's own (true) ground
 _TRACK_RADIUS_M = 0.015
 
@@ -302,7 +302,8 @@ def _blueprint(rr: Any, with_gt: bool, eye: tuple[np.ndarray, np.ndarray]) -> An
     rrb = rr.blueprint
     keys = [k for k, *_ in _SERIES if with_gt or k != W_MPJPE_SERIES[0]]
     titles = {k: f"{title} ({unit})" for k, title, unit in _SERIES}
-    plots = [rrb.TimeSeriesView(origin=f"plots/{k}", name=titles[k]) for k in keys]
+    plots = [rrb.TimeSeriesView(origin=f"plots/{k}", name=titles[k], plot_legend=rrb.PlotLegend(visible=False))
+             for k in keys]  # a crowd's legend would cover its plot; hovering a line names it
     scene = rrb.Spatial3DView(origin=WORLD, name="scene (world metres, Y up)", line_grid=False,
                               eye_controls=rrb.EyeControls3D(position=eye[0], look_target=eye[1]))
     return rrb.Blueprint(rrb.Horizontal(scene, rrb.Vertical(*plots), column_shares=[3, 1]),
