@@ -16,7 +16,8 @@ from ..metrics.evaluate import MATCHES
 from ..option_rules import Rule, check_fields
 from ..plain import to_plain
 from ..render.sequences import FigureOptions
-from ..view.recording import ViewOptions, require_rerun
+from ..view.recording import ViewOptions
+from ..view.writer import require_rerun
 from ..yaml_io import read_yaml
 from .discover import discover_sequences, fingerprint, frames_hint
 

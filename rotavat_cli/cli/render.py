@@ -24,7 +24,7 @@ def render(
     seqs: Annotated[list[Path], typer.Argument(help="Sequence directories: one grid row each (e.g. pred/ pred_aligned/); with --from the first is the HPS tool's output.")],
     camera: Annotated[Path | None, typer.Option(help="camera.yaml for the rows without one of their own (each SEQ/camera.yaml wins: the ground truth in its true camera, an aligned output in its own).", dir_okay=False)] = None,
     frames: Annotated[str | None, typer.Option(help="Frame indices, comma-separated (e.g. 0,10,-1); default the first.")] = None,
-    every: Annotated[int | None, typer.Option(help="Render every N-th frame instead.", min=1)] = None,
+    every: Annotated[int | None, typer.Option(help="Render every N-th frame instead.")] = None,
     views: Annotated[str | None, typer.Option(help=f"Columns, comma-separated: {', '.join(VIEWS)}.")] = None,
     image: Annotated[Path | None, typer.Option(help="Folder of video frames (matched by frame name) under the front view.", file_okay=False, exists=True)] = None,
     out: Annotated[Path | None, typer.Option(help="Output folder; default <first SEQ>_render beside it (with --from: in the current folder).", file_okay=False)] = None,

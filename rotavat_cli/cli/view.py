@@ -18,7 +18,8 @@ from rich.markup import escape
 from ..alignment.camera_gate import reader_flags
 from ..errors import InputError, input_errors
 from ..outputs import check_output_file
-from ..view.recording import RERUN_INSTALL, ViewOptions, record_sequences, require_rerun, view_steps
+from ..view.recording import ViewOptions, record_sequences, view_steps
+from ..view.writer import RERUN_INSTALL, require_rerun
 from ..words import count
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,
                       default_output, input_sequence, print_json, progress_bar, progress_enabled, report, warn)
@@ -31,7 +32,7 @@ def view(
     camera: Annotated[Path | None, typer.Option(help="The scene camera's camera.yaml; default the first SEQ's own, else the ground truth's.", dir_okay=False)] = None,
     image: Annotated[Path | None, typer.Option(help="Folder of video frames (matched by frame name), shown under the camera.", file_okay=False, exists=True)] = None,
     frames: Annotated[str | None, typer.Option(help="Frame indices, comma-separated (e.g. 0,10,-1); default every frame.")] = None,
-    every: Annotated[int | None, typer.Option(help="Record every N-th frame instead.", min=1)] = None,
+    every: Annotated[int | None, typer.Option(help="Record every N-th frame instead.")] = None,
     spawn: Annotated[bool, typer.Option("--spawn", help="Open the recording in the Rerun viewer once written (needs a display).")] = False,
     accept_camera: Annotated[bool, typer.Option("--accept-camera", help="Use the scene camera even if its calibration found it implausible; a warning names the findings.")] = False,
     force: ForceOpt = False,

@@ -4,8 +4,10 @@ Modules (docs/render.md, "rotavat view"):
 
 - :mod:`.scene`: what the recording shows besides the people, in world metres (ground grid and ticks,
   other grounds as planes, the camera's label, track paths); pure numpy;
-- :mod:`.recording`: :func:`record_sequences` (what ``rotavat view`` runs), its options, and the one module
-  that imports Rerun (the optional extra ``rotavat[view]``: :func:`require_rerun`).
+- :mod:`.recording`: :func:`record_sequences` (what ``rotavat view`` runs) and its options: the scene camera,
+  the frames streamed one at a time, what is kept for the end (tracks' paths and series);
+- :mod:`.writer`: the Rerun calls (:class:`RecordingWriter`), the viewer's layout, and the one import of Rerun
+  (the optional extra ``rotavat[view]``: :func:`require_rerun`).
 """
 
 from ..lazy import public_names
@@ -17,6 +19,7 @@ _PUBLIC = {
         "ground_extent_m", "label_anchors_world", "plane_quad_world", "track_strips", "uncertainty_cameras",
         "world_points_f32"
     ),
-    ".recording": ("RERUN_INSTALL", "ViewOptions", "ViewSummary", "record_sequences", "require_rerun", "view_steps"),
+    ".recording": ("ViewOptions", "ViewSummary", "record_sequences", "view_steps"),
+    ".writer": ("RERUN_INSTALL", "SERIES", "WORLD", "RecordingWriter", "blueprint", "require_rerun"),
 }
 __getattr__, __dir__, __all__ = public_names(__name__, _PUBLIC)

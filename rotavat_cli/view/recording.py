@@ -30,10 +30,12 @@ import math
 import os
 import time
 import uuid
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
@@ -46,36 +48,20 @@ from ..metrics.evaluate import EvalOptions, evaluate
 from ..option_rules import Rule, check_fields
 from ..outputs import RRD_APPLICATION_ID
 from ..render.rows import frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels, select_frames
-from ..render.skeleton import BONE_RADIUS_M, JOINT_RADIUS_M, POINT_RADIUS_M, layout_bones
-from ..render.style import RGB, RenderStyle, person_colors, rgb8, vertex_normals
-from ..render.tracks import TRACK_SERIES, frame_track_values
+from ..render.style import RenderStyle, person_colors, vertex_normals
+from ..render.tracks import frame_track_values
 from ..render.views import RowFrame
-from ..sequence import Frame, Sequence, read_camera_yaml
+from ..sequence import Sequence, read_camera_yaml
 from ..version import __version__
-from .scene import (camera_label, grid_lines_world, grid_step_m, grid_ticks_world, ground_extent_m, label_anchors_world,
-                    plane_quad_world, track_strips, uncertainty_cameras, world_points_f32, eye_world)
+from .scene import (camera_label, eye_world, ground_extent_m, label_anchors_world, plane_quad_world, track_strips,
+                    uncertainty_cameras, world_points_f32)
+from .writer import SERIES, W_MPJPE_SERIES, WORLD, RecordingWriter, blueprint, require_rerun
 
-__all__ = ["RERUN_INSTALL", "ViewOptions", "ViewSummary", "require_rerun", "record_sequences",
-           "view_steps"]
+__all__ = ["ViewOptions", "ViewSummary", "record_sequences", "view_steps"]
 
-RERUN_INSTALL = "pip install 'rotavat[view]'"  # the extra that brings the Rerun SDK (and its viewer)
-WORLD = "world"
-W_MPJPE_SERIES = ("w_mpjpe_mm", "W-MPJPE", "mm")  # with a ground truth: per ground-truth person
-_SERIES = tuple((key, title, unit) for key, title, unit, *_ in TRACK_SERIES) + (W_MPJPE_SERIES,)
-_FLAG_RGB = (0.85, 0.1, 0.1)  # a flagged person's label
-_LABEL_RADIUS_M = 0.03
-_UNCERTAINTY_ALPHA = 6  # of 255: the ±1 std grounds
-_OWN_GROUND_ALPHA = 70  # a row's own (true) ground
-_TRACK_RADIUS_M = 0.015
-
-
-def require_rerun() -> Any:
-    """The ``rerun`` module; InputError (exit 2) saying how to install it when it is missing."""
-    try:
-        import rerun  # lazy: optional extra rotavat[view]
-    except ImportError:
-        raise InputError(f"rotavat view needs the Rerun SDK, which is not installed: {RERUN_INSTALL}") from None
-    return rerun
+UNCERTAINTY_ALPHA = 6  # of 255: the grounds at ±1 std of the camera's height and pitch
+OWN_GROUND_ALPHA = 70  # of 255: a row's own (true) ground
+_AHEAD = 2  # frames prepared ahead, one thread each (the machine's two cores, or more, are kept busy)
 
 
 @functools.lru_cache(maxsize=1)
@@ -200,117 +186,6 @@ class _RowState:
             self.series.setdefault(key, {}).setdefault(pid, []).append((index, value))
 
 
-class _Writer:
-    """The Rerun calls: one method per kind of thing logged. Holds the recording stream and the style."""
-
-    def __init__(self, rr: Any, rec: Any, style: RenderStyle, normals: bool) -> None:
-        self.rr, self.rec, self.style, self.normals = rr, rec, style, normals
-
-    def set_frame(self, index: int, fps: float | None) -> None:
-        """Every log call until the next one belongs to frame ``index`` (and second ``index / fps``)."""
-        self.rec.set_time("frame", sequence=index)
-        if fps:
-            self.rec.set_time("time", duration=index / fps)
-
-    def scene(self, camera: Camera, label: str, image_plane_m: float) -> None:
-        """The world's axes and the camera: its pose (world from camera), its label, its pinhole."""
-        rr = self.rr
-        self.rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Y_UP, static=True)
-        self.rec.log(f"{WORLD}/camera", rr.Transform3D(translation=camera.center_world, mat3x3=camera.R_cam_from_world.T),
-                     static=True)
-        self.rec.log(f"{WORLD}/camera", rr.Points3D([[0.0, 0.0, 0.0]], labels=[label], colors=[rgb8(self.style.camera)],
-                                                   radii=0.05, show_labels=True), static=True)
-        self.rec.log(f"{WORLD}/camera/image", rr.Pinhole(image_from_camera=camera.K, resolution=list(camera.image_size),
-                                                         camera_xyz=rr.ViewCoordinates.RDF,
-                                                         image_plane_distance=image_plane_m,
-                                                         color=rgb8(self.style.camera)), static=True)
-
-    def image(self, path: Path) -> None:
-        """This frame's video frame under the camera (the file's bytes: JPEG or PNG, never decoded here)."""
-        self.rec.log(f"{WORLD}/camera/image", self.rr.EncodedImage(path=path))
-
-    def person(self, base: str, row: RowFrame, points_world: np.ndarray, normals: np.ndarray | None, color: RGB,
-               first: bool) -> None:
-        """One person of a row: mesh (with its (V, 3) ``normals``, or None), point cloud or skeleton by the row's kind."""
-        rr, rec, rgb = self.rr, self.rec, rgb8(color)
-        kind = row.kind
-        if kind == "mesh":
-            if first:  # the faces and colour of a track do not change: logged once, for every frame
-                rec.log(f"{base}/mesh", rr.Mesh3D.from_fields(triangle_indices=np.asarray(row.faces, dtype=np.uint32),
-                                                              albedo_factor=rgb), static=True)
-            rec.log(f"{base}/mesh", rr.Mesh3D.from_fields(vertex_positions=np.asarray(points_world, dtype=np.float32),
-                                                          vertex_normals=normals))
-        elif kind == "points":
-            rec.log(f"{base}/points", rr.Points3D(np.asarray(points_world, dtype=np.float32), colors=[rgb], radii=POINT_RADIUS_M))
-        elif kind == "skeleton":
-            bones = layout_bones(row.joints_layout)
-            if bones:
-                pairs = points_world[np.asarray(bones, dtype=np.int64)].astype(np.float32)  # (B, 2, 3)
-                rec.log(f"{base}/skeleton", rr.LineStrips3D(pairs, colors=[rgb], radii=BONE_RADIUS_M))
-            rec.log(f"{base}/joints", rr.Points3D(np.asarray(points_world, dtype=np.float32), colors=[rgb], radii=JOINT_RADIUS_M))
-
-    def labels(self, path: str, anchors: np.ndarray, texts: list[str], colors: np.ndarray) -> None:
-        """A row's labels, one above each person (P, 3): its id, a flagged person's with its flag (and in red)."""
-        radii = np.where([" " in t for t in texts], 2 * _LABEL_RADIUS_M, _LABEL_RADIUS_M)
-        self.rec.log(path, self.rr.Points3D(anchors.astype(np.float32), labels=texts, colors=colors, radii=radii,
-                                            show_labels=True))
-
-    def clear(self, base: str) -> None:
-        """A person no longer in the frame: nothing of it is drawn from now on (until it is logged again)."""
-        self.rec.log(base, self.rr.Clear(recursive=True))
-
-    def ground(self, lo: np.ndarray, hi: np.ndarray) -> None:
-        """The ground grid (static) and its metre ticks."""
-        rr = self.rr
-        step = grid_step_m(lo, hi)
-        self.rec.log(f"{WORLD}/ground", rr.LineStrips3D(grid_lines_world(lo, hi, step).astype(np.float32),
-                                                        colors=[rgb8(self.style.grid)], radii=0.005), static=True)
-        points, labels = grid_ticks_world(lo, hi, step)
-        self.rec.log(f"{WORLD}/ground/ticks", rr.Points3D(points.astype(np.float32), labels=labels, radii=0.02,
-                                                          colors=[rgb8(self.style.grid)], show_labels=True), static=True)
-
-    def plane(self, path: str, corners: np.ndarray, color: RGB, alpha: int) -> None:
-        """A faint quad (static): another ground over the grid's rectangle."""
-        quad = corners.astype(np.float32)
-        self.rec.log(path, self.rr.Mesh3D(vertex_positions=quad, triangle_indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
-                                          albedo_factor=[*rgb8(color), alpha]), static=True)
-        outline = np.concatenate([quad, quad[:1]])
-        self.rec.log(f"{path}/outline", self.rr.LineStrips3D([outline], colors=[[*rgb8(color), 160]], radii=0.006),
-                     static=True)
-
-    def track(self, path: str, strips: list[np.ndarray], color: RGB) -> None:
-        """A track's path on the ground (static)."""
-        if strips:
-            self.rec.log(path, self.rr.LineStrips3D([s.astype(np.float32) for s in strips], colors=[rgb8(color)],
-                                                    radii=_TRACK_RADIUS_M), static=True)
-
-    def series(self, path: str, name: str, color: RGB, points: list[tuple[int, float]], fps: float | None) -> None:
-        """One time series at once (its style static, its values as columns on the frame timeline)."""
-        rr = self.rr
-        index = np.array([i for i, _ in points], dtype=np.int64)
-        values = np.array([v for _, v in points], dtype=np.float64)
-        self.rec.log(path, rr.SeriesLines(colors=[rgb8(color)], names=[name], widths=[1.5]), static=True)
-        indexes = [rr.TimeColumn("frame", sequence=index)]
-        if fps:
-            indexes.append(rr.TimeColumn("time", duration=index / fps))
-        self.rec.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
-
-
-def _blueprint(rr: Any, with_gt: bool, eye: tuple[np.ndarray, np.ndarray]) -> Any:
-    """The viewer's layout: the 3D scene seen from ``eye`` (position, target), one time-series panel per series,
-    the timeline open and the other panels folded away."""
-    rrb = rr.blueprint
-    keys = [k for k, *_ in _SERIES if with_gt or k != W_MPJPE_SERIES[0]]
-    titles = {k: f"{title} ({unit})" for k, title, unit in _SERIES}
-    plots = [rrb.TimeSeriesView(origin=f"plots/{k}", name=titles[k], plot_legend=rrb.PlotLegend(visible=False))
-             for k in keys]  # a crowd's legend would cover its plot; hovering a line names it
-    scene = rrb.Spatial3DView(origin=WORLD, name="scene (world metres, Y up)", line_grid=False,
-                              eye_controls=rrb.EyeControls3D(position=eye[0], look_target=eye[1]))
-    return rrb.Blueprint(rrb.Horizontal(scene, rrb.Vertical(*plots), column_shares=[3, 1]),
-                         rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                         rrb.TimePanel(state="expanded"))
-
-
 def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None, opts: ViewOptions | None = None,
                      progress: Callable[[], None] | None = None, labels: list[str] | None = None) -> ViewSummary:
     """Write one Rerun recording of ``seqs`` (and the ground truth ``gt``) to ``out``, atomically: the whole
@@ -350,41 +225,93 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
             rec.set_log_time_enabled(False)  # no wall-clock column: the same inputs give the same data
             rec.save(tmp)
             rec.send_recording_name(f"rotavat {__version__}: {', '.join(labels)}")
-            writer = _Writer(rr, rec, opts.style, opts.normals)
+            writer = RecordingWriter(rr, rec, opts.style)
             writer.scene(camera, label, opts.image_plane_m)
-            for name in names:
+            for name, (image, ready) in zip(names, _prepared_frames(names, states, camera, opts)):
                 index = index_of[name]
                 writer.set_frame(index, fps)
-                if opts.image_dir is not None:
-                    writer.image(frame_image_path(opts.image_dir, name))
-                for i, state in enumerate(states):
-                    _record_row_frame(writer, state, name, index, camera, lo_hi, w_mpjpe.get(i, {}))
+                if image is not None:
+                    writer.image(image)
+                for i, (state, row) in enumerate(zip(states, ready)):
+                    _record_row_frame(writer, state, row, name, index, lo_hi, w_mpjpe.get(i, {}))
                 if progress:
                     progress()
             rec.reset_time()
             _record_statics(writer, states, camera, fit.get("std") if isinstance(fit.get("std"), dict) else None,
                             lo_hi, fps, opts.style)
-            rec.send_blueprint(_blueprint(rr, gt is not None, eye_world(_footprints_xz(states))))
+            rec.send_blueprint(blueprint(rr, gt is not None, eye_world(_footprints_xz(states))))
             rec.flush()
         finally:
             rec.disconnect()
     seconds = time.perf_counter() - start
-    entities = [f"{WORLD}/{s.path}" for s in states] + [f"plots/{k}" for k, *_ in _SERIES if gt is not None or
+    entities = [f"{WORLD}/{s.path}" for s in states] + [f"plots/{k}" for k, *_ in SERIES if gt is not None or
                                                          k != W_MPJPE_SERIES[0]]
     return ViewSummary(str(out), labels, labels[-1] if gt is not None else None, len(names),
                        sum(s.people for s in states), label, os.path.getsize(out), seconds, entities, warnings, notes)
 
 
-def _record_row_frame(writer: _Writer, state: _RowState, name: str, index: int, camera: Camera,
-                      lo_hi: list[np.ndarray], w_mpjpe: dict[str, dict[int, float]]) -> None:
-    """One row in frame ``name``: its people drawn and labelled, their track values kept, the people gone
-    since the previous frame cleared (all of them when the row has no such frame)."""
+@dataclass
+class _Ready:
+    """One row's frame made ready to log (on the worker thread): its people in world metres, float32."""
+
+    row: RowFrame
+    points_world: np.ndarray  # (P, N, 3): what each person is drawn from (vertices, else joints)
+    normals: np.ndarray | None  # (P, V, 3) unit vertex normals of meshes, or None
+    colors: np.ndarray  # (P, 3) RGB in [0, 1]
+    anchors: np.ndarray  # (P, 3) where each label goes (NaN: nowhere)
+    texts: list[str]  # (P,) each label: the id, and a flagged person's flag
+    flagged: np.ndarray  # (P,) bool: align flagged the person (people.csv)
+    track: tuple[dict[str, np.ndarray], np.ndarray] | None  # the frame's track values {key: (P,)}, mid-soles (P, 3) world
+
+
+def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera,
+                     opts: ViewOptions) -> Iterator[tuple[Path | None, list[_Ready | None]]]:
+    """Per frame name, in order: its video frame's file (``--image``) and each row's :class:`_Ready` (None where
+    the row has no such frame). The next :data:`_AHEAD` frames are prepared on as many threads while the caller
+    logs the current one (reading, placing and the normals are numpy work that releases the GIL, and overlaps
+    Rerun's encoding): at most ``_AHEAD + 1`` frames are held at a time, whatever the sequence's length."""
+    def prepare(name: str) -> tuple[Path | None, list[_Ready | None]]:
+        image = frame_image_path(opts.image_dir, name) if opts.image_dir is not None else None
+        return image, [_prepare(state, name, camera, opts) for state in states]
+
+    with ThreadPoolExecutor(max_workers=_AHEAD, thread_name_prefix="rotavat-view") as pool:
+        ahead = deque(pool.submit(prepare, name) for name in names[:_AHEAD])
+        for k in range(len(names)):
+            ready = ahead.popleft().result()
+            if k + _AHEAD < len(names):
+                ahead.append(pool.submit(prepare, names[k + _AHEAD]))
+            yield ready
+
+
+def _prepare(state: _RowState, name: str, camera: Camera, opts: ViewOptions) -> _Ready | None:
+    """Row ``state``'s frame ``name`` in ``camera``'s world, or None when the row has no such frame. Pure
+    computation: nothing of ``state`` changes (it runs on the worker thread)."""
     seq = state.seq
+    if name not in seq.frame_names:
+        return None
+    frame = seq.read_frame(name)
+    row = read_row(seq, name, state.label, camera, None, state.flags, frame)
+    P = len(row.person_ids)
+    drawn = row.verts_cam if row.kind in ("mesh", "points") else row.joints_cam if row.kind == "skeleton" else None
+    points_world = world_points_f32(camera, drawn) if P and drawn is not None else np.zeros((P, 0, 3), np.float32)
+    normals = vertex_normals(points_world, row.faces) if opts.normals and row.kind == "mesh" and P else None
+    flags = row.flags or ("",) * P
+    texts = [f"{pid} {flag}" if flag else str(pid) for pid, flag in zip(row.person_ids, flags)]
+    got = frame_track_values(seq, frame, camera)
+    track = None if got is None else (got[0], camera.world_from_cam(got[1]))
+    return _Ready(row, points_world, normals, person_colors(row.person_ids, opts.style.palette).reshape(P, 3),
+                  label_anchors_world(points_world), texts, np.array([bool(f) for f in flags], dtype=bool).reshape(P), track)
+
+
+def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready | None, name: str, index: int,
+                      lo_hi: list[np.ndarray], w_mpjpe: dict[str, dict[int, float]]) -> None:
+    """One row in frame ``name`` (``ready``: :func:`_prepare`'s, None when the row has no such frame): its people
+    drawn and labelled, their track values kept, the people gone since the previous frame cleared."""
     people: set[int] = set()
-    if name in seq.frame_names:
-        frame = seq.read_frame(name)
-        people = _draw_people(writer, state, read_row(seq, name, state.label, camera, None, state.flags, frame), camera)
-        _keep_track_values(state, seq, frame, index, camera, lo_hi)
+    if ready is not None:
+        people = _draw_people(writer, state, ready)
+        if ready.track is not None:
+            _keep_track_values(state, ready.row.person_ids, *ready.track, index, lo_hi)
         for pid, value in w_mpjpe.get(name, {}).items():
             state.add(W_MPJPE_SERIES[0], pid, index, value)
     elif state.shown:
@@ -395,38 +322,24 @@ def _record_row_frame(writer: _Writer, state: _RowState, name: str, index: int, 
     state.people += len(people)
 
 
-def _draw_people(writer: _Writer, state: _RowState, row: RowFrame, camera: Camera) -> set[int]:
-    """A row frame's people, in ``camera``'s world, and their labels; returns their ids."""
-    P = len(row.person_ids)
-    drawn = row.verts_cam if row.kind in ("mesh", "points") else row.joints_cam if row.kind == "skeleton" else None
-    points_world = world_points_f32(camera, drawn) if P and drawn is not None else np.zeros((P, 0, 3), np.float32)
-    normals = vertex_normals(points_world, row.faces) if writer.normals and row.kind == "mesh" and P else None
-    colors = person_colors(row.person_ids, writer.style.palette)
+def _draw_people(writer: RecordingWriter, state: _RowState, ready: _Ready) -> set[int]:
+    """A row frame's people and their labels (a flagged person's in red); returns their ids."""
+    row = ready.row
     for p, pid in enumerate(int(v) for v in row.person_ids):
-        writer.person(f"{WORLD}/{state.path}/people/{pid}", row, points_world[p], None if normals is None else normals[p],
-                      tuple(colors[p]), pid not in state.static_done)
+        writer.person(f"{WORLD}/{state.path}/people/{pid}", row, ready.points_world[p],
+                      None if ready.normals is None else ready.normals[p], tuple(ready.colors[p]), pid not in state.static_done)
         state.static_done.add(pid)
-    flags = row.flags or ("",) * P
-    anchors = label_anchors_world(points_world)
-    placed = np.isfinite(anchors).all(axis=1)
-    flagged = np.array([bool(f) for f in flags], dtype=bool).reshape(P)
-    label_rgb = np.where(flagged[:, None], _FLAG_RGB, colors.reshape(P, 3))
-    texts = [f"{pid} {flag}" if flag else str(pid) for pid, flag in zip(row.person_ids, flags)]
-    writer.labels(f"{WORLD}/{state.path}/labels", anchors[placed], [t for t, ok in zip(texts, placed) if ok],
-                  np.round(255 * label_rgb[placed]).astype(np.uint8))
+    placed = np.isfinite(ready.anchors).all(axis=1)
+    writer.labels(f"{WORLD}/{state.path}/labels", ready.anchors[placed], [t for t, ok in zip(ready.texts, placed) if ok],
+                  ready.colors[placed], ready.flagged[placed])
     return {int(v) for v in row.person_ids}
 
 
-def _keep_track_values(state: _RowState, seq: Sequence, frame: Frame, index: int, camera: Camera,
-                       lo_hi: list[np.ndarray]) -> None:
+def _keep_track_values(state: _RowState, person_ids: np.ndarray, values: dict[str, np.ndarray], feet_world: np.ndarray,
+                       index: int, lo_hi: list[np.ndarray]) -> None:
     """A frame's foot height, lean and stature per track, and its mid-soles on the ground (the tracks' paths;
     ``lo_hi``: the x, z range they span so far, grown in place)."""
-    got = frame_track_values(seq, frame, camera)
-    if got is None:
-        return
-    values, feet_cam, _ = got
-    feet_world = camera.world_from_cam(feet_cam)
-    for p, pid in enumerate(int(v) for v in frame.person_ids):
+    for p, pid in enumerate(int(v) for v in person_ids):
         for key, column in values.items():
             state.add(key, pid, index, float(column[p]))
         if np.isfinite(feet_world[p]).all():
@@ -437,7 +350,7 @@ def _keep_track_values(state: _RowState, seq: Sequence, frame: Frame, index: int
         lo_hi[1] = np.maximum(lo_hi[1], placed.max(axis=0))
 
 
-def _record_statics(writer: _Writer, states: list[_RowState], camera: Camera, std: dict | None,
+def _record_statics(writer: RecordingWriter, states: list[_RowState], camera: Camera, std: dict | None,
                     lo_hi: list[np.ndarray], fps: float | None, style: RenderStyle) -> None:
     """What is known once every frame is seen: the ground grid over everyone, the grounds one std away
     (``std``: the camera's ``fit.std``), the rows' own grounds, the tracks' paths on the ground, the time series."""
@@ -447,13 +360,13 @@ def _record_statics(writer: _Writer, states: list[_RowState], camera: Camera, st
     for name, other in uncertainty_cameras(camera, std).items():
         corners = plane_quad_world(other, camera, near_lo, near_hi)
         if corners is not None:
-            writer.plane(f"{WORLD}/ground/uncertainty/{name}", corners, style.camera, _UNCERTAINTY_ALPHA)
+            writer.plane(f"{WORLD}/ground/uncertainty/{name}", corners, style.camera, UNCERTAINTY_ALPHA)
     for state in states:
         own = state.seq.camera
         if own is not None and own != camera:
             corners = plane_quad_world(own, camera, lo, hi)
             if corners is not None:
-                writer.plane(f"{WORLD}/{state.path}/ground", corners, style.ground, _OWN_GROUND_ALPHA)
+                writer.plane(f"{WORLD}/{state.path}/ground", corners, style.ground, OWN_GROUND_ALPHA)
         ids = sorted(set(state.footprints) | {pid for series in state.series.values() for pid in series})
         colors = dict(zip(ids, person_colors(np.asarray(ids, dtype=np.int64), style.palette))) if ids else {}
         for pid, steps in state.footprints.items():
