@@ -125,8 +125,9 @@ def _read(path: Path) -> dict[str, list[tuple[int | None, dict]]]:
 
 @pytest.fixture(scope="module")
 def view_scene(tmp_path_factory):
-    """A synthetic scene: pred (meshes, HPS-like), pred_aligned (align's output: flags), joints (joints only, person 1
-    gone in frame 2), gt (truth); the scene camera: the true one, 0.3 m higher, with a fit's std."""
+    """A synthetic scene: pred (meshes, HPS-like), pred_aligned (align's output; people.csv flags person 1 sitting in
+    frame 0), joints (joints only, person 1 gone in frame 2), cloud (vertices without faces), gt (truth), and video
+    frames; the scene camera: the true one, 0.3 m higher, with a fit's std."""
     pytest.importorskip("rerun")
     root = tmp_path_factory.mktemp("view")
     write_synth_scene(root, SynthOptions(seed=4, frames=4, people=3, image_size=(320, 180)))
@@ -141,6 +142,28 @@ def view_scene(tmp_path_factory):
         keep = np.array([pid != 1 or k != 2 for pid in frame.person_ids])
         np.savez(joints / f"{name}.npz", joints=frame.data["joints"][keep], person_ids=frame.person_ids[keep],
                  **{key: frame.data[key][keep] for key in ("focal_length",) if key in frame.data and np.ndim(frame.data[key])})
+    people_csv = root / "pred_aligned" / "people.csv"
+    lines = people_csv.read_text().splitlines()
+    header = lines[0].split(",")
+    first = gt.frame_names[0]
+    for i, line in enumerate(lines[1:], 1):
+        cells = line.split(",")
+        if cells[header.index("frame")] == first and int(float(cells[header.index("person_id")])) == 1:
+            cells[header.index("flag")] = "sitting"
+            lines[i] = ",".join(cells)
+    people_csv.write_text("\n".join(lines) + "\n")
+    cloud = root / "cloud"
+    cloud.mkdir()
+    shutil.copy(root / "pred" / "meta.yaml", cloud / "meta.yaml")
+    for name in pred.frame_names:
+        frame = pred.read_frame(name)
+        np.savez(cloud / f"{name}.npz", vertices=frame.data["vertices"], person_ids=frame.person_ids)
+    images = root / "images"
+    images.mkdir()
+    from PIL import Image
+
+    for k, name in enumerate(gt.frame_names):
+        Image.new("RGB", (320, 180), (10 * k, 0, 0)).save(images / f"{name}.png")
     scene_camera = gt.camera.replace(height_m=gt.camera.height_m + 0.3)
     write_camera_yaml(root / "scene_camera.yaml", scene_camera,
                       {"method": "refine", "std": {"focal_px": 30.0, "pitch_deg": 1.0, "roll_deg": 0.5, "height_m": 0.2}})
@@ -152,16 +175,17 @@ def recorded(view_scene):
     from rotavat_cli.view import ViewOptions, record_sequences
 
     root, _ = view_scene
-    seqs = [open_sequence(root / name) for name in ("pred", "pred_aligned", "joints")]
+    seqs = [open_sequence(root / name) for name in ("pred", "pred_aligned", "joints", "cloud")]
     calls = []
     summary = record_sequences(seqs, root / "scene.rrd", open_sequence(root / "gt"),
-                               ViewOptions(camera_path=root / "scene_camera.yaml"), lambda: calls.append(1))
+                               ViewOptions(camera_path=root / "scene_camera.yaml", image_dir=root / "images"),
+                               lambda: calls.append(1))
     return summary, _read(root / "scene.rrd"), len(calls)
 
 
 def test_the_recording_holds_every_row_as_its_own_entity_tree(recorded):
     summary, data, calls = recorded
-    assert summary.rows == ["pred", "pred_aligned", "joints", "gt"] and summary.gt == "gt"
+    assert summary.rows == ["pred", "pred_aligned", "joints", "cloud", "gt"] and summary.gt == "gt"
     assert summary.frames == 4 == calls
     for row in ("pred", "pred_aligned", "gt"):
         for pid in (0, 1, 2):
@@ -169,6 +193,7 @@ def test_the_recording_holds_every_row_as_its_own_entity_tree(recorded):
     for pid in (0, 1, 2):
         assert f"/world/joints/people/{pid}/skeleton" in data and f"/world/joints/people/{pid}/joints" in data
         assert f"/world/joints/people/{pid}/mesh" not in data
+        assert f"/world/cloud/people/{pid}/points" in data and f"/world/cloud/people/{pid}/mesh" not in data
     for path in ("/world", "/world/camera", "/world/camera/image", "/world/ground", "/world/ground/ticks",
                  "/world/gt/ground", "/world/ground/uncertainty/height_minus_1sd",
                  "/world/ground/uncertainty/pitch_plus_1sd",
@@ -191,6 +216,28 @@ def test_each_entity_has_one_row_per_frame_its_person_is_in(recorded):
     assert len(static) == 1 and len(static[0]["Mesh3D:triangle_indices"]) > 1000  # faces once, for every frame
 
 
+def test_people_have_renders_colours_their_paths_lie_on_the_ground_and_the_video_frames_are_under_the_camera(
+        view_scene, recorded):
+    from rotavat_cli.render import person_colors
+    from rotavat_cli.render.style import RenderStyle, rgb8
+
+    root, _ = view_scene
+    _, data, _ = recorded
+    palette = RenderStyle().palette
+    for pid in (0, 1, 2):
+        static = next(row for f, row in data[f"/world/pred/people/{pid}/mesh"] if f is None)
+        rgba = static["Mesh3D:albedo_factor"][0]
+        assert [(rgba >> s) & 255 for s in (24, 16, 8)] == list(rgb8(tuple(person_colors(np.array([pid]), palette)[0])))
+        path = next(row for f, row in data[f"/world/pred_aligned/tracks/{pid}"] if row.get("LineStrips3D:strips"))
+        strip = np.array(path["LineStrips3D:strips"][0])
+        assert strip.shape == (4, 3) and np.all(strip[:, 1] == 0.0)  # 4 frames, on the ground
+    # the truth's feet are on its own ground, 0.3 m above the scene camera's
+    heights = [row["Scalars:scalars"][0] for f, row in data["/plots/foot_height_m/gt/0"] if f is not None]
+    assert len(heights) == 4 and all(abs(h - 0.3) < 0.03 for h in heights)
+    images = [row["EncodedImage:blob"] for f, row in data["/world/camera/image"] if row.get("EncodedImage:blob")]
+    assert len(images) == 4 and bytes(images[2][0]) == (root / "images" / f"{open_sequence(root / 'gt').frame_names[2]}.png").read_bytes()
+
+
 def test_a_vertex_lands_at_its_world_position_in_metres(view_scene, recorded):
     root, scene_camera = view_scene
     _, data, _ = recorded
@@ -210,7 +257,7 @@ def test_a_vertex_lands_at_its_world_position_in_metres(view_scene, recorded):
 def test_the_camera_carries_its_intrinsics_pose_and_uncertainty(view_scene, recorded):
     _, scene_camera = view_scene
     _, data, _ = recorded
-    pinhole = data["/world/camera/image"][0][1]
+    pinhole = next(row for f, row in data["/world/camera/image"] if f is None and row.get("Pinhole:image_from_camera"))
     K = np.array(pinhole["Pinhole:image_from_camera"]).reshape(3, 3).T  # stored column-major
     np.testing.assert_allclose(K, scene_camera.K, atol=1e-4)
     assert pinhole["Pinhole:resolution"] == [[320.0, 180.0]]
@@ -242,16 +289,15 @@ def test_per_person_w_mpjpe_series_equal_evals_numbers(view_scene, recorded):
         assert got[key] == pytest.approx(value, rel=1e-9)
 
 
-def test_flagged_people_are_marked_in_their_labels(view_scene, recorded):
-    root, _ = view_scene
+def test_flagged_people_are_marked_in_their_labels(recorded):
     _, data, _ = recorded
-    import csv
-
-    flagged = [r for r in csv.DictReader(open(root / "pred_aligned" / "people.csv")) if r["flag"]]
-    labels = [t for _, row in data["/world/pred_aligned/labels"] for t in (row.get("Points3D:labels") or [])]
-    for record in flagged:
-        assert f"{int(float(record['person_id']))} {record['flag']}" in labels
-    assert {"0", "1", "2"} & set(labels) or flagged  # unflagged people are labelled by their id alone
+    by_frame = {f: row for f, row in data["/world/pred_aligned/labels"] if f is not None}
+    assert sorted(by_frame[0]["Points3D:labels"]) == ["0", "1 sitting", "2"]  # people.csv flags 1 sitting in frame 0
+    assert sorted(by_frame[1]["Points3D:labels"]) == ["0", "1", "2"]
+    colors = dict(zip(by_frame[0]["Points3D:labels"], by_frame[0]["Points3D:colors"]))
+    assert [(colors["1 sitting"] >> s) & 255 for s in (24, 16, 8)] == [217, 26, 26]  # red
+    radii = dict(zip(by_frame[0]["Points3D:labels"], by_frame[0]["Points3D:radii"]))
+    assert radii["1 sitting"] == pytest.approx(2 * radii["0"])
 
 
 # ---- the command ------------------------------------------------------------------------------------------
@@ -366,3 +412,13 @@ def test_spawn_without_a_display_warns_and_keeps_the_recording(view_scene, runne
     assert result.exit_code == 0 and out.is_file()
     warnings = [line for line in result.stderr.splitlines() if line.startswith("warning: --spawn")]
     assert len(warnings) == 1 and warnings[0].endswith(f" {out}") and "open the recording where there is one" in warnings[0]
+
+
+def test_batch_view_without_the_extra_stops_before_any_work(runner, tmp_path, monkeypatch):
+    write_synth_scene(tmp_path / "s", SynthOptions(seed=1, frames=2, people=1, image_size=(320, 180)))
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    result = invoke(runner, "batch", tmp_path / "s", "--view", "--out", tmp_path / "out")
+    assert result.exit_code == 2
+    assert result.stderr.strip().splitlines()[-1] == ("error: rotavat view needs the Rerun SDK, which is not installed: "
+                                                       "pip install 'rotavat[view]'")
+    assert not (tmp_path / "out").exists()
