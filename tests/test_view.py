@@ -422,3 +422,16 @@ def test_batch_view_without_the_extra_stops_before_any_work(runner, tmp_path, mo
     assert result.stderr.strip().splitlines()[-1] == ("error: rotavat view needs the Rerun SDK, which is not installed: "
                                                        "pip install 'rotavat[view]'")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_video_frame_over_the_file_limit_is_refused(view_scene, runner, tmp_path):
+    root, _ = view_scene
+    images = tmp_path / "images"
+    images.mkdir()
+    for name in open_sequence(root / "gt").frame_names:
+        (images / f"{name}.jpg").write_bytes(b"\xff\xd8" + b"\0" * (2 << 20))  # 2 MB each
+    config = tmp_path / "c.yaml"
+    config.write_text(yaml.safe_dump({"limits": {"max_file_mb": 1}}))
+    out = tmp_path / "v.rrd"
+    result = invoke(runner, "view", root / "gt", "--image", images, "--out", out, "--config", config)
+    assert result.exit_code == 2 and "limits.max_file_mb" in result.stderr and not out.exists()

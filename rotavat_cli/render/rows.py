@@ -29,10 +29,12 @@ from ..sequence import Frame, Sequence, read_camera_yaml
 from .skeleton import layout_name
 from .views import RowFrame
 
-__all__ = ["IMAGE_SUFFIXES", "OWN", "GIVEN_FILE", "select_frames", "frame_names", "row_labels", "label_stem", "sequence_camera",
+__all__ = ["IMAGE_MEDIA_TYPES", "IMAGE_SUFFIXES", "OWN", "GIVEN_FILE", "select_frames", "frame_names", "row_labels", "label_stem", "sequence_camera",
            "sequence_camera_fit", "sequence_layout", "frame_image_path", "no_camera", "people_flags", "read_row"]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
+IMAGE_MEDIA_TYPES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".bmp": "image/bmp",
+                     ".webp": "image/webp"}  # the video frames --image reads, by suffix
+IMAGE_SUFFIXES = tuple(IMAGE_MEDIA_TYPES)
 OWN, GIVEN_FILE = "own", "given"  # where a row's camera came from: the sequence's own, or the camera.yaml given (--camera)
 
 

@@ -47,11 +47,13 @@ from ..errors import InputError, RotavatError
 from ..metrics.evaluate import EvalOptions, evaluate
 from ..option_rules import Rule, check_fields
 from ..outputs import RRD_APPLICATION_ID
-from ..render.rows import frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels, select_frames
+from ..render.rows import (IMAGE_MEDIA_TYPES, frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels,
+                           select_frames)
 from ..render.style import RenderStyle, person_colors, vertex_normals
 from ..render.tracks import frame_track_values
 from ..render.views import RowFrame
 from ..sequence import Sequence, read_camera_yaml
+from ..unpickle.streams import read_bytes
 from ..version import __version__
 from .scene import (camera_label, eye_world, ground_extent_m, label_anchors_world, plane_quad_world, track_strips,
                     uncertainty_cameras, world_points_f32)
@@ -231,7 +233,7 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
                 index = index_of[name]
                 writer.set_frame(index, fps)
                 if image is not None:
-                    writer.image(image)
+                    writer.image(*image)
                 for i, (state, row) in enumerate(zip(states, ready)):
                     _record_row_frame(writer, state, row, name, index, lo_hi, w_mpjpe.get(i, {}))
                 if progress:
@@ -265,13 +267,17 @@ class _Ready:
 
 
 def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera,
-                     opts: ViewOptions) -> Iterator[tuple[Path | None, list[_Ready | None]]]:
-    """Per frame name, in order: its video frame's file (``--image``) and each row's :class:`_Ready` (None where
+                     opts: ViewOptions) -> Iterator[tuple[tuple[bytes, str] | None, list[_Ready | None]]]:
+    """Per frame name, in order: its video frame (``--image``: the file's bytes, within ``limits.max_file_mb``,
+    and its media type) and each row's :class:`_Ready` (None where
     the row has no such frame). The next :data:`_AHEAD` frames are prepared on as many threads while the caller
     logs the current one (reading, placing and the normals are numpy work that releases the GIL, and overlaps
     Rerun's encoding): at most ``_AHEAD + 1`` frames are held at a time, whatever the sequence's length."""
-    def prepare(name: str) -> tuple[Path | None, list[_Ready | None]]:
-        image = frame_image_path(opts.image_dir, name) if opts.image_dir is not None else None
+    def prepare(name: str) -> tuple[tuple[bytes, str] | None, list[_Ready | None]]:
+        image = None
+        if opts.image_dir is not None:
+            path = frame_image_path(opts.image_dir, name)
+            image = read_bytes(path), IMAGE_MEDIA_TYPES[path.suffix.lower()]
         return image, [_prepare(state, name, camera, opts) for state in states]
 
     with ThreadPoolExecutor(max_workers=_AHEAD, thread_name_prefix="rotavat-view") as pool:

@@ -7,7 +7,6 @@ of docs/render.md ("rotavat view"). Colours are RGB in [0, 1] (:mod:`rotavat_cli
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -66,9 +65,10 @@ class RecordingWriter:
                                                          image_plane_distance=image_plane_m,
                                                          color=rgb8(self.style.camera)), static=True)
 
-    def image(self, path: Path) -> None:
-        """This frame's video frame under the camera (the file's bytes: JPEG or PNG, never decoded here)."""
-        self.rec.log(f"{WORLD}/camera/image", self.rr.EncodedImage(path=path))
+    def image(self, contents: bytes, media_type: str) -> None:
+        """This frame's video frame under the camera: an image file's bytes (``image/png``, ``image/jpeg`` ...),
+        never decoded here."""
+        self.rec.log(f"{WORLD}/camera/image", self.rr.EncodedImage(contents=contents, media_type=media_type))
 
     def person(self, base: str, row: RowFrame, points_world: np.ndarray, normals: np.ndarray | None, color: RGB,
                first: bool) -> None:
