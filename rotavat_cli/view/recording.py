@@ -131,8 +131,7 @@ def _chosen_names(rows: list[Sequence], opts: ViewOptions) -> list[str]:
     return [names[i] for i in select_frames(len(names), opts.frames, opts.every)]
 
 
-def _scene_camera(seqs: list[Sequence], gt: Sequence | None, labels: list[str],
-                  opts: ViewOptions) -> tuple[Camera, dict, str, str | None]:
+def _scene_camera(seqs: list[Sequence], gt: Sequence | None, opts: ViewOptions) -> tuple[Camera, dict, str, str | None]:
     """The scene camera, its fit, where it came from, and the gate's warning (None: plausible). ``--camera``,
     else the first sequence with a camera.yaml of its own, else the ground truth's; else an InputError
     naming the commands that make one."""
@@ -204,7 +203,7 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
         raise InputError(f"give one distinct label per row ({len(rows)}), got {labels}")
     warnings: list[str] = []
     notes: list[str] = []
-    camera, fit, camera_source, gate_warning = _scene_camera(seqs, gt, labels, opts)
+    camera, fit, camera_source, gate_warning = _scene_camera(seqs, gt, opts)
     if gate_warning:
         warnings.append(gate_warning)
     names = _chosen_names(rows, opts)
