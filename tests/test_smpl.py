@@ -190,3 +190,21 @@ def test_model_file_errors(tmp_path):
     (tmp_path / "junk.npz").write_bytes(b"junk")
     with pytest.raises(InputError, match="junk.npz: not a valid .npz file"):
         load_body_model(tmp_path / "junk.npz")
+
+
+def test_a_model_file_is_read_once_per_version_and_its_arrays_cannot_be_changed(tmp_path):
+    path = _write_chain(tmp_path / "m.npz")
+    first = load_body_model(path)
+    assert load_body_model(path) is first  # the same file: the same model, not read again
+    with pytest.raises(ValueError):
+        first.v_template[0, 0] = 9.0  # read-only: no caller can change what the next one gets
+    import os
+
+    shapedirs = np.zeros((len(TEMPLATE), 3, 2))
+    shapedirs[3, 1, 0] = 1.0
+    _write_chain(path, shapedirs)
+    os.utime(path, ns=(first_ns := os.stat(path).st_mtime_ns + 10**9, first_ns))  # a newer version of the file
+    second = load_body_model(path)
+    assert second is not first and second.shapedirs[3, 1, 0] == 1.0
+    with limits.applied(limits.Limits.from_config({"max_array_mb": 1})):  # other limits: checked again
+        assert load_body_model(path) is not second

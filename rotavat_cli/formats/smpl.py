@@ -32,6 +32,7 @@ True
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -114,8 +115,32 @@ def _model_arrays(path: Path) -> dict[str, np.ndarray]:
 
 
 def load_body_model(path: str | Path) -> BodyModel:
-    """Load and validate an SMPL / SMPL-H / SMPL-X ``.npz`` model file (no pickle)."""
+    """Load and validate an SMPL / SMPL-H / SMPL-X ``.npz`` model file (no pickle).
+
+    Read once per process for each version of the file (its path, size and modification time) under the
+    same :mod:`rotavat_cli.limits`: a batch's tasks, or a sequence read frame by frame, pose from one copy,
+    whose arrays are read-only. A file that fails is read again next time (errors are not kept).
+    """
     path = Path(path)
+    try:
+        stat = path.stat()
+    except OSError:
+        return _load_body_model(path)  # the reader says what is wrong with it
+    return _cached_body_model(str(path), stat.st_size, stat.st_mtime_ns, limits.current())
+
+
+@functools.lru_cache(maxsize=2)
+def _cached_body_model(path: str, size: int, mtime_ns: int, limits_now: limits.Limits) -> BodyModel:
+    """:func:`_load_body_model` of one version of a file (the key), its arrays made read-only."""
+    model = _load_body_model(Path(path))
+    for value in vars(model).values():
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+    return model
+
+
+def _load_body_model(path: Path) -> BodyModel:
+    """Read and validate a model file (:func:`load_body_model` without the cache)."""
     arrays = _model_arrays(path)
 
     v_template = np.asarray(arrays["v_template"], dtype=np.float64)
