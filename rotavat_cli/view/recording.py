@@ -268,10 +268,13 @@ class _Ready:
 def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera,
                      opts: ViewOptions) -> Iterator[tuple[tuple[bytes, str] | None, list[_Ready | None]]]:
     """Per frame name, in order: its video frame (``--image``: the file's bytes, within ``limits.max_file_mb``,
-    and its media type) and each row's :class:`_Ready` (None where
-    the row has no such frame). The next :data:`_AHEAD` frames are prepared on as many threads while the caller
-    logs the current one (reading, placing and the normals are numpy work that releases the GIL, and overlaps
-    Rerun's encoding): at most ``_AHEAD + 1`` frames are held at a time, whatever the sequence's length."""
+    and its media type) and each row's :class:`_Ready` (None where the row has no such frame).
+
+    The next :data:`_AHEAD` frames are prepared on as many threads while the caller logs the current one
+    (reading, placing and the normals are numpy work that releases the GIL, and overlaps Rerun's encoding): at
+    most ``_AHEAD + 1`` frames are held at a time, whatever the sequence's length. A row read with ``--from``
+    keeps its reader's state as it builds frames, so with one such row the frames are prepared one at a
+    time (still ahead of the logging, on one thread)."""
     def prepare(name: str) -> tuple[tuple[bytes, str] | None, list[_Ready | None]]:
         image = None
         if opts.image_dir is not None:
@@ -279,12 +282,13 @@ def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera,
             image = read_bytes(path), IMAGE_MEDIA_TYPES[path.suffix.lower()]
         return image, [_prepare(state, name, camera, opts) for state in states]
 
-    with ThreadPoolExecutor(max_workers=_AHEAD, thread_name_prefix="rotavat-view") as pool:
-        ahead = deque(pool.submit(prepare, name) for name in names[:_AHEAD])
+    ahead = _AHEAD if all(state.seq.origin is None for state in states) else 1
+    with ThreadPoolExecutor(max_workers=ahead, thread_name_prefix="rotavat-view") as pool:
+        queued = deque(pool.submit(prepare, name) for name in names[:ahead])
         for k in range(len(names)):
-            ready = ahead.popleft().result()
-            if k + _AHEAD < len(names):
-                ahead.append(pool.submit(prepare, names[k + _AHEAD]))
+            ready = queued.popleft().result()
+            if k + ahead < len(names):
+                queued.append(pool.submit(prepare, names[k + ahead]))
             yield ready
 
 
