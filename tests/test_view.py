@@ -435,3 +435,25 @@ def test_a_video_frame_over_the_file_limit_is_refused(view_scene, runner, tmp_pa
     out = tmp_path / "v.rrd"
     result = invoke(runner, "view", root / "gt", "--image", images, "--out", out, "--config", config)
     assert result.exit_code == 2 and "limits.max_file_mb" in result.stderr and not out.exists()
+
+
+def test_spawn_opens_the_recording_in_the_viewer(view_scene, runner, tmp_path, monkeypatch):
+    import time
+
+    import rotavat_cli.cli.view as view_cli
+
+    root, _ = view_scene
+    seen = tmp_path / "viewer_args"
+    stub = tmp_path / "rerun"
+    stub.write_text(f"#!/bin/sh\necho \"$@\" > {seen}\n")
+    stub.chmod(0o755)
+    monkeypatch.setattr(view_cli, "_viewer", lambda: str(stub))
+    monkeypatch.setenv("DISPLAY", ":99")
+    out = tmp_path / "s.rrd"
+    result = invoke(runner, "view", root / "gt", "--out", out, "--spawn")
+    assert result.exit_code == 0 and f"opened {out} in the Rerun viewer" in result.stdout
+    for _ in range(100):  # the viewer runs detached: wait for it
+        if seen.exists() and seen.read_text().strip():
+            break
+        time.sleep(0.05)
+    assert seen.read_text().strip() == str(out)
