@@ -120,15 +120,19 @@ class ViewSummary:
 
 def view_steps(seqs: list[Sequence], gt: Sequence | None, opts: ViewOptions) -> int:
     """How many ``progress()`` calls :func:`record_sequences` makes: one per recorded frame."""
-    return len(_chosen_names([*seqs, *([gt] if gt is not None else [])], opts))
+    return len(_chosen_frames(_timeline([*seqs, *([gt] if gt is not None else [])]), opts))
 
 
-def _chosen_names(rows: list[Sequence], opts: ViewOptions) -> list[str]:
-    """The frames recorded: the sorted union of every row's frame names, then ``frames``/``every`` (all by default)."""
-    names = sorted(set().union(*(s.frame_names for s in rows))) if rows else []
+def _timeline(rows: list[Sequence]) -> list[str]:
+    """The ``frame`` timeline: the sorted union of every row's frame names (a frame's index is its place here)."""
+    return sorted(set().union(*(s.frame_names for s in rows)))
+
+
+def _chosen_frames(timeline: list[str], opts: ViewOptions) -> list[int]:
+    """The indices into ``timeline`` of the frames recorded: ``frames``/``every``, all by default."""
     if opts.frames is None and opts.every is None:
-        return names
-    return [names[i] for i in select_frames(len(names), opts.frames, opts.every)]
+        return list(range(len(timeline)))
+    return select_frames(len(timeline), opts.frames, opts.every)
 
 
 def _scene_camera(seqs: list[Sequence], gt: Sequence | None, opts: ViewOptions) -> tuple[Camera, dict, str, str | None]:
@@ -175,6 +179,7 @@ class _RowState:
     label: str
     path: str  # its entity name
     flags: dict | None
+    own_ground: Camera | None  # the row's own camera when it is not the scene camera (its ground is drawn)
     shown: set[int] = field(default_factory=set)  # person ids drawn in the previous frame
     static_done: set[int] = field(default_factory=set)  # person ids whose static parts (faces, colour) are logged
     series: dict[str, dict[int, list[tuple[int, float]]]] = field(default_factory=dict)  # key -> id -> (frame, value)
@@ -202,23 +207,20 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
     if len(labels) != len(rows) or len({label_stem(lab) for lab in labels}) < len(rows):
         raise InputError(f"give one distinct label per row ({len(rows)}), got {labels}")
     warnings: list[str] = []
-    notes: list[str] = []
     camera, fit, camera_source, gate_warning = _scene_camera(seqs, gt, opts)
     if gate_warning:
         warnings.append(gate_warning)
-    names = _chosen_names(rows, opts)
-    index_of = {name: k for k, name in enumerate(sorted(set().union(*(s.frame_names for s in rows))))}
+    timeline = _timeline(rows)
+    chosen = _chosen_frames(timeline, opts)
     fps = next((float(s.meta["fps"]) for s in rows if (s.meta or {}).get("fps")), None)
-    states = [_RowState(s, lab, label_stem(lab), people_flags(s, warnings)) for s, lab in zip(rows, labels)]
+    states = [_RowState(s, lab, label_stem(lab), people_flags(s, warnings),
+                        s.camera if s.camera is not None and s.camera != camera else None) for s, lab in zip(rows, labels)]
     w_mpjpe = {i: _w_mpjpe_series(s, gt, warnings) for i, s in enumerate(seqs)} if gt is not None else {}
-    for state in states:
-        own = state.seq.camera
-        if own is not None and own != camera:
-            notes.append(f"{state.label}: placed in the scene camera ({camera_source}), as eval compares it; its own "
-                         f"camera ({state.seq.camera_label}) gives its ground, drawn at {WORLD}/{state.path}/ground")
+    notes = [f"{state.label}: placed in the scene camera ({camera_source}), as eval compares it; its own camera "
+             f"({state.seq.camera_label}) gives its ground, drawn at {WORLD}/{state.path}/ground"
+             for state in states if state.own_ground is not None]
     start = time.perf_counter()
     label = camera_label(camera, fit, camera_source)
-    lo_hi = [camera.center_world[[0, 2]].copy(), camera.center_world[[0, 2]].copy()]  # the people's and camera's x, z
     with atomic_path(out) as tmp:
         rec = rr.RecordingStream(RRD_APPLICATION_ID, recording_id=uuid.uuid5(uuid.NAMESPACE_URL, str(Path(out).resolve())),
                                  send_properties=False)
@@ -228,26 +230,26 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
             rec.send_recording_name(f"rotavat {__version__}: {', '.join(labels)}")
             writer = RecordingWriter(rr, rec, opts.style)
             writer.scene(camera, label, opts.image_plane_m)
-            for name, (image, ready) in zip(names, _prepared_frames(names, states, camera, opts)):
-                index = index_of[name]
+            names = [timeline[k] for k in chosen]
+            for index, name, (image, ready) in zip(chosen, names, _prepared_frames(names, states, camera, opts)):
                 writer.set_frame(index, fps)
                 if image is not None:
                     writer.image(*image)
                 for i, (state, row) in enumerate(zip(states, ready)):
-                    _record_row_frame(writer, state, row, name, index, lo_hi, w_mpjpe.get(i, {}))
+                    _record_row_frame(writer, state, row, name, index, w_mpjpe.get(i, {}))
                 if progress:
                     progress()
             rec.reset_time()
-            _record_statics(writer, states, camera, fit.get("std") if isinstance(fit.get("std"), dict) else None,
-                            lo_hi, fps, opts.style)
-            rec.send_blueprint(blueprint(rr, gt is not None, eye_world(_footprints_xz(states))))
+            ground_xz = _footprints_xz(states)
+            _record_statics(writer, states, camera, fit.get("std"), ground_xz, fps, opts.style)
+            rec.send_blueprint(blueprint(rr, gt is not None, eye_world(ground_xz)))
             rec.flush()
         finally:
             rec.disconnect()
     seconds = time.perf_counter() - start
     entities = [f"{WORLD}/{s.path}" for s in states] + [f"plots/{k}" for k, *_ in SERIES if gt is not None or
                                                          k != W_MPJPE_SERIES[0]]
-    return ViewSummary(str(out), labels, labels[-1] if gt is not None else None, len(names),
+    return ViewSummary(str(out), labels, labels[-1] if gt is not None else None, len(chosen),
                        sum(s.people for s in states), label, os.path.getsize(out), seconds, entities, warnings, notes)
 
 
@@ -313,14 +315,14 @@ def _prepare(state: _RowState, name: str, camera: Camera, opts: ViewOptions) -> 
 
 
 def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready | None, name: str, index: int,
-                      lo_hi: list[np.ndarray], w_mpjpe: dict[str, dict[int, float]]) -> None:
+                      w_mpjpe: dict[str, dict[int, float]]) -> None:
     """One row in frame ``name`` (``ready``: :func:`_prepare`'s, None when the row has no such frame): its people
     drawn and labelled, their track values kept, the people gone since the previous frame cleared."""
     people: set[int] = set()
     if ready is not None:
         people = _draw_people(writer, state, ready)
         if ready.track is not None:
-            _keep_track_values(state, ready.row.person_ids, *ready.track, index, lo_hi)
+            _keep_track_values(state, ready.row.person_ids, *ready.track, index)
         for pid, value in w_mpjpe.get(name, {}).items():
             state.add(W_MPJPE_SERIES[0], pid, index, value)
     elif state.shown:
@@ -345,35 +347,31 @@ def _draw_people(writer: RecordingWriter, state: _RowState, ready: _Ready) -> se
 
 
 def _keep_track_values(state: _RowState, person_ids: np.ndarray, values: dict[str, np.ndarray], feet_world: np.ndarray,
-                       index: int, lo_hi: list[np.ndarray]) -> None:
-    """A frame's foot height, lean and stature per track, and its mid-soles on the ground (the tracks' paths;
-    ``lo_hi``: the x, z range they span so far, grown in place)."""
+                       index: int) -> None:
+    """A frame's foot height, lean and stature per track, and its mid-soles on the ground (the tracks' paths)."""
     for p, pid in enumerate(int(v) for v in person_ids):
         for key, column in values.items():
             state.add(key, pid, index, float(column[p]))
         if np.isfinite(feet_world[p]).all():
             state.footprints.setdefault(pid, []).append((index, float(feet_world[p, 0]), float(feet_world[p, 2])))
-    placed = feet_world[np.isfinite(feet_world).all(axis=1)][:, [0, 2]]
-    if len(placed):
-        lo_hi[0] = np.minimum(lo_hi[0], placed.min(axis=0))
-        lo_hi[1] = np.maximum(lo_hi[1], placed.max(axis=0))
 
 
 def _record_statics(writer: RecordingWriter, states: list[_RowState], camera: Camera, std: dict | None,
-                    lo_hi: list[np.ndarray], fps: float | None, style: RenderStyle) -> None:
-    """What is known once every frame is seen: the ground grid over everyone, the grounds one std away
-    (``std``: the camera's ``fit.std``), the rows' own grounds, the tracks' paths on the ground, the time series."""
-    lo, hi = ground_extent_m(np.array([[lo_hi[0][0], 0.0, lo_hi[0][1]], [lo_hi[1][0], 0.0, lo_hi[1][1]]]))
+                    ground_xz: np.ndarray, fps: float | None, style: RenderStyle) -> None:
+    """What is known once every frame is seen: the ground grid over everyone (``ground_xz``: (N, 2) every track's
+    positions) and the camera, the grounds one std away (``std``: the camera's ``fit.std``), the rows' own
+    grounds, the tracks' paths on the ground, the time series."""
+    on_ground = np.stack([ground_xz[:, 0], np.zeros(len(ground_xz)), ground_xz[:, 1]], axis=1)
+    lo, hi = ground_extent_m(np.vstack([on_ground, camera.center_world]))
     writer.ground(lo, hi)
-    near_lo, near_hi = ground_extent_m(_bulk(states))  # the ±1 std grounds: where the people are
+    near_lo, near_hi = ground_extent_m(_bulk(ground_xz))  # the ±1 std grounds: where the people are
     for name, other in uncertainty_cameras(camera, std).items():
         corners = plane_quad_world(other, camera, near_lo, near_hi)
         if corners is not None:
             writer.plane(f"{WORLD}/ground/uncertainty/{name}", corners, style.camera, UNCERTAINTY_ALPHA)
     for state in states:
-        own = state.seq.camera
-        if own is not None and own != camera:
-            corners = plane_quad_world(own, camera, lo, hi)
+        if state.own_ground is not None:
+            corners = plane_quad_world(state.own_ground, camera, lo, hi)
             if corners is not None:
                 writer.plane(f"{WORLD}/{state.path}/ground", corners, style.ground, OWN_GROUND_ALPHA)
         ids = sorted(set(state.footprints) | {pid for series in state.series.values() for pid in series})
@@ -392,10 +390,9 @@ def _footprints_xz(states: list[_RowState]) -> np.ndarray:
     return np.array([(x, z) for s in states for steps in s.footprints.values() for _, x, z in steps]).reshape(-1, 2)
 
 
-def _bulk(states: list[_RowState]) -> np.ndarray:
-    """(2, 3) world corners of the 10th to 90th percentile of the people's ground positions (a far outlier,
-    a raw prediction metres off, is left out), or NaN when there are none."""
-    xz = _footprints_xz(states)
+def _bulk(xz: np.ndarray) -> np.ndarray:
+    """(2, 3) world corners of the 10th to 90th percentile of (N, 2) ground positions (a far outlier, a raw
+    prediction metres off, is left out), or NaN when there are none."""
     if not len(xz):
         return np.full((2, 3), np.nan)
     lo, hi = np.percentile(xz, 10, axis=0), np.percentile(xz, 90, axis=0)

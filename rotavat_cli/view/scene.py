@@ -122,6 +122,15 @@ def plane_quad_world(ground_of: Camera, scene: Camera, lo: np.ndarray, hi: np.nd
     return corners
 
 
+def _sd(std: Mapping | None, key: str) -> float | None:
+    """A finite positive std from ``fit.std`` (None or not a mapping: none), else None."""
+    try:
+        value = float((std if isinstance(std, Mapping) else {}).get(key))
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) and value > 0 else None
+
+
 def uncertainty_cameras(camera: Camera, std: Mapping | None) -> dict[str, Camera]:
     """The camera at ±1 std of its height and of its pitch, one change at a time (``std``: camera.yaml's
     ``fit.std``, report units): ``{"height_minus_1sd": ..., "height_plus_1sd": ..., "pitch_minus_1sd": ...,
@@ -129,11 +138,8 @@ def uncertainty_cameras(camera: Camera, std: Mapping | None) -> dict[str, Camera
     without the parameters whose std is missing, zero or not finite."""
     out: dict[str, Camera] = {}
     for name, key, field, to_unit in (("height", "height_m", "height_m", 1.0), ("pitch", "pitch_deg", "pitch_rad", math.pi / 180)):
-        try:
-            sd = float((std or {}).get(key))
-        except (TypeError, ValueError):
-            continue
-        if not math.isfinite(sd) or sd <= 0:
+        sd = _sd(std, key)
+        if sd is None:
             continue
         for sign, text in ((-1.0, "minus_1sd"), (1.0, "plus_1sd")):
             value = getattr(camera, field) + sign * sd * to_unit
@@ -141,15 +147,6 @@ def uncertainty_cameras(camera: Camera, std: Mapping | None) -> dict[str, Camera
                 continue
             out[f"{name}_{text}"] = camera.replace(**{field: value})
     return out
-
-
-def _sd(std: Mapping, key: str) -> float | None:
-    """A finite positive std from ``fit.std``, else None."""
-    try:
-        value = float(std.get(key))
-    except (TypeError, ValueError):
-        return None
-    return value if math.isfinite(value) and value > 0 else None
 
 
 def camera_label(camera: Camera, fit: Mapping | None, source: str) -> str:
@@ -162,7 +159,7 @@ def camera_label(camera: Camera, fit: Mapping | None, source: str) -> str:
     >>> camera_label(cam, {}, "gt/camera.yaml")
     'camera (given, gt/camera.yaml): f 1053 px · pitch 13.5° · roll 0.0° · height 2.74 m'
     """
-    std = (fit or {}).get("std") if isinstance((fit or {}).get("std"), Mapping) else {}
+    std = (fit or {}).get("std")
     method = (fit or {}).get("method")
     parts = []
     f_sd = _sd(std, "focal_px")
