@@ -989,3 +989,18 @@ def test_render_notes_a_row_whose_own_camera_wins_over_camera(runner, scene, tmp
     same = invoke(runner, "render", scene / "pred", scene / "gt", "--camera", scene / "gt" / "camera.yaml", *args,
                   "--out", tmp_path / "b")
     assert same.exit_code == 0 and "note:" not in same.stderr  # its own camera is the one given: nothing to say
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_vertex_normals_are_zero_where_undefined_even_next_to_a_nan_vertex(dtype):
+    """Issue 26 made vertex_normals float32-aware; a NaN vertex then left NaN normals on its neighbours, where
+    the docstring (and the code before) promised 0."""
+    from rotavat_cli.render.style import vertex_normals
+
+    verts = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [5, 5, 5], [np.nan, 0, 0]]], dtype=dtype)
+    faces = np.array([[0, 1, 2], [0, 3, 1], [3, 5, 1]])  # vertex 4 in no face; vertex 5 NaN
+    n = vertex_normals(verts, faces)
+    assert n.dtype == dtype and np.isfinite(n).all()
+    np.testing.assert_allclose(n[0, 4], 0.0)  # no face: no normal
+    np.testing.assert_allclose(n[0, [3, 5]], 0.0)  # only NaN faces: no normal
+    np.testing.assert_allclose(n[0, 2], [0, 0, 1], atol=1e-6)

@@ -88,8 +88,9 @@ def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     face_n = _cross(by_vertex[f[:, 1]] - corner, by_vertex[f[:, 2]] - corner)  # (F, P, 3), |n| = 2 area
     n = (_incidence(V, f.tobytes(), f.shape[0], v.dtype.str) @ face_n.reshape(f.shape[0], P * 3)).reshape(V, P, 3)
     norm = np.sqrt(np.einsum("vpk,vpk->vp", n, n))[..., None]
-    np.divide(n, norm, out=n, where=norm > 0)
-    n[np.broadcast_to(norm == 0, n.shape)] = 0.0
+    undefined = np.broadcast_to(~(norm > 0), n.shape)  # no face, or a NaN vertex in one of its faces
+    np.divide(n, norm, out=n, where=~undefined)
+    n[undefined] = 0.0
     return n.transpose(1, 0, 2)
 
 
