@@ -34,7 +34,7 @@ _PUBLIC = {
     ".grid": ("GridFit", "GridSpec", "grid_costs", "paper_grid_search", "reference_cell_costs"),
     ".inputs": ("BOX_COLUMN_TOL_PX", "box_derived"),
     ".model": ("predict_heads_px",),
-    ".options": ("FOCAL_PRIORS", "METHODS", "POINTS", "CalibrateOptions"),
+    ".options": ("FOCAL_PRIORS", "METHODS", "POINTS", "SECTION_RULES", "CalibrateOptions"),
     ".residuals": ("RESIDUAL_KINDS", "RESIDUALS", "ResidualKind", "residual_kind"),
     ".sequence": ("FOCAL_POLICIES", "SequenceCalibration", "calibrate_sequence", "declared_focal"),
 }

@@ -29,7 +29,7 @@ from .grid import GridSpec
 from .priors import FOCAL_PRIORS
 from .residuals import RESIDUALS
 
-__all__ = ["METHODS", "POINTS", "FOCAL_PRIORS", "CalibrateOptions"]
+__all__ = ["METHODS", "POINTS", "FOCAL_PRIORS", "CalibrateOptions", "SECTION_RULES"]
 
 METHODS = ("grid", "refine")
 POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
@@ -171,3 +171,7 @@ class CalibrateOptions:
             return cls(**{**section, "grid": grid})
         except (TypeError, ValueError) as exc:
             raise InputError(f"calibrate: {exc}") from None
+
+
+# the ``calibrate`` config section's keys and their rules (its ``grid`` sub-section's as ``grid.<key>``)
+SECTION_RULES: dict[str, Rule] = {**CalibrateOptions.RULES, **{f"grid.{key}": rule for key, rule in GridSpec.RULES.items()}}

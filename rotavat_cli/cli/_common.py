@@ -3,6 +3,7 @@ handler, progress, JSON output."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import shutil
@@ -194,42 +195,25 @@ def _check_section(values: dict, rules: dict[str, Rule], before: str, after: str
             raise InputError(f"{before}{key if name_key else ''}{after} {problem}")
 
 
+# config section -> the module and the name of what checks its keys (an options class's RULES, or a table),
+# imported when a command that reads the section runs
+_SECTION_RULES = {
+    "calibrate": ("calibration.options", "SECTION_RULES"), "align": ("alignment.options", "AlignOptions.RULES"),
+    "eval": ("metrics.evaluate", "EvalOptions.RULES"), "render": ("render.sequences", "FigureOptions.RULES"),
+    "view": ("view.recording", "ViewOptions.RULES"), "synth": ("synth.scene", "SynthOptions.RULES"),
+    "batch": ("batch.plan", "BatchOptions.RULES"), "limits": ("limits", "RULES"),
+}
+
+
 def section_rules(section: str) -> dict[str, Rule]:
-    """What each key of a config section may be: the rules of the options class that reads it."""
-    if section == "calibrate":
-        from ..calibration.grid import GridSpec
-        from ..calibration.options import CalibrateOptions
-
-        return {**CalibrateOptions.RULES, **{f"grid.{key}": rule for key, rule in GridSpec.RULES.items()}}
-    if section == "align":
-        from ..alignment.options import AlignOptions
-
-        return AlignOptions.RULES
-    if section == "eval":
-        from ..metrics.evaluate import EvalOptions
-
-        return EvalOptions.RULES
-    if section == "render":
-        from ..render.sequences import FigureOptions
-
-        return FigureOptions.RULES
-    if section == "view":
-        from ..view.recording import ViewOptions
-
-        return ViewOptions.RULES
-    if section == "synth":
-        from ..synth.scene import SynthOptions
-
-        return SynthOptions.RULES
-    if section == "batch":
-        from ..batch.plan import BatchOptions
-
-        return BatchOptions.RULES
-    if section == "limits":
-        from ..limits import RULES
-
-        return RULES
-    return {}
+    """What each key of a config section may be: the rules of the options class that reads it ({} for none)."""
+    if section not in _SECTION_RULES:
+        return {}
+    module, name = _SECTION_RULES[section]
+    found: Any = importlib.import_module(f"rotavat_cli.{module}")
+    for part in name.split("."):
+        found = getattr(found, part)
+    return found
 
 
 @contextmanager
