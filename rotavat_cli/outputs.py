@@ -51,9 +51,10 @@ except ImportError:  # not a POSIX system: no locks; staging folders fall back t
 
 __all__ = ["MARKER", "TEXT_HEADER", "STAGING_OWNER", "TEMP_TAG", "check_output_dir", "check_output_file",
            "mark_output_dir", "is_rotavat_dir", "written_by_rotavat", "remove_stale_staging", "own_staging",
-           "own_temporary", "release", "in_own_staging", "beside"]
+           "own_temporary", "release", "in_own_staging", "beside", "imported_output", "as_typed", "RRD_APPLICATION_ID"]
 
 MARKER = ".rotavat-output"  # written into every output folder rotavat creates
+RRD_APPLICATION_ID = "rotavat"  # the application id of the Rerun recordings rotavat writes (rotavat view)
 TEXT_HEADER = "# written by rotavat"  # first line of the YAML files rotavat writes
 STAGING_OWNER = ".rotavat-staging"  # inside a staging folder: the host and pid building it, locked by it
 TEMP_TAG = "rotavat-"  # a temporary file of <name>: .<name>.rotavat-XXXXXXXX.tmp, locked by its writer
@@ -80,11 +81,15 @@ def imported_output(src: str | os.PathLike, suffix: str) -> Path:
     PosixPath('a_camera.yaml')
     """
     src = Path(src)
-    out = Path.cwd() / ((src.stem if src.suffix and not src.is_dir() else _resolved(src).name) + suffix)
+    return as_typed(Path.cwd() / ((src.stem if src.suffix and not src.is_dir() else _resolved(src).name) + suffix))
+
+
+def as_typed(path: str | os.PathLike) -> Path:
+    """``path`` as the user would type it: relative to the current folder when it lies below it, else as is."""
     try:
-        return out.relative_to(Path.cwd())
+        return Path(path).relative_to(Path.cwd())
     except ValueError:
-        return out
+        return Path(path)
 
 
 def _resolved(path: str | os.PathLike) -> Path:
@@ -174,9 +179,6 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
             raise InputError(f"{path}: exists and rotavat did not write it; choose another output, or pass --force "
                              "to replace it")
     _check_writable_place(path)
-
-
-RRD_APPLICATION_ID = "rotavat"  # the application id of the Rerun recordings rotavat writes (rotavat view)
 
 
 def mark_output_dir(folder: str | os.PathLike, command: str) -> None:

@@ -22,7 +22,7 @@ from ..errors import InputError
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..option_rules import Rule
-from ..outputs import beside, imported_output
+from ..outputs import as_typed, beside, imported_output
 from ..plain import to_plain
 from ..sequence import Sequence, open_sequence
 
@@ -244,13 +244,7 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
 def default_output(src: Path, suffix: str, fmt: str | None) -> Path:
     """Where a command writes when no ``--out`` is given: beside a contract sequence (``SEQ<suffix>``), but in
     the current folder for an HPS tool's own output read with ``--from`` (never into the user's data folder)."""
-    if fmt is not None:
-        return imported_output(src, suffix)
-    out = beside(src, suffix)
-    try:  # as the user would type it: relative to the current folder when it lies below it
-        return out.relative_to(Path.cwd())
-    except ValueError:
-        return out
+    return imported_output(src, suffix) if fmt is not None else as_typed(beside(src, suffix))
 
 
 def warn_ignored(seq: Sequence) -> None:
