@@ -457,3 +457,49 @@ def test_spawn_opens_the_recording_in_the_viewer(view_scene, runner, tmp_path, m
             break
         time.sleep(0.05)
     assert seen.read_text().strip() == str(out)
+
+
+def test_frames_every_image_plane_and_normals_options_reach_the_recording(view_scene, recorded, runner, tmp_path):
+    root, _ = view_scene
+    config = tmp_path / "c.yaml"
+    config.write_text(yaml.safe_dump({"view": {"image_plane_m": 2.5, "normals": False}}))
+    out = tmp_path / "a.rrd"
+    result = invoke(runner, "view", root / "gt", "--every", "2", "--config", config, "--out", out, "--quiet")
+    assert result.exit_code == 0, result.stderr
+    data = _read(out)
+    meshes = [(f, row) for f, row in data["/world/gt/people/0/mesh"] if f is not None]
+    assert [f for f, _ in meshes] == [0, 2]  # every 2nd frame, on the frame timeline's own indices
+    assert all(row.get("Mesh3D:vertex_normals") is None for _, row in meshes)  # normals: false
+    pinhole = next(row for f, row in data["/world/camera/image"] if row.get("Pinhole:image_plane_distance"))
+    assert pinhole["Pinhole:image_plane_distance"] == [2.5]
+    result = invoke(runner, "view", root / "gt", "--frames", "-1", "--out", out, "--quiet")
+    assert result.exit_code == 0 and [f for f, row in _read(out)["/world/gt/people/0/mesh"] if f is not None] == [3]
+    with_normals = [row for f, row in recorded[1]["/world/gt/people/0/mesh"] if f is not None]  # the default
+    assert all(len(row["Mesh3D:vertex_normals"]) == len(row["Mesh3D:vertex_positions"]) for row in with_normals)
+
+
+def test_bad_view_arguments_are_one_line_and_exit_2(view_scene, runner, tmp_path):
+    root, _ = view_scene
+    for args, says in ((["--out", tmp_path / "x.txt"], "--out must end in .rrd"),
+                       (["--frames", "0,99", "--out", tmp_path / "x.rrd"], "frame index 99 out of range"),
+                       (["--every", "0", "--out", tmp_path / "x.rrd"], "--every: must be >= 1"),
+                       (["--out", root / "gt" / "x.rrd"], "inside the input")):
+        result = invoke(runner, "view", root / "gt", *args)
+        assert result.exit_code == 2, (args, result.output)
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error:") and says in lines[0], (args, lines)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_an_implausible_camera_is_refused_unless_accepted(view_scene, runner, tmp_path):
+    root, scene_camera = view_scene
+    bad = tmp_path / "bad.yaml"
+    write_camera_yaml(bad, scene_camera, {"method": "refine", "implausible": ["camera height 0.1 m is under 0.3 m"]})
+    out = tmp_path / "v.rrd"
+    refused = invoke(runner, "view", root / "pred", "--camera", bad, "--out", out)
+    assert refused.exit_code == 2 and not out.exists()
+    assert "implausible camera (camera height 0.1 m is under 0.3 m)" in refused.stderr
+    assert "add --accept-camera to the view command" in refused.stderr
+    accepted = invoke(runner, "view", root / "pred", "--camera", bad, "--accept-camera", "--out", out, "--quiet")
+    assert accepted.exit_code == 0 and out.is_file()
+    assert "used anyway (--accept-camera)" in accepted.stderr

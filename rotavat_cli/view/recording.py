@@ -43,7 +43,7 @@ from ..alignment.camera_gate import check_fit, render_remedies
 from ..atomic import atomic_path
 from ..camera import Camera
 from ..config import default_config, packaged_default
-from ..errors import InputError, RotavatError
+from ..errors import InputError, RotavatError, input_errors
 from ..metrics.evaluate import EvalOptions, evaluate
 from ..option_rules import Rule, check_fields
 from ..outputs import RRD_APPLICATION_ID
@@ -129,10 +129,12 @@ def _timeline(rows: list[Sequence]) -> list[str]:
 
 
 def _chosen_frames(timeline: list[str], opts: ViewOptions) -> list[int]:
-    """The indices into ``timeline`` of the frames recorded: ``frames``/``every``, all by default."""
+    """The indices into ``timeline`` of the frames recorded: ``frames``/``every``, all by default; InputError for
+    indices out of range."""
     if opts.frames is None and opts.every is None:
         return list(range(len(timeline)))
-    return select_frames(len(timeline), opts.frames, opts.every)
+    with input_errors():  # the messages name --frames/--every
+        return select_frames(len(timeline), opts.frames, opts.every)
 
 
 def _scene_camera(seqs: list[Sequence], gt: Sequence | None, opts: ViewOptions) -> tuple[Camera, dict, str, str | None]:
