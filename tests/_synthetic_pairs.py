@@ -1,7 +1,9 @@
 """Synthetic foot/head pixel pairs from a known camera, for calibration tests and benchmarks.
 
 People stand upright on the ground of a random surveillance camera and walk across it over the
-frames (a person keeps its stature and track id; one who leaves the view re-enters elsewhere).
+frames (a person keeps its stature and track id; one who leaves the view re-enters elsewhere), or
+(``layout="still"``) stand about where they are at every depth, swaying a few centimetres from frame
+to frame, or (``"mix"``) half of each.
 The head is straight above the mid-sole along world up, both are projected, Gaussian pixel noise
 is added, and a fraction of the pairs is replaced by gross outliers: sitting people (head at
 1.0-1.35 m), cropped people (foot pixel moved up the body) and random heads.
@@ -18,12 +20,14 @@ import numpy as np
 from rotavat_cli.camera import Camera
 from rotavat_cli.synth import random_camera
 
-__all__ = ["SyntheticPairs", "box_points_px", "distort_px", "random_surveillance_camera", "synthetic_pairs"]
+__all__ = ["LAYOUTS", "SyntheticPairs", "box_points_px", "distort_px", "random_surveillance_camera", "synthetic_pairs"]
 
 FRAME_DT_S = 0.2  # 5 frames per second
 MAX_DISTANCE_M = 45.0  # people farther than this are too small to be detected
 MIN_PERSON_PX = 12.0  # smaller people are not detected
 OUTLIER_KINDS = ("sitting", "cropped", "random_head")
+LAYOUTS = ("walk", "still", "mix")
+STILL_SWAY_M = 0.05  # a standing person's offset from their place in each frame, sd per ground axis
 
 
 @dataclass(frozen=True)
@@ -104,7 +108,7 @@ def synthetic_pairs(rng: np.random.Generator, *, camera: Camera | None = None,
                     frames: int = 1, people: int = 10, noise_px: float = 2.0, stature_mean_m: float = 1.70,
                     stature_sd_m: float = 0.07, outlier_fraction: float = 0.0,
                     walk_speed_mps: float = 1.3, points: str = "landmarks", distortion: float = 0.0,
-                    sway_sd_m: float = 0.0, noise_corr: float = 0.0) -> SyntheticPairs:
+                    sway_sd_m: float = 0.0, noise_corr: float = 0.0, layout: str = "walk") -> SyntheticPairs:
     """``people`` walkers seen over ``frames`` frames; roll_deg None = random roll (+-5 deg).
 
     Realism options (all off by default; the default draws are unchanged): ``points="boxes"``
@@ -112,27 +116,38 @@ def synthetic_pairs(rng: np.random.Generator, *, camera: Camera | None = None,
     radially distorts every point (:func:`distort_px`); ``sway_sd_m`` moves each crown
     horizontally off the vertical through the mid-sole (walking pose, N(0, sd) per axis and pair);
     ``noise_corr`` makes each track's pixel noise an AR(1) series over the frames (correlation).
+    ``layout``: "walk" (everyone walks), "still" (everyone stands about their place, ``STILL_SWAY_M``
+    per frame; a person swaying out of view is not seen in that frame) or "mix" (the first half still).
     """
     if points not in ("landmarks", "boxes"):
         raise ValueError(f"points must be 'landmarks' or 'boxes', got {points!r}")
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
     cam = random_surveillance_camera(rng, image_size, roll_deg) if camera is None else camera
     stature = rng.normal(stature_mean_m, stature_sd_m, people)
     pos = _spawn(rng, cam, stature)
     heading = rng.uniform(0, 2 * np.pi, people)
     up = np.array([0.0, 1.0, 0.0])
+    still = np.zeros(people, bool) if layout == "walk" else np.arange(people) < (people if layout == "still"
+                                                                                  else people // 2)
+    place = pos.copy()
     chunks = []
     for t in range(frames):
         if t > 0:
             step = walk_speed_mps * FRAME_DT_S * np.stack([np.cos(heading), np.zeros(people), np.sin(heading)], 1)
-            pos = pos + step
-            gone = ~_visible(cam, pos, stature)
+            pos = np.where(still[:, None], pos, pos + step)
+            gone = ~_visible(cam, pos, stature) & ~still
             if gone.any():
                 pos[gone] = _spawn(rng, cam, stature[gone])
                 heading[gone] = rng.uniform(0, 2 * np.pi, gone.sum())
-        feet = _project_world(cam, pos)
-        heads = _project_world(cam, pos + stature[:, None] * up)
-        chunks.append((feet, heads, np.full(people, t), np.arange(people), pos.copy(), stature.copy(),
-                       heading.copy()))
+        if still.any():
+            sway = rng.normal(0.0, STILL_SWAY_M, (int(still.sum()), 3)) * np.array([1.0, 0.0, 1.0])
+            pos[still] = place[still] + sway
+        seen = _visible(cam, pos, stature) | ~still
+        feet = _project_world(cam, pos[seen])
+        heads = _project_world(cam, pos[seen] + stature[seen, None] * up)
+        chunks.append((feet, heads, np.full(int(seen.sum()), t), np.flatnonzero(seen), pos[seen].copy(),
+                       stature[seen].copy(), heading[seen].copy()))
     feet, heads, frame, track, ground, stat, head_dir = (np.concatenate(c) for c in zip(*chunks))
     n = len(feet)
     crown = ground + stat[:, None] * up

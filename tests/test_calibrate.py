@@ -446,8 +446,9 @@ def test_every_residual_kind_keeps_the_contract(name):
     params = param_vector(focal=cam.focal_px * 1.1, pitch=cam.pitch_rad, roll=0.0, height=cam.height_m)[None]
     r, _, valid = whitened(prob, params)
     assert r.shape == (1, len(data.feet_px), kind.dof) and valid.all()
-    e, _, _ = profiled(prob, params)
-    np.testing.assert_allclose(r[..., 0] * prob.sd_along, kind.along(e, prob.axis), rtol=1e-12)
+    e, _, _, cov = profiled(prob, params)
+    np.testing.assert_allclose(r[..., 0] * np.sqrt(kind.along_variance(cov, prob.axis)), kind.along(e, prob.axis),
+                               rtol=1e-12)
     spec = GridSpec(steps=(6, 7, 5))
     focal, pitch, height = spec.focal_values_px(H), spec.pitch_values_rad(), spec.height_values_m()
     fast = grid_costs(data.feet_px, data.heads_px, (W / 2, H / 2), focal, pitch, height, 1.7, name)

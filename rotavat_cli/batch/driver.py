@@ -158,7 +158,7 @@ def run_batch(root: str | Path, out: str | Path, options: BatchOptions, progress
     for job in jobs:
         marker = None if options.force else completed_marker(job, plan)
         if marker is not None:
-            rows[job["rel"]] = {**marker["row"], "status": "skipped", "reason": "complete (outputs newer than inputs)"}
+            rows[job["rel"]] = {**marker["row"], "status": "skipped", "reason": "complete (inputs and options unchanged)"}
         else:
             todo.append(job)
     n_tasks = sum(max(1, -(-(j["frames_hint"] or 1) // options.chunk_frames)) for j in todo)  # align/eval chunks

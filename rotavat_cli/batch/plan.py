@@ -102,13 +102,14 @@ def completed_marker(job: dict, plan: dict) -> dict | None:
     """The marker of ``job`` when its outputs are complete for ``plan``, else None (run it).
 
     Complete: the marker exists (it is written last), lists every requested step with the same
-    options, was written after the newest input file, the inputs' fingerprints are unchanged, and
-    each step's main output exists.
+    options, the inputs' fingerprints (every file's name, size and mtime) are those it recorded, and
+    each step's main output exists. The marker's own mtime is never compared with the inputs': an
+    input stamped in the future (a copy from a machine whose clock is ahead) would make a finished
+    sequence run again until the clock caught up.
     """
     out = Path(job["out"])
     try:
         marker = json.loads((out / MARKER).read_text())
-        written_ns = (out / MARKER).stat().st_mtime_ns
     except (OSError, ValueError):
         return None
     if not isinstance(marker, dict) or marker.get("version") != MARKER_VERSION:
@@ -118,8 +119,6 @@ def completed_marker(job: dict, plan: dict) -> dict | None:
         return None
     inputs = marker.get("inputs") or {}
     if any(inputs.get(key) != value for key, value in job["inputs"].items()):
-        return None
-    if written_ns < max(v["newest_mtime_ns"] for v in job["inputs"].values()):
         return None
     if not all((out / OUTPUTS[step]).exists() for step in plan["steps"]):
         return None

@@ -183,12 +183,13 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
         n_frames = 1 if inp.frames is None else len(np.unique(inp.frames[inp.usable]))
         prob = make_problem(inp.feet[idx], inp.heads[idx], inp.pp, options.person_height_m,
                             options.person_height_sd_m, options.noise_px, inp.residual, inp.size, inp.priors,
-                            None if inp.tracks is None or method == "grid" else inp.tracks[idx])
+                            None if inp.tracks is None or method == "grid" else inp.tracks[idx],
+                            foot_noise=options.errors_in_variables)
         extra: list[str] = []
-        focal_log_sd = 0.0
-        if _focal_from_prior(inp, options, method):  # the people at one depth say nothing first-order of f
-            options = options.replace(focal_px=float(np.exp(inp.priors.mean[FOCAL])))
-            focal_log_sd = float(inp.priors.sd[FOCAL])
+        held = held_at_prior(inp, options, method)
+        if held:  # what the people at one depth say nothing first-order of: the prior's median, its spread carried
+            options = options.replace(**{_HELD_OPTION[slot]: value for slot, value in
+                                         _held_values(inp.priors, held).items()})
         if method == "refine":
             free = free_slots(options, method)
             box = options.box_depth_m if points == "boxes" else 0.0
@@ -211,18 +212,44 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
                                                                None if inp.tracks is None else inp.tracks[idx])
         if method == "grid":
             params, mask_u, free, scale, prob = _grid_fit(inp, idx, options, workers, prob)
-        return _result(inp, idx, options, method, points, notes, extra, prob, params, free, mask_u, scale,
-                       n_frames, focal_log_sd)
+        result = _result(inp, idx, options, method, points, notes, extra, prob, params, free, mask_u, scale,
+                         n_frames, held)
+        if method == "refine" and (inp.priors is None or not inp.priors.cover(free)):
+            _refuse_undetermined(result)
+        return result
 
 
-def _focal_from_prior(inp: PairsInput, options: CalibrateOptions, method: str) -> bool:
-    """True when the focal is held at its prior's median: an estimated focal with a prior, and people at one
-    depth. They constrain it only through second-order effects (how a person's image tilts and shrinks
-    across the view), which pixel noise biases by far more than the prior's spread (synthetic walkers:
-    -45% for a camera 25 deg down, +20% for a level one): the honest answer is the prior's, with its
-    spread carried into the other parameters."""
-    return (method == "refine" and options.focal_px is None and inp.one_depth and inp.priors is not None
-            and bool(np.isfinite(inp.priors.sd[FOCAL])))
+_HELD_OPTION = {FOCAL: "focal_px", PITCH: "pitch_deg"}  # the option that holds a slot at its prior's median
+
+
+def held_at_prior(inp: PairsInput, options: CalibrateOptions, method: str) -> dict[int, float]:
+    """The slots held at their prior's median, each with the prior's sd (internal units): {} for most fits.
+
+    People at one depth constrain some parameters only through second-order effects, which pixel
+    noise and the point model's small errors bias by far more than the prior's spread; the honest
+    answer is then the prior's, with its spread carried into the other parameters:
+
+    - an estimated focal (how a person's image tilts and shrinks across the view; synthetic walkers:
+      -45% for a camera 25 deg down, +20% for a level one);
+    - an estimated pitch when only the head rows are compared (box points, ``--residual vertical``):
+      without the columns, nothing says how the verticals converge, and a row of box-annotated people
+      with the focal known fits a level camera at head height to a fraction of a pixel (synthetic: a
+      camera 15 deg down, 3.0 m up, answered -1.4 +- 1.6 deg and 1.70 m).
+    """
+    if method != "refine" or not inp.one_depth or inp.priors is None:
+        return {}
+    held = {}
+    if options.focal_px is None and np.isfinite(inp.priors.sd[FOCAL]):
+        held[FOCAL] = float(inp.priors.sd[FOCAL])
+    if options.pitch_deg is None and inp.residual.dof == 1 and np.isfinite(inp.priors.sd[PITCH]):
+        held[PITCH] = float(inp.priors.sd[PITCH])
+    return held
+
+
+def _held_values(priors, held: dict[int, float]) -> dict[int, float]:
+    """Each held slot's prior median in its option's units (focal px, pitch deg)."""
+    return {slot: float(np.exp(priors.mean[FOCAL])) if slot == FOCAL else math.degrees(priors.mean[PITCH])
+            for slot in held}
 
 
 def calibrate(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
@@ -303,6 +330,19 @@ def _refuse_bounds(params: np.ndarray, free: np.ndarray, image_height_px: float)
                                    "at different depths")
 
 
+def _refuse_undetermined(result: CalibrationResult) -> None:
+    """DegenerateSceneError when the people alone (no prior on a free parameter) leave a parameter
+    undetermined (infinite std): its value is wherever the refinement stopped in a flat valley."""
+    lost = [PARAM_NAMES.index(key) for key in PARAM_NAMES if result.std.get(key, math.nan) == math.inf]
+    if lost:
+        cam = result.camera
+        values = describe(param_vector(focal=cam.focal_px, pitch=cam.pitch_rad, roll=cam.roll_rad, height=cam.height_m))
+        what = ", ".join(f"the {SLOT_LABELS[slot]} ({values[slot]})" for slot in lost)
+        raise DegenerateSceneError(f"the pairs cannot determine {what}: without a prior, any value of "
+                                   f"{'them' if len(lost) > 1 else 'it'} fits as well; give what is known (--focal, "
+                                   "--camera-height, --pitch) or use the lens prior (--focal-prior lens)")
+
+
 def _seed_grid(options: CalibrateOptions):
     """The refinement's seeding grid: the configured one, with a given pitch as its only pitch."""
     if options.pitch_deg is None:
@@ -357,8 +397,8 @@ def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, worke
                                    "the camera is outside it or the pairs do not determine it (calibrate.grid in "
                                    "the config sets the ranges)")
     # Unweighted residuals for the paper's uncertainty: equal weights, scale from the residual sum.
-    flat = replace(prob, sd_along=np.ones(len(feet)), sd_across=1.0, track=np.full(len(feet), -1), n_tracks=0,
-                   priors=None, deff=None, body=None)
+    flat = replace(prob, spread_px=np.zeros(len(feet)), noise_px=1.0, track=np.full(len(feet), -1), n_tracks=0,
+                   priors=None, deff=None, body=None, foot_noise=False)
     dof_total = max(1, len(feet) * flat.dof - int(free.sum()))
     scale = max(math.sqrt(fit.cost / dof_total), MIN_NOISE_PX)
     return params, np.ones(len(feet), bool), free, scale, flat
@@ -366,10 +406,10 @@ def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, worke
 
 def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method: str, points: str, notes: list[str],
             extra: list[str], prob: Problem, params: np.ndarray, free: np.ndarray, mask_u: np.ndarray, scale: float,
-            n_frames: int, focal_log_sd: float = 0.0) -> CalibrationResult:
+            n_frames: int, held: dict[int, float] | None = None) -> CalibrationResult:
     """The camera of a fit ``params (6,)`` with its uncertainty, rmse, what determined it, warnings,
-    plausibility findings and what was fixed. ``focal_log_sd``: the focal was held at its prior's median
-    (people at one depth) with this sd of its log, which the other parameters' std carry."""
+    plausibility findings and what was fixed. ``held``: the slots held at their prior's median (people at one
+    depth, :func:`held_at_prior`) with the prior's sd, which the other parameters' std carry."""
     if options.focal_px is not None:
         params[FOCAL] = options.focal_px  # exactly as given (no log/exp round trip)
     if options.pitch_deg is not None and method == "refine":
@@ -383,14 +423,15 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         if options.principal_point_sd_px is None else options.principal_point_sd_px
     height_known = options.camera_height_m is not None
     stature_mean_sd = 0.0 if height_known else options.person_height_mean_sd_m
+    held = held or {}
     assumed = Systematics(pp_sd, 0.0 if options.distortion else options.distortion_sd, stature_mean_sd,
-                          options.box_depth_sd_m if points == "boxes" else 0.0, focal_log_sd)
+                          options.box_depth_sd_m if points == "boxes" else 0.0, tuple(held.items()))
     cov, cov_stat, cov_warns, by_slot = covariances(inl, params, free, scale,
                                                     None if clusters is None else clusters[idx[mask_u]], assumed,
-                                                    method == "refine" and not focal_log_sd)
+                                                    method == "refine" and not held)
     std, corr = std_and_corr(params, cov, free)
     std_stat, _ = std_and_corr(params, cov_stat, free)
-    (eu, ev), _, _ = profiled(inl, params[None], scale)
+    (eu, ev), _, _, _ = profiled(inl, params[None], scale)
     sq = inp.residual.squared_px((eu[0], ev[0]))
     rmse = float(np.sqrt(np.mean(sq))) if len(sq) else math.nan
     fixed = {name: reason for name, reason, free_ in (
@@ -398,11 +439,12 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         ("roll_deg", "0 (not estimated)", free[ROLL]),
         ("distortion", "none", free[DISTORTION] or not options.distortion)) if not free_}
     determined = {_SLOT_NAMES[slot]: label for slot, label in by_slot.items() if slot in _SLOT_NAMES}
-    if focal_log_sd:  # held at the lens prior's median: its sd is the prior's
-        fixed.pop("focal_px", None)
-        std = {**std, "focal_px": camera.focal_px * focal_log_sd}
-        std_stat = {**std_stat, "focal_px": camera.focal_px * focal_log_sd}
-        determined = {"focal_px": "prior", **determined}
+    for slot, sd in held.items():  # held at the prior's median: its sd is the prior's
+        name = _SLOT_NAMES[slot]
+        value = camera.focal_px * sd if slot == FOCAL else math.degrees(sd)
+        fixed.pop(name, None)
+        std, std_stat = {**std, name: value}, {**std_stat, name: value}
+        determined = {name: "prior", **determined}
     stature, stature_sd = options.person_height_m, math.nan
     if height_known:  # the same fit at the known scale: the stature carries it
         ratio = options.camera_height_m / camera.height_m
@@ -412,8 +454,8 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         std_stat = {**std_stat, "height_m": math.nan}
         fixed["height_m"] = "given"
         determined["person_height_m"] = determined.pop("height_m", "people")
-    focal_prior = "none" if inp.priors is None or not (free[FOCAL] or focal_log_sd) else inp.priors.focal_kind
-    implausible = implausible_findings(camera, std, focal_estimated=bool(free[FOCAL] or focal_log_sd),
+    focal_prior = "none" if inp.priors is None or not (free[FOCAL] or FOCAL in held) else inp.priors.focal_kind
+    implausible = implausible_findings(camera, std, focal_estimated=bool(free[FOCAL] or FOCAL in held),
                                        height_estimated=not height_known,
                                        mean_stature_m=stature if height_known else None)
     warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), inp.n_usable, len(inp.feet),

@@ -35,6 +35,10 @@ BOX_RESIDUAL = "vertical"  # box-derived points use the head row only: a box's t
 # well under 10% of a person's pixel height.
 _ONE_DEPTH_MAX_SLOPE = math.tan(math.radians(10.0))
 _ONE_DEPTH_SPREAD = 0.10
+# A box's bottom is the nearest toe or heel, up to ~0.45 m nearer than the mid-sole with the stride and the heading:
+# people within that of one depth spread their box bottoms over ~30% of their pixel height for a camera looking
+# 15-35 deg down at them (synthetic rows and walkers 4.3-5.0 m away, 3 m up: 10-13%; steeper cameras more).
+_ONE_DEPTH_SPREAD_BOXES = 0.30
 
 
 @dataclass(frozen=True)
@@ -98,7 +102,8 @@ def check_inputs(feet_px, heads_px, image_size, options: CalibrateOptions, point
     priors = fit_priors(options, size)
     n_usable = int(usable.sum())
     free = free_slots(options, options.method)
-    one_depth = at_one_depth(feet[usable], heads[usable])
+    one_depth = at_one_depth(feet[usable], heads[usable],
+                             _ONE_DEPTH_SPREAD_BOXES if points == "boxes" else _ONE_DEPTH_SPREAD)
     if n_usable == 0:
         raise DegenerateSceneError(f"no usable foot-head pair (of {len(feet)}): no one stands with the head above "
                                    "the foot")
@@ -163,16 +168,17 @@ def check_index(values, n: int, name: str) -> np.ndarray | None:
     return arr.astype(np.int64)
 
 
-def at_one_depth(feet_px: np.ndarray, heads_px: np.ndarray) -> bool:
-    """True when the feet (N, 2) px lie along one nearly level image line, within a tenth of a person's height."""
+def at_one_depth(feet_px: np.ndarray, heads_px: np.ndarray, spread_fraction: float = _ONE_DEPTH_SPREAD) -> bool:
+    """True when the feet (N, 2) px lie along one nearly level image line, within ``spread_fraction`` of a person's
+    pixel height (a tenth for mid-sole points; box bottoms move with the stride)."""
     u, v = feet_px[:, 0], feet_px[:, 1]
     if len(u) < 3 or np.ptp(u) == 0:
-        return len(u) >= 3 and np.ptp(v) < _ONE_DEPTH_SPREAD * np.median(np.linalg.norm(feet_px - heads_px, axis=1))
+        return len(u) >= 3 and np.ptp(v) < spread_fraction * np.median(np.linalg.norm(feet_px - heads_px, axis=1))
     slope, offset = np.polyfit(u, v, 1)
     residual = v - (slope * u + offset)
     spread = float(np.subtract(*np.percentile(residual, [95, 5])))
     length = float(np.median(np.linalg.norm(feet_px - heads_px, axis=1)))
-    return abs(slope) < _ONE_DEPTH_MAX_SLOPE and spread < _ONE_DEPTH_SPREAD * length
+    return abs(slope) < _ONE_DEPTH_MAX_SLOPE and spread < spread_fraction * length
 
 
 def box_derived(feet_px: np.ndarray, heads_px: np.ndarray, tol_px: float = BOX_COLUMN_TOL_PX) -> bool:

@@ -2,7 +2,9 @@
 
 A :class:`Problem` holds the usable pairs and everything that weighs them (never the camera).
 For parameter sets ``params (Q, 6)`` (:mod:`.params` slots) the person model (:mod:`.model`) gives
-each head's error; the residual kind (:mod:`.residuals`) turns it into whitened components; each
+each head's error; the residual kind (:mod:`.residuals`) turns it into whitened components under
+the pair's error covariance (:func:`pair_covariance`: the head's pixel noise, the foot's pixel noise
+carried through the model, and for an untracked pair the stature spread along the person); each
 tracked person's stature is profiled out against the prior ``N(S, sd_S)``; the camera's priors
 (:mod:`.priors`) add one row per free parameter they cover, and standing bodies' own vertical axes
 may add two rows (:class:`BodyAxes`). Pairs that are not independent (consecutive frames of one
@@ -23,12 +25,14 @@ from ..camera import up_vector_cam
 from .model import head_errors
 from .params import PITCH, ROLL, from_internal, to_internal
 from .priors import Priors
-from .residuals import ResidualKind
+from .residuals import PairCovariance, ResidualKind
 
-__all__ = ["MIN_NOISE_PX", "BodyAxes", "Problem", "make_problem", "profiled", "whitened", "prior_rows", "body_rows",
-           "model_residual", "residual_and_jacobian", "pair_chi2", "robust_scale", "design_effect"]
+__all__ = ["MIN_NOISE_PX", "BodyAxes", "Problem", "make_problem", "foot_gain", "pair_covariance", "profiled", "whitened",
+           "prior_rows", "body_rows", "ROBUST_LOSSES", "robust_rows", "model_residual", "residual_and_jacobian", "pair_chi2", "robust_scale",
+           "design_effect"]
 
 _FD_STEP = 1e-6  # finite-difference step in the internal parameters (log f, rad, rad, log h, ...)
+_FOOT_STEP_PX = 0.5  # finite-difference step of the foot pixel (the model is smooth over a pixel)
 MIN_NOISE_PX = 0.5  # floor of the residual scale in pixels: annotation is never better than this
 _DEFF_MIN_RHO = 0.05  # autocorrelations below this end the design effect's sum (they are noise)
 
@@ -62,8 +66,8 @@ class Problem:
     rel_feet: np.ndarray  # (N, 2) feet minus principal point
     diff: np.ndarray  # (N, 2) feet minus heads
     axis: np.ndarray  # (N, 2) unit vector foot -> head (observed)
-    sd_along: np.ndarray  # (N,) px: noise, plus the stature spread for untracked pairs
-    sd_across: float  # px
+    spread_px: np.ndarray  # (N,) px: the stature spread along an untracked person (0 for tracked pairs)
+    noise_px: float  # pixel noise of a head (and of a foot), per axis
     person_height_m: float
     stature_sd_m: float
     track: np.ndarray  # (N,) int in [0, n_tracks), -1 = untracked
@@ -74,6 +78,7 @@ class Problem:
     radius_px: float  # half-diagonal: the distortion's unit radius
     deff: np.ndarray | None = None  # (N,) design effect of each pair (None: 1, independent pairs)
     body: BodyAxes | None = None  # standing bodies' vertical, when used
+    foot_noise: bool = True  # the foot's noise carried into the head error (errors in variables); False: the paper's
 
     def subset(self, idx: np.ndarray) -> "Problem":
         """The same problem on pairs ``idx`` (tracks renumbered)."""
@@ -81,7 +86,7 @@ class Problem:
         tracked = self.track[idx] >= 0
         labels, track[tracked] = np.unique(self.track[idx][tracked], return_inverse=True)
         return replace(self, rel_feet=self.rel_feet[idx], diff=self.diff[idx], axis=self.axis[idx],
-                       sd_along=self.sd_along[idx], track=track, n_tracks=len(labels),
+                       spread_px=self.spread_px[idx], track=track, n_tracks=len(labels),
                        deff=None if self.deff is None else self.deff[idx])
 
     @property
@@ -89,21 +94,19 @@ class Problem:
         """Residual components per pair."""
         return self.residual.dof
 
-    def effective_sds(self, effective: bool) -> tuple[np.ndarray, np.ndarray | float]:
-        """(sd_along (N,), sd_across) px, inflated by the square root of each pair's design effect when
-        ``effective`` (the objective and its covariance; never the per-pair outlier test)."""
-        if not effective or self.deff is None:
-            return self.sd_along, self.sd_across
-        root = np.sqrt(self.deff)
-        return self.sd_along * root, self.sd_across * root
+    def inflation(self, effective: bool) -> np.ndarray | float:
+        """Each pair's variance factor (N,): its design effect when ``effective`` (the objective and its
+        covariance; never the per-pair outlier test), else 1."""
+        return self.deff if effective and self.deff is not None else 1.0
 
 
 def make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_height_m: float,
                  person_height_sd_m: float, noise_px: float, residual: ResidualKind, image_size: tuple[int, int],
-                 priors: Priors | None, track_id: np.ndarray | None) -> Problem:
-    """Weights from the observed pixel lengths (they never depend on the camera); tracks of id >= 0.
+                 priors: Priors | None, track_id: np.ndarray | None, foot_noise: bool = True) -> Problem:
+    """The pairs, their stature spread from the observed pixel lengths, tracks of id >= 0.
 
-    feet, heads: (N, 2) px; pp: (2,) px; track_id: (N,) int or None.
+    feet, heads: (N, 2) px; pp: (2,) px; track_id: (N,) int or None; foot_noise: the foot's noise carried
+    into the head error (:func:`pair_covariance`).
     """
     diff = feet - heads
     length = np.linalg.norm(diff, axis=1)
@@ -116,14 +119,54 @@ def make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_hei
         labels, track[tracked] = np.unique(track_id[tracked], return_inverse=True)
         n_tracks = len(labels)
     spread = np.where(track >= 0, 0.0, length * person_height_sd_m / person_height_m)
-    sd_along = np.sqrt(noise_px**2 + spread**2)
-    return Problem(feet - pp, diff, axis, sd_along, float(noise_px), person_height_m, person_height_sd_m, track,
-                   n_tracks, residual, float(image_size[1]), priors, 0.5 * math.hypot(*image_size))
+    return Problem(feet - pp, diff, axis, spread, float(noise_px), person_height_m, person_height_sd_m, track,
+                   n_tracks, residual, float(image_size[1]), priors, 0.5 * math.hypot(*image_size),
+                   foot_noise=bool(foot_noise))
+
+
+def foot_gain(prob: Problem, params: np.ndarray, e: tuple[np.ndarray, np.ndarray],
+              stature_m: float | np.ndarray) -> np.ndarray:
+    """How each predicted head moves with its foot pixel: ``G[q, n] = d e / d foot`` (Q, N, 2, 2), rows
+    (u, v) of the head error, columns (u, v) of the foot, by forward differences of half a pixel.
+
+    e: the head errors (u, v) (Q, N) at params (Q, 6) and stature_m (as :func:`.model.head_errors`).
+    """
+    columns = []
+    for step in ((_FOOT_STEP_PX, 0.0), (0.0, _FOOT_STEP_PX)):
+        moved, _, _ = head_errors(prob.rel_feet + step, prob.diff + step, params, stature_m, prob.radius_px)
+        columns.append(np.stack([(moved[0] - e[0]) / _FOOT_STEP_PX, (moved[1] - e[1]) / _FOOT_STEP_PX], axis=-1))
+    return np.stack(columns, axis=-1)
+
+
+def pair_covariance(prob: Problem, gain: np.ndarray | None, effective: bool = False) -> PairCovariance:
+    """Each pair's head-error covariance (px^2, image basis): ``noise^2 (I + G G^T) + spread^2 a a^T``,
+    times its design effect when ``effective``.
+
+    The observed foot is as noisy as the head, and the model predicts the head *from* it: a foot
+    pixel off by ``eps`` moves the predicted head by ``G eps`` (:func:`foot_gain`). Ignoring it is
+    the errors-in-variables mistake: within a person who barely moves, the foot's noise is as large
+    as their real motion, the head seems to follow the foot less than perspective says (regression
+    dilution), and the fit bends the camera to explain it (synthetic scenes of people standing still
+    at many depths, 200 frames: focal 8% low, height 10% low; with this term within 1-2%, as a fit
+    that ignores those people's own statures). ``gain``: (Q, N, 2, 2) or None (no foot noise: the
+    paper's model, the grid's unweighted residuals).
+    """
+    var = prob.noise_px**2
+    a, s2 = prob.axis, prob.spread_px**2
+    uu, uv, vv = var + s2 * a[:, 0] ** 2, s2 * a[:, 0] * a[:, 1], var + s2 * a[:, 1] ** 2
+    if gain is not None:
+        g = gain
+        uu = uu + var * (g[..., 0, 0] ** 2 + g[..., 0, 1] ** 2)
+        uv = uv + var * (g[..., 0, 0] * g[..., 1, 0] + g[..., 0, 1] * g[..., 1, 1])
+        vv = vv + var * (g[..., 1, 0] ** 2 + g[..., 1, 1] ** 2)
+    k = prob.inflation(effective)
+    return PairCovariance(uu * k, uv * k, vv * k)
 
 
 def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: bool = False
-             ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray, np.ndarray]:
-    """Head errors (u, v) (Q, N) px with each track's stature profiled out, validity (Q, N), deltas (Q, T) m.
+             ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray, np.ndarray, PairCovariance]:
+    """Head errors (u, v) (Q, N) px with each track's stature profiled out, validity (Q, N), deltas (Q, T) m,
+    and the pairs' error covariance (:func:`pair_covariance`).
 
     params: (Q, 6). A tracked person's stature is ``S + delta_t`` with ``delta_t ~ N(0, sd_S)``,
     solved by two robust Gauss-Newton steps (Cauchy weights inside the track) against the whitened
@@ -131,34 +174,37 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
     """
     Q, T = len(params), prob.n_tracks
     e, de, valid = head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m, prob.radius_px)
+    cov = pair_covariance(prob, foot_gain(prob, params, e, prob.person_height_m) if prob.foot_noise else None,
+                          effective)
     delta = np.zeros((Q, T))
+    stature = prob.person_height_m
     if T:
         tracked = prob.track >= 0
         flat = (np.arange(Q)[:, None] * T + np.maximum(prob.track, 0)[None, :]).ravel()
         prec = 1.0 / prob.stature_sd_m**2
-        sd_along = prob.effective_sds(effective)[0]
         for _ in range(2):
-            r = prob.residual.along(e, prob.axis) / (sd_along * scale)
-            j = prob.residual.along(de, prob.axis) / (sd_along * scale)
-            w = (valid & tracked) / (1.0 + (r / 3.0) ** 2)
-            num = np.bincount(flat, (w * j * r).ravel(), Q * T).reshape(Q, T) + delta * prec
-            den = np.bincount(flat, (w * j * j).ravel(), Q * T).reshape(Q, T) + prec
+            r = prob.residual.whitened(e, prob.axis, cov) / scale
+            j = prob.residual.whitened(de, prob.axis, cov) / scale
+            w = (valid & tracked) / (1.0 + (r[..., 0] / 3.0) ** 2)
+            num = np.bincount(flat, (w * np.sum(j * r, axis=-1)).ravel(), Q * T).reshape(Q, T) + delta * prec
+            den = np.bincount(flat, (w * np.sum(j * j, axis=-1)).ravel(), Q * T).reshape(Q, T) + prec
             delta = delta - num / den
             stature = prob.person_height_m + np.where(tracked, delta[:, np.maximum(prob.track, 0)], 0.0)
             e, de, valid = head_errors(prob.rel_feet, prob.diff, params, stature, prob.radius_px)
-    return e, valid, delta
+        if prob.foot_noise:  # the foot's gain at each person's own stature: the pairs then cannot see the scale
+            cov = pair_covariance(prob, foot_gain(prob, params, e, stature), effective)
+    return e, valid, delta, cov
 
 
 def whitened(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: bool = False
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Whitened residuals (Q, N, dof) / scale, track-stature prior rows (Q, T), validity (Q, N).
 
-    Untracked pairs carry the stature spread in their along-the-person weight instead;
-    ``effective``: each pair divided by the square root of its design effect (the objective).
+    Untracked pairs carry the stature spread in their along-the-person variance instead;
+    ``effective``: each pair's variance times its design effect (the objective).
     """
-    e, valid, delta = profiled(prob, params, scale, effective)
-    sd_along, sd_across = prob.effective_sds(effective)
-    r = prob.residual.whitened(e, prob.axis, sd_along, sd_across)
+    e, valid, delta, cov = profiled(prob, params, scale, effective)
+    r = prob.residual.whitened(e, prob.axis, cov)
     return r / scale, delta / prob.stature_sd_m if prob.n_tracks else delta, valid
 
 
@@ -179,21 +225,43 @@ def body_rows(prob: Problem, params: np.ndarray, free: np.ndarray) -> np.ndarray
     return n @ prob.body.tangent_basis().T / math.sin(prob.body.sd_rad)
 
 
-def model_residual(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float) -> np.ndarray:
-    """Residual vectors (Q, M) for params (Q, 6): pairs (whitened / scale, with their design effects),
-    track statures, the camera's priors, the bodies' axis."""
-    r, rows, _ = whitened(prob, params, scale, effective=True)
-    return np.concatenate([r.reshape(len(params), -1), rows, prior_rows(prob, params, free),
-                           body_rows(prob, params, free)], axis=1)
+# The robust losses of the refinement, as residual transforms ``r -> sign(r) sqrt(rho(r^2))`` applied to the pairs'
+# rows only (rho as scipy.optimize.least_squares defines it, with its f_scale): the priors, the track statures and
+# the bodies' axis stay Gaussian. A loss handed to least_squares itself would cap them too: a stature prior row
+# 16 sd out then costs what a 4 sd one should, nothing holds the scale of the scene (which the pairs cannot see),
+# and on long sequences the camera height drifts (synthetic walkers, 2,000 frames: +68%).
+ROBUST_LOSSES = ("linear", "cauchy", "soft_l1")
 
+
+def robust_rows(r: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
+    """Rows ``r`` (...) under a robust loss: ``sign(r) sqrt(rho(r^2))`` (``linear``: unchanged)."""
+    if loss == "linear":
+        return r
+    z = (r / f_scale) ** 2
+    if loss == "cauchy":
+        rho = np.log1p(z)
+    elif loss == "soft_l1":
+        rho = 2.0 * (np.sqrt(1.0 + z) - 1.0)
+    else:
+        raise ValueError(f"loss must be one of {ROBUST_LOSSES}, got {loss!r}")
+    return np.sign(r) * f_scale * np.sqrt(rho)
+
+
+def model_residual(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, loss: str = "linear",
+                   f_scale: float = 1.0) -> np.ndarray:
+    """Residual vectors (Q, M) for params (Q, 6): pairs (whitened / scale, with their design effects, under the
+    robust ``loss``), track statures, the camera's priors, the bodies' axis."""
+    r, rows, _ = whitened(prob, params, scale, effective=True)
+    return np.concatenate([robust_rows(r.reshape(len(params), -1), loss, f_scale), rows,
+                           prior_rows(prob, params, free), body_rows(prob, params, free)], axis=1)
 
 
 def residual_and_jacobian(prob: Problem, x: np.ndarray, full0: np.ndarray, free: np.ndarray,
-                          scale: float) -> tuple[np.ndarray, np.ndarray]:
+                          scale: float, loss: str = "linear", f_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Residual vector (M,) and its Jacobian (M, n_free) at internal ``x (n_free,)`` by one vectorised
-    forward difference; the fixed slots come from ``full0 (6,)``."""
+    forward difference; the fixed slots come from ``full0 (6,)``; ``loss``: as :func:`model_residual`."""
     xs = np.vstack([x, x + _FD_STEP * np.eye(len(x))])
-    r = model_residual(prob, from_internal(xs, full0, free), free, scale)
+    r = model_residual(prob, from_internal(xs, full0, free), free, scale, loss, f_scale)
     return r[0], ((r[1:] - r[0]) / _FD_STEP).T
 
 
@@ -245,7 +313,7 @@ def design_effect(prob: Problem, params: np.ndarray, scale: float, frame_index: 
 def robust_scale(chi2: np.ndarray, prob: Problem) -> float:
     """Residual scale from the median of chi2 values (1 for correctly whitened residuals), floored."""
     finite = chi2[np.isfinite(chi2)]
-    floor = MIN_NOISE_PX / prob.sd_across
+    floor = MIN_NOISE_PX / prob.noise_px
     if finite.size == 0:
         return max(1.0, floor)
     return max(math.sqrt(float(np.median(finite)) / prob.residual.chi2_median), floor)

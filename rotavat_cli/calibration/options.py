@@ -86,6 +86,9 @@ class CalibrateOptions:
     # they are added: the pairs leave the pitch undetermined (plausibility.MAX_ANGLE_SD_DEG).
     body_axis_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
     body_engage_pitch_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
+    # The foot's pixel noise carried into each head's error (objective.pair_covariance: errors in variables);
+    # False gives the weights of earlier versions (benchmarks/bench_consistency.py shows what that costs).
+    errors_in_variables: bool = field(default=True, metadata=_NOT_IN_CONFIG)
 
     RULES: ClassVar[dict[str, Rule]] = {  # every option's bounds and names (rotavat_cli/option_rules.py)
         "method": Rule(names=METHODS), "residual": Rule(names=RESIDUALS), "points": Rule(names=POINTS),
@@ -137,7 +140,8 @@ class CalibrateOptions:
         if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
             raise ValueError(f"max_rounds must be a positive integer, got {self.max_rounds!r}")
         object.__setattr__(self, "max_rounds", int(self.max_rounds))
-        for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes"):
+        for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes",
+                     "errors_in_variables"):
             object.__setattr__(self, name, bool(getattr(self, name)))
 
     def replace(self, **changes) -> CalibrateOptions:

@@ -35,13 +35,13 @@ def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, s
         key = x.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = residual_and_jacobian(prob, x, params0, free, scale)
+            cache[key] = residual_and_jacobian(prob, x, params0, free, scale, loss, f_scale)
         return cache[key]
 
     lo, hi = param_bounds(prob.image_height_px)
     x0 = np.clip(to_internal(params0), lo + 1e-6, hi - 1e-6)[free]
     sol = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo[free], hi[free]),
-                        loss=loss, f_scale=f_scale, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
+                        method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
                         gtol=1e-10, max_nfev=200)
     return from_internal(sol.x[None], params0, free)[0]
 

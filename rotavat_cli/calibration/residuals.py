@@ -8,8 +8,9 @@ minus observed, px) is what a residual kind turns into numbers:
   Keep the kind linear in ``e``, so the grid's closed form (:mod:`.grid`) holds;
 - :meth:`ResidualKind.along`: the component along the person's image axis (the one the stature
   moves; for the head row, the row itself), used to profile each track's stature;
-- :meth:`ResidualKind.whitened`: the refinement's components per pair, divided by their noise
-  (``sd_along`` for the first, ``sd_across`` for any other); ``dof`` of them;
+- :meth:`ResidualKind.whitened`: the refinement's components per pair, whitened by the pair's error
+  covariance (:class:`PairCovariance`: the pixel noise of the head, the foot's noise carried
+  through the model, the stature spread along the person); ``dof`` of them, the first along the person;
 - ``test_against``: a kind using a subset of these components (the head rows alone) against
   which the head-column (Hausman) test checks the fit, or None.
 
@@ -32,7 +33,26 @@ import numpy as np
 
 from .chi_square import chi2_99, chi2_median
 
-__all__ = ["ResidualKind", "RESIDUAL_KINDS", "RESIDUALS", "register", "residual_kind"]
+__all__ = ["PairCovariance", "ResidualKind", "RESIDUAL_KINDS", "RESIDUALS", "register", "residual_kind"]
+
+
+class PairCovariance:
+    """Each pair's head-error covariance in the image's (u, v) basis: ``uu``, ``uv``, ``vv`` (px^2), each
+    broadcasting to (Q, N).
+
+    ``project(a, b)`` is ``a^T C b`` for unit vectors ``a``, ``b`` (N, 2): a kind reads the covariance in
+    its own basis (along and across the person, or the head row).
+    """
+
+    __slots__ = ("uu", "uv", "vv")
+
+    def __init__(self, uu: np.ndarray, uv: np.ndarray, vv: np.ndarray) -> None:
+        self.uu, self.uv, self.vv = uu, uv, vv
+
+    def project(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``a^T C b`` (Q, N) for vectors a, b (N, 2)."""
+        return (a[:, 0] * b[:, 0]) * self.uu + (a[:, 0] * b[:, 1] + a[:, 1] * b[:, 0]) * self.uv \
+            + (a[:, 1] * b[:, 1]) * self.vv
 
 
 
@@ -67,9 +87,14 @@ class ResidualKind:
         """Component (Q, N) of pixel vectors ``e`` ((Q, N) each) along the person; ``axis`` (N, 2) unit foot->head."""
         raise NotImplementedError
 
-    def whitened(self, e: tuple[np.ndarray, np.ndarray], axis: np.ndarray, sd_along: np.ndarray,
-                 sd_across: float) -> np.ndarray:
-        """Whitened components (Q, N, dof): along / sd_along (N,), then any across / sd_across."""
+    def along_variance(self, cov: PairCovariance, axis: np.ndarray) -> np.ndarray:
+        """Variance (Q, N) px^2 of the :meth:`along` component under the pairs' covariance."""
+        raise NotImplementedError
+
+    def whitened(self, e: tuple[np.ndarray, np.ndarray], axis: np.ndarray, cov: PairCovariance) -> np.ndarray:
+        """Whitened components (Q, N, dof) of head errors ``e`` under each pair's error covariance ``cov``:
+        the first is the component along the person over its sd, the others what remains of the error
+        once that is accounted for (a Cholesky factor of the covariance in the kind's own basis)."""
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -114,9 +139,16 @@ class Full(ResidualKind):
     def along(self, e, axis):
         return e[0] * axis[:, 0] + e[1] * axis[:, 1]
 
-    def whitened(self, e, axis, sd_along, sd_across):
-        along = self.along(e, axis) / sd_along
-        across = (e[1] * axis[:, 0] - e[0] * axis[:, 1]) / sd_across
+    def along_variance(self, cov, axis):
+        return cov.project(axis, axis)
+
+    def whitened(self, e, axis, cov):
+        normal = np.stack([-axis[:, 1], axis[:, 0]], axis=1)  # across the person: (e_v a_u - e_u a_v)
+        c_an, c_nn = cov.project(axis, normal), cov.project(normal, normal)
+        sd_a = np.sqrt(self.along_variance(cov, axis))
+        along = self.along(e, axis) / sd_a
+        link = c_an / sd_a  # the across error explained by the along one (Cholesky, along first)
+        across = (e[1] * axis[:, 0] - e[0] * axis[:, 1] - link * along) / np.sqrt(np.maximum(c_nn - link**2, 1e-300))
         return np.stack([along, across], axis=-1)
 
 
@@ -131,8 +163,11 @@ class Vertical(ResidualKind):
     def along(self, e, axis):
         return e[1]
 
-    def whitened(self, e, axis, sd_along, sd_across):
-        return (self.along(e, axis) / sd_along)[..., None]
+    def along_variance(self, cov, axis):
+        return cov.vv
+
+    def whitened(self, e, axis, cov):
+        return (self.along(e, axis) / np.sqrt(self.along_variance(cov, axis)))[..., None]
 
 
 RESIDUALS = tuple(RESIDUAL_KINDS)  # the names, in registration order (config choices)

@@ -34,7 +34,8 @@ from .objective import BodyAxes
 from .options import CalibrateOptions
 from .pairs import FootHeadPairs, gather_pairs
 
-__all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence"]
+__all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence", "fit_pooled_pairs",
+           "still_people_as_one"]
 
 FOCAL_POLICIES = ("given", "declared", "estimated")
 
@@ -94,8 +95,6 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
     if options.standing_only:
         pairs, note = _standing(seq, pairs)
         notes += [note] if note else []
-    pairs, note = still_people_as_one(pairs)
-    notes += [note] if note else []
     mesh_focal = declared_focal(seq)
     mesh_kind = seq.focal_kind if mesh_focal is not None else None
     if options.focal_px is not None:
@@ -111,11 +110,10 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
         if math.dist(pp, (image_size[0] / 2.0, image_size[1] / 2.0)) > _PP_NOTE_PX:
             notes.append(f"principal point ({pp[0]:g}, {pp[1]:g}) from the sequence (what its HPS tool projected "
                          "with), not the image centre (--principal-point CX CY to override)")
-    tracks = pairs.person_ids if pairs.tracked else None
     try:
         fit_options = replace(options, focal_px=focal, principal_point=pp)
-        result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, fit_options, frame_index=pairs.frame_index,
-                            track_id=tracks, body=body_axes(pairs))
+        result, pairs = fit_pooled_pairs(pairs, image_size, fit_options)
+        tracks = pairs.person_ids if pairs.tracked else None
         per_frame = None
         if options.per_frame:
             spread = fit_per_frame(pairs.feet_px, pairs.heads_px, image_size, pairs.frame_index, fit_options,
@@ -213,6 +211,19 @@ def still_people_as_one(pairs: FootHeadPairs) -> tuple[FootHeadPairs, str | None
     return out, (f"{people} {'person stands' if people == 1 else 'people stand'} still: "
                  f"{'their' if people > 1 else 'its'} {int((~keep).sum())} pairs count as {people} (the median foot "
                  "and head), not one per frame")
+
+
+def fit_pooled_pairs(pairs: FootHeadPairs, image_size: tuple[int, int], options: CalibrateOptions
+                     ) -> tuple[CalibrationResult, FootHeadPairs]:
+    """The fit of a sequence's pooled pairs (:func:`calibrate_sequence` after its focal and posture policies):
+    each still person as one pair (:func:`still_people_as_one`, noted in the result), their track ids, the
+    standing bodies' own vertical. Returns the result and the pairs it was given."""
+    pairs, note = still_people_as_one(pairs)
+    result = fit_camera(pairs.feet_px, pairs.heads_px, image_size, options, frame_index=pairs.frame_index,
+                        track_id=pairs.person_ids if pairs.tracked else None, body=body_axes(pairs))
+    if note:
+        result = replace(result, notes=(note,) + result.notes)
+    return result, pairs
 
 
 def _chosen_tracks(seq: Sequence, pairs: FootHeadPairs, ids: tuple[int, ...]) -> FootHeadPairs:

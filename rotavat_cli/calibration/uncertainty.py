@@ -18,7 +18,7 @@ from .chi_square import chi2_99
 from .grid import order_invariant_subset
 from .model import undistort
 from .objective import Problem, model_residual, pair_chi2, residual_and_jacobian, robust_scale
-from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, to_internal
+from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, from_internal, to_internal
 from .refine import robust_least_squares
 from .residuals import RESIDUAL_KINDS
 
@@ -56,7 +56,7 @@ class Systematics:
     distortion: float  # radial displacement at the image corner / half-diagonal
     stature_mean_m: float  # population mean stature
     box_depth_m: float  # box depth (box-derived points)
-    focal_log: float = 0.0  # sd of log f when the focal is held at its prior's median (people at one depth)
+    held: tuple[tuple[int, float], ...] = ()  # (slot, prior sd, internal units) held at its prior's median
 
 
 def _statistical_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float,
@@ -159,7 +159,7 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
                     J: np.ndarray, assumed: Systematics) -> np.ndarray:
     """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
     sds = {"cx": assumed.principal_point_px, "cy": assumed.principal_point_px, "distortion": assumed.distortion,
-           "stature": assumed.stature_mean_m, "box": assumed.box_depth_m, "focal": assumed.focal_log}
+           "stature": assumed.stature_mean_m, "box": assumed.box_depth_m, **{slot: sd for slot, sd in assumed.held}}
     gain = -np.linalg.pinv(J.T @ J, rcond=_NULL_EIG) @ J.T
     cov = np.zeros((J.shape[1], J.shape[1]))
     for name, sd in sds.items():
@@ -168,10 +168,11 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
         step = 0.1 * sd
         if name == "box":  # a fixed parameter of the model
             r_moved = model_residual(prob, (params + step * np.eye(len(params))[BOX_DEPTH])[None], free, scale)[0]
-        elif name == "focal":  # held at the prior's median: its log moves by ``step``
-            moved = params.copy()
-            moved[FOCAL] *= math.exp(step)
-            r_moved = model_residual(prob, moved[None], free, scale)[0]
+        elif isinstance(name, int):  # a slot held at the prior's median: its internal value moves by ``step``
+            moved = to_internal(params)
+            moved[name] += step
+            r_moved = model_residual(prob, from_internal(moved[None], moved, np.ones(len(moved), bool)), free,
+                                     scale)[0]
         else:
             r_moved = model_residual(_perturbed(prob, name, step), params[None], free, scale)[0]
         shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
@@ -216,9 +217,9 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
             warns.append(f"the head columns disagree with the head rows (chi-square {stat_h:.0f} on {rank} dof): "
                          f"{focal}box-derived points (then use --points boxes), an off-centre principal point "
                          "(--principal-point CX CY) or lens distortion (--distortion); the std includes the disagreement")
-    if assumed.focal_log > 0:  # a focal held at its prior's median: where its spread dominates, the prior determines
+    if assumed.held:  # slots held at their prior's median: where their spread dominates, the prior determines
         spread = np.diag(_systematic_cov(prob, params, free, scale, r, J, Systematics(0.0, 0.0, 0.0, 0.0,
-                                                                                       assumed.focal_log)))
+                                                                                       assumed.held)))
         for k, slot in enumerate(np.flatnonzero(free)):
             if spread[k] >= (1.0 - _MATTERS) * total[k, k] and "prior" not in by_slot[int(slot)].split("+"):
                 by_slot[int(slot)] += "+prior"

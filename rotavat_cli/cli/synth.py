@@ -19,7 +19,7 @@ def synth(
     seed: Annotated[int | None, typer.Option(help="Random seed (same seed, same scene).")] = None,
     frames: Annotated[int | None, typer.Option(help="Number of frames.", min=1)] = None,
     people: Annotated[int | None, typer.Option(help="People per frame.", min=0)] = None,
-    layout: Annotated[str | None, typer.Option(help="Where people stand: crowd (walking all over the ground), walk (walking across the view at one depth: one passer-by), row (a group photo: side by side at one depth, still; use --frames 1).")] = None,
+    layout: Annotated[str | None, typer.Option(help="Where people stand: crowd (walking all over the ground), walk (walking across the view at one depth: one passer-by), row (a group photo: side by side at one depth, still; use --frames 1), still (standing about at every depth, swaying and turning on the spot).")] = None,
     image_size: Annotated[tuple[int, int] | None, typer.Option(help="Image width and height (px).")] = None,
     roll: Annotated[float | None, typer.Option("--roll", help="Camera roll (deg); default random in [-3, 3].")] = None,
     camera_height_range: Annotated[tuple[float, float] | None, typer.Option(help="The random camera's height range LO HI (m); a handheld camera: 1.2 2.")] = None,

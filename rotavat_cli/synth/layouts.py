@@ -6,7 +6,11 @@
   perpendicular to the camera's viewing direction: everyone at one depth, the feet on one image
   line (parallel to the horizon: an image row when the roll is 0), as in a video of one passer-by;
 - ``row``: a group photo: people side by side (``ROW_SPACING_M`` apart) at one depth, facing the
-  camera, standing still.
+  camera, standing still;
+- ``still``: people standing at random visible ground points, at every depth the camera sees, each
+  swaying about its place (``STILL_SWAY_M`` per frame) and turning on the spot: people waiting,
+  talking, queueing. A person who barely moves gives no perspective of their own, and their
+  pixel noise is as large as their motion: the calibration's hard case for per-person statures.
 
 The one-depth layouts choose their line so every foot and crown stays inside the image and a
 person is a reasonable size (``PERSON_SIZE_RANGE_H`` of the image height, when the camera allows
@@ -21,9 +25,10 @@ import numpy as np
 
 from ..camera import Camera
 
-__all__ = ["LAYOUTS", "FPS", "WALK_SPEED_MPS", "MAX_GROUND_DISTANCE_M", "place_people", "sample_walks"]
+__all__ = ["LAYOUTS", "FPS", "WALK_SPEED_MPS", "MAX_GROUND_DISTANCE_M", "STILL_SWAY_M", "place_people", "sample_walks",
+           "standing_still"]
 
-LAYOUTS = ("crowd", "walk", "row")
+LAYOUTS = ("crowd", "walk", "row", "still")
 FPS = 5.0  # frames per second of the synthetic video
 WALK_SPEED_MPS = (0.8, 1.6)  # walking speeds
 MAX_GROUND_DISTANCE_M = 45.0  # people farther than this are too small to matter
@@ -34,6 +39,8 @@ ROW_SPACING_M = 0.6  # shoulder to shoulder
 DEPTH_JITTER_M = 0.03  # sd of each person's offset from the line, along the viewing direction (and across, row)
 DEPTH_JITTER_MAX_M = 0.08  # the offsets are clipped to this
 FACING_SD_DEG = 10.0  # a row faces the camera roughly
+STILL_SWAY_M = 0.05  # still: sd of a standing person's offset from their place in each frame (per ground axis)
+STILL_TURN_SD_DEG = 20.0  # still: sd of their heading about its mean, frame to frame
 BODY_MARGIN_M = 0.35  # half a body's width (arms) beyond its foot point: kept inside the view
 MIN_TRACK_M = 2.0  # a walk's shortest track
 IN_VIEW_STATURE_M = 2.1  # the tallest synthetic person (2.05 m) and some: whose crown must be in view
@@ -90,6 +97,17 @@ def _back_and_forth(rng: np.random.Generator, start: np.ndarray, end: np.ndarray
     forward = np.where(phase < 1.0, 1.0, -1.0)[..., None] * seg / length[:, None]
     heading = np.arctan2(forward[..., 0], forward[..., 2])  # yaw about +Y taking +Z to the walk direction
     return pos, heading
+
+
+def standing_still(rng: np.random.Generator, camera: Camera, n_people: int,
+                   n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """People standing at random visible places, swaying about them and turning on the spot: positions
+    (T, P, 3) world frame and headings (T, P) rad."""
+    place = _sample_ground_points(rng, camera, n_people)
+    sway = rng.normal(0.0, STILL_SWAY_M, (n_frames, n_people, 3)) * np.array([1.0, 0.0, 1.0])
+    heading = rng.uniform(0.0, 2.0 * np.pi, n_people) + np.deg2rad(rng.normal(0.0, STILL_TURN_SD_DEG,
+                                                                              (n_frames, n_people)))
+    return place + sway, heading
 
 
 def view_axes_world(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
@@ -175,6 +193,8 @@ def place_people(layout: str, rng: np.random.Generator, camera: Camera, n_people
         raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
     if layout == "crowd":
         return sample_walks(rng, camera, n_people, n_frames)
+    if layout == "still":
+        return standing_still(rng, camera, n_people, n_frames)
     if n_people == 0:
         return np.zeros((n_frames, 0, 3)), np.zeros((n_frames, 0))
     return (one_depth_walks if layout == "walk" else standing_row)(rng, camera, n_people, n_frames)
