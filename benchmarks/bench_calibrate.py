@@ -37,6 +37,7 @@ from rotavat_cli.calibration import (  # noqa: E402
     fit_per_frame,
     paper_grid_search,
 )
+from rotavat_cli.calibration.pairs import in_view  # noqa: E402
 from rotavat_cli.camera import Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px, up_vector_cam  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
 
@@ -206,7 +207,8 @@ def _signed(res: CalibrationResult, true: Camera) -> list[float]:
 
 # ---- real sequences ---------------------------------------------------------------------------------
 def load_real(seq_dir: Path, every: int = 1) -> dict:
-    """Pairs, frame indices, person ids, image size and the true camera of one real sequence."""
+    """Pairs, frame indices, person ids, image size and the true camera of one real sequence; the pairs of
+    people cut by the image border are left out, as ``rotavat calibrate`` leaves them out (:func:`in_view`)."""
     meta = yaml.safe_load((seq_dir / "meta.yaml").read_text())
     truth = camera_from_yaml_dict(yaml.safe_load((seq_dir / "camera_gt.yaml").read_text()))
     feet, heads, frame, ids = [], [], [], []
@@ -216,9 +218,11 @@ def load_real(seq_dir: Path, every: int = 1) -> dict:
             heads.append(z["heads_2d"])
             frame.append(np.full(len(z["feet_2d"]), t))
             ids.append(z["person_ids"] if "person_ids" in z else np.full(len(z["feet_2d"]), -1))
-    return {"feet": np.concatenate(feet).astype(float), "heads": np.concatenate(heads).astype(float),
-            "frame": np.concatenate(frame), "ids": np.concatenate(ids), "size": tuple(meta["image_size"]),
-            "truth": truth}
+    feet, heads = np.concatenate(feet).astype(float), np.concatenate(heads).astype(float)
+    size = tuple(meta["image_size"])
+    whole = in_view(feet, size) & in_view(heads, size)
+    return {"feet": feet[whole], "heads": heads[whole], "frame": np.concatenate(frame)[whole],
+            "ids": np.concatenate(ids)[whole], "size": size, "truth": truth}
 
 
 def real_table(quick: bool) -> None:

@@ -15,7 +15,7 @@ import io
 import os
 import pickle
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +66,15 @@ def standing_person(model: BodyModel, camera: Camera, x_world: float, z_world: f
     j0 = rest_joints[0]
     transl = joints_cam[0] - j0  # global_orient turns about the root joint: root lands at j0 + transl
     return Person(pid, pose, np.zeros(10), transl, verts_cam, joints_cam)
+
+
+def seen_with_focal(person: Person, factor: float) -> Person:
+    """The person as a tool with ``factor`` times the camera's focal places it: the rigid body moved straight
+    back to ``factor`` times its root's depth, so that through that focal its root keeps its pixel and its size
+    (4D-Humans' and PyMAF-X's fixed focals put people tens of metres away)."""
+    shift = np.array([0.0, 0.0, (factor - 1.0) * person.joints_cam[0, 2]])
+    return replace(person, transl=person.transl + shift, verts_cam=person.verts_cam + shift,
+                   joints_cam=person.joints_cam + shift)
 
 
 def _matrix_to_rotvec(R: np.ndarray) -> np.ndarray:

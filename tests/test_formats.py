@@ -28,12 +28,26 @@ from rotavat_cli.errors import InputError
 from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
 from rotavat_cli.formats.agora import focal_mm
 from rotavat_cli.formats.source import ImporterSource, forget, recipe_cached
+from rotavat_cli.focal import focal_from_rule
 from rotavat_cli.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
 
 W, H = 640, 480
 TOL_M = 1e-4  # float32 storage of metre-scale coordinates (~1e-6) plus LBS round-off
 TOL_PX = 0.02  # float32 pixels
+
+
+_FIXED_FOCAL_RULES = ("4dhumans", "pymafx")  # tools whose one focal is far from any real lens's
+
+
+def _as_the_tool_places_it(fmt: str, scene, camera):
+    """The scene as ``fmt`` would write it (:func:`F.seen_with_focal`): through a fixed focal far from the camera's,
+    people stand where they draw the camera's pixels (tens of metres away), not where the camera sees them, which
+    through that focal would be metres beyond the image."""
+    if fmt not in _FIXED_FOCAL_RULES:
+        return scene
+    factor = focal_from_rule(fmt, (W, H)) / camera.focal_px
+    return [[F.seen_with_focal(person, factor) for person in frame] for frame in scene]
 
 
 def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
@@ -651,7 +665,7 @@ def imported_runs(tmp_path_factory, model, camera, model_path, smplx_on_smpl_pat
 
 def _imported_run(fmt: str, root: Path, model, camera, model_path: Path, runner) -> ImportedRun:
     (root / "in").mkdir()
-    src = _write(fmt, root / "in", _from_scene(model, camera), model, camera)
+    src = _write(fmt, root / "in", _as_the_tool_places_it(fmt, _from_scene(model, camera), camera), model, camera)
     size = ["--image-size", W, H] if fmt in ("cliff", "multihmr", "wham") else []
     imported, cam_yaml, aligned = root / "imported", root / "cam_imported.yaml", root / "al_imported"
     import_sequence(src, imported, fmt, smpl_model=model_path, image_size=(W, H) if size else None)

@@ -48,7 +48,7 @@ def test_the_photo_under_the_front_view_at_a_panel_size_that_crashed(runner, ali
     seq, aligned, images = aligned_photo
     W, H = 136, 90
     result = invoke(runner, "render", seq, aligned, "--image", images, "--renderer", "fallback", "--views", "front",
-                    "--size", str(W), str(H), "--out", tmp_path / "fig", "--json")
+                    "--size", str(W), str(H), "--out", tmp_path / "fig", "--json", "--accept-camera")
     assert result.exit_code == 0 and "Traceback" not in result.stderr, result.output
     summary = json.loads(result.stdout)
     with Image.open(summary["files"][0]) as img:

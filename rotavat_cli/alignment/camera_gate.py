@@ -44,14 +44,22 @@ from ..errors import InputError
 from ..outputs import imported_output
 from .camera_choice import CALIBRATED, AlignCamera
 
-__all__ = ["IMPLAUSIBLE", "ACCEPTED", "ACCEPT_FLAG", "CAMERA_DOC", "KNOWN_FLAGS", "ImplausibleCameraError", "Remedies",
+__all__ = ["IMPLAUSIBLE", "ACCEPTED", "ACCEPT_FLAG", "CAMERA_DOC", "KNOWN_FLAGS", "OTHER_CAUSES", "ImplausibleCameraError",
+           "Remedies", "flags_not_given", "what_to_give",
            "implausible_findings", "is_accepted", "accepted_fit", "check_fit", "check_align_camera", "camera_what",
            "reader_flags", "align_remedies", "render_remedies", "batch_remedies"]
 
 IMPLAUSIBLE, ACCEPTED = "implausible", "accepted"  # keys of camera.yaml's fit block
 ACCEPT_FLAG = "--accept-camera"
 CAMERA_DOC = "docs/conventions.md#camerayaml"  # where camera.yaml's schema is written down
-KNOWN_FLAGS = "--focal PX --camera-height M [--pitch DEG]"  # what a user may know of a camera (calibrate's and batch's flags)
+# What a user may know of a camera (calibrate's and batch's flags), each with the fit key that records it given
+# (fit.fixed[key] == "given" or "declared").
+_KNOWN = (("focal_px", "--focal PX"), ("height_m", "--camera-height M"), ("pitch_deg", "[--pitch DEG]"))
+KNOWN_FLAGS = " ".join(flag for _, flag in _KNOWN)
+# What else makes a camera wrong once everything a user may know of it was given: the people, not the camera.
+OTHER_CAUSES = ("the people do not fit the model: people cut by the image border, not standing (sitting, "
+                "jumping), on steps or uneven ground, or a mismatched body model; check calibrate's notes and "
+                "warnings, people.csv's flags and rotavat render's figure")
 
 
 class ImplausibleCameraError(InputError):
@@ -94,7 +102,7 @@ class Remedies:
     {accept} to use it anyway``; ``camera`` may be empty (no camera file can stand in).
     """
 
-    calibrate: str  # the command that fits the camera again, to which KNOWN_FLAGS are added
+    calibrate: str  # the command that fits the camera again, to which the KNOWN_FLAGS not yet given are added
     then: str  # what to run or know after it
     camera: str  # how to give a camera.yaml instead, with CAMERA_DOC; "" when none can be given here
     accept: str  # the command (or flag) that uses the camera anyway
@@ -168,6 +176,34 @@ def batch_remedies(root: str | Path, out: str | Path) -> Remedies:
                     f"{ACCEPT_FLAG} instead")
 
 
+def flags_not_given(fit: Mapping | None) -> tuple[str, ...]:
+    """The flags of what a user may know of a camera (focal, height, pitch) that the fit did not already take
+    as given (``fit.fixed``); all of them for a camera without a fit block.
+
+    >>> flags_not_given({"fixed": {"focal_px": "given", "pitch_deg": "given"}})
+    ('--camera-height M',)
+    """
+    fixed = fit.get("fixed", {}) if isinstance(fit, Mapping) else {}
+    fixed = fixed if isinstance(fixed, Mapping) else {}
+    return tuple(flag for key, flag in _KNOWN if fixed.get(key) not in ("given", "declared"))
+
+
+def what_to_give(fit: Mapping | None, command: str = "") -> str:
+    """The advice for an implausible camera that never repeats what the user gave: the flags not yet given (after
+    ``command``, when one is named), else :data:`OTHER_CAUSES`.
+
+    >>> what_to_give({"fixed": {"focal_px": "given"}}, "rotavat calibrate seq")
+    'give what you know: rotavat calibrate seq --camera-height M [--pitch DEG]'
+    >>> what_to_give({"fixed": {"focal_px": "given", "height_m": "given", "pitch_deg": "given"}}).startswith("the people")
+    True
+    """
+    flags = flags_not_given(fit)
+    if not flags:
+        return OTHER_CAUSES
+    return f"give what you know: {' '.join([command, *flags]).strip()}" if command else \
+        f"give what you know ({', '.join(flags)})"
+
+
 def check_fit(what: str, fit: Mapping | None, accept: bool, remedies: Remedies) -> str | None:
     """The gate: None for a plausible camera; the warning to show for an implausible one used anyway
     (``accept``, or recorded as accepted); else :class:`ImplausibleCameraError` on one line.
@@ -182,10 +218,13 @@ def check_fit(what: str, fit: Mapping | None, accept: bool, remedies: Remedies) 
         return f"{found}, used anyway ({ACCEPT_FLAG})"
     if is_accepted(fit):
         return f"{found}, used as accepted earlier with {ACCEPT_FLAG} (fit: accepted: true)"
-    fixes = [f"{remedies.calibrate} {KNOWN_FLAGS} ({remedies.then})" if remedies.calibrate else "", remedies.camera,
-             f"{remedies.accept} to use it anyway"]
+    flags = flags_not_given(fit)
+    fixes = [f"{remedies.calibrate} {' '.join(flags)} ({remedies.then})" if remedies.calibrate and flags else "",
+             remedies.camera, f"{remedies.accept} to use it anyway"]
     given = [f for f in fixes[:-1] if f]
     advice = f"give what you know: {', or '.join([*given, fixes[-1]])}" if given else fixes[-1]
+    if not flags:  # everything one may know of the camera was given: what else is wrong comes first
+        advice = f"{OTHER_CAUSES}; or {advice}"
     raise ImplausibleCameraError(" ".join(f"{found}; {advice}".split()))
 
 

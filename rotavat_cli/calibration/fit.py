@@ -46,6 +46,7 @@ import numpy as np
 
 from ..camera import Camera, camera_parameters, horizon_v_px
 from ..errors import DegenerateSceneError
+from .flat_ground import ground_findings
 from .grid import paper_grid_search
 from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
 from .objective import MIN_NOISE_PX, BodyAxes, Problem, design_effect, make_problem, profiled
@@ -455,11 +456,18 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         fixed["height_m"] = "given"
         determined["person_height_m"] = determined.pop("height_m", "people")
     focal_prior = "none" if inp.priors is None or not (free[FOCAL] or FOCAL in held) else inp.priors.focal_kind
+    ground = ground_findings(inp.feet, inp.heads, camera, stature,
+                             inp.tracks if inp.tracks is not None else np.arange(len(inp.feet)), inlier_mask,
+                             inp.tracks is not None)
     implausible = implausible_findings(camera, std, focal_estimated=bool(free[FOCAL] or FOCAL in held),
                                        height_estimated=not height_known,
-                                       mean_stature_m=stature if height_known else None)
+                                       mean_stature_m=stature if height_known else None,
+                                       focal_from_people=bool(free[FOCAL]) and "people" in determined.get(
+                                           "focal_px", "").split("+"),
+                                       ground=ground)
     warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), inp.n_usable, len(inp.feet),
-                                             determined, inp.one_depth)
+                                             determined, inp.one_depth) + [g.message for g in ground
+                                                                            if not g.implausible]
     if method == "refine" and inp.tracks is None and n_frames > 1:
         warns.append("no track ids: a person seen in several frames counts as a new person each time, so the std "
                      "is too small when people persist (give the person ids)")

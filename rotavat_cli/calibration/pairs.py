@@ -9,6 +9,12 @@ Where the frame has 3D people, each pair also carries the person's own sole->cro
 method's camera frame (the mesh landmarks, or align's rule for joints:
 :func:`rotavat_cli.frame_points.frame_foot_head_cam`), which calibration may use as evidence of
 the vertical.
+
+**Who is in view.** A pair whose foot or crown pixel lies outside the image or within
+:func:`edge_margin_px` of its border (for a mesh, its projected mid-sole or crown: the tool drew
+legs the photo cuts off, as BEV on upper-body photos puts the feet 600-1300 px below a 2500-px
+image) is not a foot/head pair: :func:`in_view` marks it, ``FootHeadPairs.cut`` carries
+the mark, and calibration leaves it out with a note (:func:`rotavat_cli.calibration.sequence.calibrate_sequence`).
 """
 
 from __future__ import annotations
@@ -24,7 +30,31 @@ from ..landmarks import foot_head_points
 from ..posture import postures
 from ..sequence import Frame, Intrinsics, Sequence, can_align, people_not_placed
 
-__all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
+__all__ = ["EDGE_MARGIN_FRACTION", "EDGE_MARGIN_MIN_PX", "FootHeadPairs", "beyond_border_px", "edge_margin_px", "in_view",
+           "frame_foot_head_px", "gather_pairs"]
+
+# A point this close to the image's border is not seen whole: a foot at the last row may be a cut leg, a detector's
+# keypoint clamped to the border, or a sole half outside. Half a percent of the shorter side (5 px at 1080), at least 2.
+EDGE_MARGIN_FRACTION = 0.005
+EDGE_MARGIN_MIN_PX = 2.0
+
+
+def edge_margin_px(image_size: tuple[int, int]) -> float:
+    """The border band (px) of an image of ``image_size (W, H)`` where a foot or crown is not seen whole."""
+    return max(EDGE_MARGIN_MIN_PX, EDGE_MARGIN_FRACTION * min(image_size))
+
+
+def in_view(points_px: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """(...) bool: pixels (..., 2) inside the image by more than :func:`edge_margin_px` (NaN: not in view).
+
+    >>> in_view(np.array([[100.0, 100.0], [100.0, 1078.0], [-3.0, 50.0], [np.nan, 5.0]]), (1920, 1080)).tolist()
+    [True, False, False, False]
+    """
+    m = edge_margin_px(image_size)
+    p = np.asarray(points_px, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return (p[..., 0] >= m) & (p[..., 0] <= image_size[0] - m) & (p[..., 1] >= m) & (p[..., 1] <= image_size[1] - m)
+
 
 
 @dataclass(frozen=True)
@@ -41,13 +71,15 @@ class FootHeadPairs:
     not_in_front: int = 0  # meshes dropped: root-centred or behind the camera (sequence.people_not_placed)
     axes_cam: np.ndarray | None = None  # (N, 3) unit sole->crown axis in the method's camera frame; NaN: no 3D person
     postures: np.ndarray | None = None  # (N,) posture of the person (rotavat_cli.posture.POSTURES); "unknown": no joints
+    cut: np.ndarray | None = None  # (N,) bool: the person is cut by the image border (:func:`in_view`); None: unknown
+    cut_depth_px: np.ndarray | None = None  # (N,) px: how far the cut pair's farthest point lies beyond the border
 
     def subset(self, keep: np.ndarray) -> "FootHeadPairs":
         """The pairs selected by ``keep`` ((N,) bool or indices)."""
         return replace(self, feet_px=self.feet_px[keep], heads_px=self.heads_px[keep],
                        frame_index=self.frame_index[keep], person_ids=self.person_ids[keep],
-                       axes_cam=None if self.axes_cam is None else self.axes_cam[keep],
-                       postures=None if self.postures is None else self.postures[keep])
+                       **{name: None if getattr(self, name) is None else getattr(self, name)[keep]
+                          for name in ("axes_cam", "postures", "cut", "cut_depth_px")})
 
 
 def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, str]:
@@ -75,8 +107,9 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     Meshes that are root-centred or behind the camera (never placed in the camera frame) give no
     pair; ``not_in_front`` counts them, so a refusal can say why.
     """
-    feet, heads, index, ids, axes, poses, sources = [], [], [], [], [], [], set()
+    feet, heads, index, ids, axes, poses, cuts, sources = [], [], [], [], [], [], [], set()
     layout = seq.joints_layout
+    size = seq.image_size
     tracked = True
     not_in_front = 0
     for i, frame in enumerate(seq.frames()):
@@ -89,6 +122,7 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
             f[off], h[off] = np.nan, np.nan
             not_in_front += int(off.sum())
         axes.append(_body_axes_cam(frame, intrinsics, f, h))
+        cuts.append(_cut_beyond_px(f, h, size))
         poses.append(_postures(frame, layout))
         if len(f):
             sources.add(src)
@@ -100,10 +134,31 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     heads_px = np.concatenate(heads) if heads else np.zeros((0, 2))
     keep = np.all(np.isfinite(feet_px), axis=1) & np.all(np.isfinite(heads_px), axis=1)
     source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
+    beyond = np.concatenate(cuts)[keep] if cuts else np.zeros(0)
     return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
                          np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source,
                          not_in_front, np.concatenate(axes)[keep] if axes else np.zeros((0, 3)),
-                         np.concatenate(poses)[keep] if poses else np.zeros(0, "<U8"))
+                         np.concatenate(poses)[keep] if poses else np.zeros(0, "<U8"),
+                         None if size is None else beyond > -edge_margin_px(size), None if size is None else beyond)
+
+
+def beyond_border_px(points_px: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """(...) px: how far pixels (..., 2) lie beyond the image's nearest border (negative: inside, by that much);
+    inf for non-finite pixels."""
+    p = np.asarray(points_px, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        beyond = np.max(np.stack([-p[..., 0], p[..., 0] - image_size[0], -p[..., 1], p[..., 1] - image_size[1]]),
+                        axis=0)
+    return np.where(np.isfinite(beyond), beyond, np.inf)
+
+
+def _cut_beyond_px(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int] | None) -> np.ndarray:
+    """(P,) px: how far each pair's foot or crown lies beyond the image border (negative: how far inside); NaN
+    without an image size. The pair's own pixels decide (a mesh whose projection leaves its tool's 2D keypoints
+    is a mismatched model: :mod:`rotavat_cli.formats.model_fit`)."""
+    if image_size is None:
+        return np.full(len(feet_px), np.nan)
+    return np.maximum(beyond_border_px(feet_px, image_size), beyond_border_px(heads_px, image_size))
 
 
 def _postures(frame: Frame, layout: str | None) -> np.ndarray:

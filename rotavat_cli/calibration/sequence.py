@@ -32,10 +32,10 @@ from ..words import count
 from .fit import CalibrationResult, fit_camera, fit_per_frame
 from .objective import BodyAxes
 from .options import CalibrateOptions
-from .pairs import FootHeadPairs, gather_pairs
+from .pairs import FootHeadPairs, edge_margin_px, gather_pairs
 
 __all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence", "fit_pooled_pairs",
-           "still_people_as_one"]
+           "still_people_as_one", "whole_people"]
 
 FOCAL_POLICIES = ("given", "declared", "estimated")
 
@@ -92,6 +92,8 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
     notes: list[str] = []
     if options.tracks is not None:
         pairs = _chosen_tracks(seq, pairs, options.tracks)
+    pairs, note = whole_people(seq, pairs, image_size)
+    notes += [note] if note else []
     if options.standing_only:
         pairs, note = _standing(seq, pairs)
         notes += [note] if note else []
@@ -170,6 +172,31 @@ def _standing(seq: Sequence, pairs: FootHeadPairs) -> tuple[FootHeadPairs, str |
     note = (f"left out {people} {who} ({what}; {int(away.sum())} of {len(away)} pairs, by their joints' knee and "
             "hip angles; --all-people keeps them)")
     return pairs.subset(~away), note
+
+
+def whole_people(seq: Sequence, pairs: FootHeadPairs, image_size: tuple[int, int]) -> tuple[FootHeadPairs, str | None]:
+    """The pairs of people seen whole (``FootHeadPairs.cut``, :func:`.pairs.in_view`) and a note counting the others.
+
+    A person cut by the image border has no seen foot or crown: their pair is not a foot/head pair. When no
+    one is whole, DegenerateSceneError names how far beyond the border their points lie and what can be
+    done without them."""
+    if pairs.cut is None or not pairs.cut.any():
+        return pairs, None
+    cut = pairs.cut
+    people = len(np.unique(pairs.person_ids[cut])) if pairs.tracked else int(cut.sum())
+    beyond = pairs.cut_depth_px[cut]
+    outside = beyond[beyond >= 1.0]
+    where = (f"their feet or crowns up to {float(np.max(outside)):.0f} px beyond the {image_size[0]}x{image_size[1]} "
+             f"image's border" if len(outside) else
+             f"their feet or crowns within {edge_margin_px(image_size):.0f} px of the image's border")
+    if cut.all():
+        raise DegenerateSceneError(
+            f"{seq.label}: everyone is cut by the image border ({count(people, 'person', 'people')}, {where}): no "
+            "one is seen from sole to crown, so no camera can be calibrated from them, nor can they be placed on the "
+            f"ground; root-aligned metrics still apply: rotavat eval {seq.label} --gt GT")
+    note = (f"left out {count(people, 'person', 'people')} cut by the image border ({int(cut.sum())} of {len(cut)} "
+            f"pairs, {where}): not foot/head pairs")
+    return pairs.subset(~cut), note
 
 
 _STILL_SPREAD = 0.10  # a track whose feet all lie within this fraction of its pixel height of their median stands still
