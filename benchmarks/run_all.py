@@ -18,6 +18,7 @@ HERE = Path(__file__).resolve().parent
 BENCHMARKS = {
     "bench_startup.py": ([], ["--quick"]),
     "bench_calibrate.py": ([], ["--quick"]),
+    "bench_consistency.py": ([], ["--quick"]),
     "bench_align.py": ([], ["--frames", "200"]),
     "bench_eval.py": ([], ["--pairs", "10000", "--loop-pairs", "500"]),
     "bench_render.py": ([], ["--repeats", "1"]),
