@@ -19,6 +19,14 @@ so the head is in front of the camera exactly when ``1 - a_z b_z t > 0``.
 Per person: :func:`statures_by_track` pools a track's measurements into its median and a robust
 spread (half the interquartile range).
 
+**Where a stature comes from.** Every stature rotavat reports (align's people.csv and summary,
+measure, eval, view) is only as metric as the camera's scale: the camera height. When it was given,
+or the calibration was tied to a reference person of known stature, the statures are measured;
+when it was estimated from the people with the default stature prior, their mean is that prior
+given back (1.70 m) and only their differences are measured. :func:`scale_source` reads which
+from the camera's ``fit:`` block (``fit.scale_from``, written by calibrate) and
+:func:`stature_provenance` says it in words.
+
 Examples
 --------
 >>> cam = Camera((640, 480), 500.0, None, np.deg2rad(30.0), np.deg2rad(2.0), 5.0)
@@ -33,13 +41,21 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from .camera import Camera
 
-__all__ = ["statures_from_camera_m", "TrackStatures", "statures_by_track"]
+__all__ = ["statures_from_camera_m", "TrackStatures", "statures_by_track", "SCALE_SOURCES", "REFERENCE_SD_MAX_M",
+           "scale_source", "source_words", "stature_provenance"]
+
+# Where a camera's scale (hence every stature measured with it) comes from: fit.scale_from, and people.csv's column.
+SCALE_SOURCES = ("camera_height", "reference", "given_camera", "prior")
+# A calibration from chosen people (--track) whose stature prior is this narrow measures against them (a reference
+# person measured with a tape: +-1-2 cm); the default prior's sd is 7 cm, a population's.
+REFERENCE_SD_MAX_M = 0.03
 
 _EPS = 1e-12  # a vertical whose image is a point (|d|^2 below this; the camera looks straight up or down it)
 
@@ -134,3 +150,47 @@ def _sorted_group_quantile(values: np.ndarray, start: np.ndarray, count: np.ndar
     frac = position - lo
     low, high = values[start + lo], values[start + hi]
     return low + frac * (high - low)
+
+
+def scale_source(fit: Mapping | None) -> str:
+    """Where the scale of a camera with this ``fit:`` block comes from (:data:`SCALE_SOURCES`).
+
+    ``fit.scale_from`` when calibrate wrote it; else a given camera height (``fit.fixed.height_m``),
+    else the prior; a camera without a fit block (ground truth, written by hand) is a given camera.
+
+    >>> scale_source(None), scale_source({"fixed": {"height_m": "given"}}), scale_source({"method": "refine"})
+    ('given_camera', 'camera_height', 'prior')
+    """
+    if not isinstance(fit, Mapping) or not fit:
+        return "given_camera"
+    if fit.get("scale_from") in SCALE_SOURCES:
+        return str(fit["scale_from"])
+    fixed = fit.get("fixed") if isinstance(fit.get("fixed"), Mapping) else {}
+    return "camera_height" if fixed.get("height_m") == "given" else "prior"
+
+
+def source_words(source: str, prior_m: float = 1.70) -> str:
+    """A few words saying whether statures measured with a camera whose scale comes from ``source``
+    (:data:`SCALE_SOURCES`) are measured or the stature prior ``prior_m`` given back.
+
+    >>> source_words("prior")
+    'the 1.70 m stature prior given back: the camera height came from the people, so only their differences are measured'
+    """
+    if source == "camera_height":
+        return "measured: the camera height was given"
+    if source == "reference":
+        return f"measured: the camera was calibrated against a reference person of {prior_m:.2f} m"
+    if source == "given_camera":
+        return "measured with a given camera (no fit: block)"
+    return (f"the {prior_m:.2f} m stature prior given back: the camera height came from the people, so only their "
+            "differences are measured")
+
+
+def stature_provenance(fit: Mapping | None) -> str:
+    """:func:`source_words` for a camera with this ``fit:`` block (its stature prior: ``fit.person_height_m``).
+
+    >>> stature_provenance({"scale_from": "reference", "person_height_m": 1.82})
+    'measured: the camera was calibrated against a reference person of 1.82 m'
+    """
+    prior = float(fit.get("person_height_m", 1.70)) if isinstance(fit, Mapping) else 1.70
+    return source_words(scale_source(fit), prior)

@@ -170,7 +170,8 @@ def test_measure_json_and_an_explicit_camera_and_csv(seq, tmp_path, runner):
     assert summary["pairs"] == summary["measured"] == 13
     assert {t["id"]: t["median_m"] for t in summary["tracks"]} == pytest.approx(STATURES, abs=1e-6)
     assert summary["median_of_tracks_m"] == pytest.approx(1.71, abs=1e-6)
-    assert out.read_text().splitlines()[0] == "track_id,pairs,median_stature_m,spread_m"
+    assert out.read_text().splitlines()[0] == "track_id,pairs,median_stature_m,spread_m,stature_from"
+    assert summary["stature_from"] == "prior" and "prior given back" in summary["stature_provenance"]
     assert result.stderr == ""  # --json: diagnostics quiet too
     warned = invoke(runner, "measure", seq, "--camera", other, "--out", out)  # its own CSV: replaced freely
     assert warned.exit_code == 0
@@ -217,3 +218,38 @@ def test_measure_names_a_broken_camera_file(seq, tmp_path, runner):
     result = invoke(runner, "measure", seq, "--camera", bad, "--out", tmp_path / "m.csv")
     assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1
     assert str(bad) in result.stderr and "focal_px" in result.stderr and not (tmp_path / "m.csv").exists()
+
+
+def test_measure_says_where_its_statures_come_from(seq, tmp_path, runner):
+    """The camera's scale decides whether statures are measured: a camera height given to calibrate (fit.fixed),
+    a reference person (fit.scale_from: reference), a camera without a fit block (ground truth) measure them; a
+    camera whose height came from the people's stature prior gives that prior back."""
+    cases = {"prior": ({"method": "refine"}, "1.70 m stature prior given back"),
+             "camera_height": ({"fixed": {"height_m": "given"}}, "measured: the camera height was given"),
+             "reference": ({"scale_from": "reference", "person_height_m": 1.93}, "reference person of 1.93 m"),
+             "given_camera": (None, "measured with a given camera")}
+    for source, (fit, words) in cases.items():
+        cam = tmp_path / f"{source}.yaml"
+        write_camera_yaml(cam, CAM, fit)
+        out = tmp_path / f"{source}.csv"
+        result = invoke(runner, "measure", seq, "--camera", cam, "--out", out)
+        assert result.exit_code == 0, result.stderr
+        assert words in " ".join(result.stdout.split())
+        with open(out, newline="") as handle:
+            assert {row["stature_from"] for row in csv.DictReader(handle)} == {source}
+
+
+def test_measure_leaves_people_cut_by_the_border_unmeasured(seq, tmp_path, runner):
+    """A pair whose foot lies below the image (a leg the photo cuts off) measures nothing: its track keeps its
+    other pairs, and a note counts the cut ones."""
+    frame = dict(np.load(seq / "000000.npz"))
+    frame["feet_2d"] = frame["feet_2d"].copy()
+    frame["feet_2d"][2, 1] = CAM.image_size[1] + 50.0
+    write_frame(seq, Frame("000000", frame), "npz")
+    out = tmp_path / "s.csv"
+    result = invoke(runner, "measure", seq, "--out", out, "--json")
+    summary = json.loads(result.stdout)
+    assert summary["cut_pairs"] == 1 and summary["measured"] == 12
+    assert {t["id"]: t["pairs"] for t in summary["tracks"]} == {4: 5, 7: 5, 12: 2}
+    noted = invoke(runner, "measure", seq, "--out", out)
+    assert "1 of 13 pairs are of people cut by the image border" in noted.stderr

@@ -15,15 +15,17 @@ from ..atomic import atomic_open
 from ..calibration.pairs import gather_pairs
 from ..camera import Camera
 from ..errors import InputError
-from ..measure import TrackStatures, statures_from_camera_m, statures_by_track
+from ..measure import TrackStatures, scale_source, stature_provenance, statures_by_track, statures_from_camera_m
 from ..outputs import check_output_file
 from ..plain import csv_cell
 from ..sequence import Sequence, read_camera_yaml
 from ._common import (ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, default_output,
                       input_sequence, print_json, report)
 
-CSV_COLUMNS = ("track_id", "pairs", "median_stature_m", "spread_m")
-CSV_SIGNATURE = ",".join(CSV_COLUMNS)  # how every CSV this command writes starts (the overwrite check)
+CSV_COLUMNS = ("track_id", "pairs", "median_stature_m", "spread_m", "stature_from")
+# How every CSV this command writes starts (the overwrite check): the columns of its first version, which later
+# columns follow, so that an earlier version's file is still recognised as rotavat's.
+CSV_SIGNATURE = ",".join(CSV_COLUMNS[:4])
 UNTRACKED = -1  # the track of pairs without a person id (every pair, when some frame has no person_ids)
 
 
@@ -45,15 +47,19 @@ def measure(
         cam, fit, origin = _camera(sequence, camera, from_)
         pairs = gather_pairs(sequence)
     statures_m = statures_from_camera_m(pairs.feet_px, pairs.heads_px, cam)
+    cut = np.zeros(len(statures_m), bool) if pairs.cut is None else pairs.cut
+    statures_m[cut] = np.nan  # a person cut by the border has no seen foot or crown: nothing to measure
     ids = pairs.person_ids if pairs.tracked else np.full(len(statures_m), UNTRACKED, np.int64)
     tracks = statures_by_track(statures_m, np.where(ids < 0, UNTRACKED, ids))
-    _write_csv(out, tracks)
-    _warn(fit, origin, pairs.tracked, statures_m, quiet_notes)
+    source = scale_source(fit)
+    _write_csv(out, tracks, source)
+    _warn(fit, origin, pairs.tracked, statures_m, quiet_notes, int(cut.sum()))
     finite = statures_m[np.isfinite(statures_m)]
     people = tracks.median_m[(tracks.ids != UNTRACKED) & (tracks.pairs > 0)]
     summary = {"camera": origin, "csv": str(out), "pairs": len(statures_m), "measured": len(finite),
                "tracked": pairs.tracked, "median_stature_m": float(np.median(finite)) if len(finite) else None,
-               "median_of_tracks_m": float(np.median(people)) if len(people) else None, "tracks": tracks.rows()}
+               "median_of_tracks_m": float(np.median(people)) if len(people) else None, "tracks": tracks.rows(),
+               "stature_from": source, "stature_provenance": stature_provenance(fit), "cut_pairs": int(cut.sum())}
     if as_json:
         print_json(summary)
         return
@@ -87,9 +93,9 @@ def _note(message: str, quiet: bool) -> None:
         console.print(message, highlight=False, soft_wrap=True)
 
 
-def _warn(fit: dict, origin: str, tracked: bool, statures_m: np.ndarray, quiet: bool) -> None:
+def _warn(fit: dict, origin: str, tracked: bool, statures_m: np.ndarray, quiet: bool, cut: int = 0) -> None:
     """Diagnostics on stderr: a camera its calibration found implausible, pairs not grouped by person,
-    pairs that could not be measured."""
+    pairs of people cut by the image border, pairs that could not be measured."""
     implausible = fit.get("implausible")
     if isinstance(implausible, list) and implausible:
         more = f"; and {len(implausible) - 3} more" if len(implausible) > 3 else ""
@@ -98,19 +104,23 @@ def _warn(fit: dict, origin: str, tracked: bool, statures_m: np.ndarray, quiet: 
               f"{escape(shown)}): statures measured with it may be wrong", quiet)
     if not tracked:
         _note("note: some frames have no person_ids: every pair is pooled into one row (track -1)", quiet)
-    missing = int(np.isnan(statures_m).sum())
+    if cut:
+        _note(f"note: {cut} of {len(statures_m)} pairs are of people cut by the image border (foot or crown outside "
+              "it or at its edge): not measured", quiet)
+    missing = int(np.isnan(statures_m).sum()) - cut
     if missing:
         _note(f"note: {missing} of {len(statures_m)} pairs could not be measured (foot on or above the horizon, or "
               "head behind the camera)", quiet)
 
 
-def _write_csv(path: Path, tracks: TrackStatures) -> None:
-    """One row per track (atomic): track_id, pairs, median_stature_m, spread_m (half the IQR)."""
+def _write_csv(path: Path, tracks: TrackStatures, source: str) -> None:
+    """One row per track (atomic): track_id, pairs, median_stature_m, spread_m (half the IQR), stature_from (where
+    the camera's scale comes from: rotavat_cli.measure.SCALE_SOURCES)."""
     with atomic_open(path, "w") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(CSV_COLUMNS)
         for row in tracks.rows():
-            writer.writerow([row["id"], row["pairs"], csv_cell(row["median_m"]), csv_cell(row["spread_m"])])
+            writer.writerow([row["id"], row["pairs"], csv_cell(row["median_m"]), csv_cell(row["spread_m"]), source])
 
 
 def _table(tracks: TrackStatures, summary: dict) -> Table:
@@ -123,7 +133,7 @@ def _table(tracks: TrackStatures, summary: dict) -> Table:
         table.add_row(label, str(row["pairs"]), _metres(row["median_m"]), _metres(row["spread_m"]))
     table.caption = (f"overall median {_metres(summary['median_stature_m'])} m over {summary['measured']} of "
                      f"{summary['pairs']} pairs; median of the tracks' medians "
-                     f"{_metres(summary['median_of_tracks_m'])} m")
+                     f"{_metres(summary['median_of_tracks_m'])} m; statures {summary['stature_provenance']}")
     return table
 
 

@@ -8,7 +8,7 @@ frame by frame. Metric names (all mm unless stated):
 - ``w_mpjpe_spec`` / ``w_pve_spec``: SPEC's variant (gravity frames from both cameras, then
   pelvis-aligned); only when the prediction and the ground truth both have a camera.yaml;
 - with the true camera: ``root_err`` (pelvis position error), ``foot_height`` (|height of the
-  predicted mid-sole above the true ground|), ``lean_deg`` (predicted foot->crown axis vs the
+  predicted foot point above the true ground|), ``lean_deg`` (predicted foot->crown axis vs the
   true vertical), ``stature_err`` (|predicted - true sole->crown length|);
 - detection: matched, missed, false positives, precision, recall, f1, and AGORA's
   ``nmje = mpjpe / f1`` and ``nmve = pve / f1``;
@@ -40,6 +40,7 @@ from ..camera import Camera, camera_parameters, project_cam_to_px
 from ..errors import InputError, input_errors
 from ..joint_layouts import LAYOUT_NAMES, layout_key
 from ..landmarks import SMPL_JOINT_NAMES
+from ..measure import scale_source
 from ..option_rules import Rule, check_fields
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
@@ -107,6 +108,7 @@ class EvalResult:
     per_person: dict[str, list] = field(default_factory=dict)
     tracks: TrackSeries | None = None  # the tracks' temporal state (merged by merge_results; not reported)
     fps: float | None = None  # the ground truth's meta.yaml fps
+    stature_from: str | None = None  # where the prediction's camera scale comes from (measure.SCALE_SOURCES); None: no camera
 
     def as_dict(self, per_person: bool = False) -> dict:
         """Plain dict for JSON (per-person rows only when asked)."""
@@ -344,6 +346,8 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
     pred_cam, gt_cam = pred_seq.camera, gt_seq.camera
     if pred_cam is not None and gt_cam is not None:
         result.camera = _camera_errors(pred_cam, gt_cam)
+    if pred_cam is not None:
+        result.stature_from = scale_source(pred_seq.camera_fit)
     columns: dict[str, list] = {k: [] for k in ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)}
     batch = _ScoreBatch(pred_cam, gt_cam, opts, columns)
     names = sorted(pred_names | gt_names)
@@ -373,7 +377,8 @@ def merge_results(parts: Seq[EvalResult]) -> EvalResult:
     if not parts:
         raise ValueError("merge_results needs at least one part")
     first = parts[0]
-    result = EvalResult(first.pred, first.gt, protocol=first.protocol, camera=dict(first.camera), fps=first.fps)
+    result = EvalResult(first.pred, first.gt, protocol=first.protocol, camera=dict(first.camera), fps=first.fps,
+                        stature_from=first.stature_from)
     for name in _COUNTS:
         setattr(result, name, sum(getattr(part, name) for part in parts))
     result.per_person = {key: [v for part in parts for v in part.per_person[key]] for key in first.per_person}

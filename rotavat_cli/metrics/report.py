@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..atomic import atomic_write_text
 from ..errors import InputError
+from ..measure import source_words
 from ..plain import to_plain
 from ..version import WRITTEN_BY
 from .evaluate import EvalResult
@@ -166,6 +167,8 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
     if frames_note:
         lines += ["", "Unpaired frames (counted as false positives / misses unless a note says otherwise):", *frames_note]
     notes = [f"- `{r.pred}` ({r.protocol}): {note}" for r in results for note in r.notes]
+    notes += [f"- `{r.pred}`: statures (`stature_err`) {source_words(r.stature_from)}" for r in results
+              if r.stature_from is not None and "stature_err" in r.metrics]
     if notes:
         lines += ["", "Notes:", *notes]
     return "\n".join(lines) + "\n"

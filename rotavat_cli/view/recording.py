@@ -44,6 +44,7 @@ from ..atomic import atomic_path
 from ..camera import Camera
 from ..config import default_config, packaged_default
 from ..errors import InputError, RotavatError, input_errors
+from ..measure import scale_source
 from ..metrics.evaluate import EvalOptions, evaluate
 from ..option_rules import Rule, check_fields
 from ..outputs import RRD_APPLICATION_ID
@@ -382,9 +383,21 @@ def _record_statics(writer: RecordingWriter, states: list[_RowState], camera: Ca
             path = np.array([[x, 0.0, z] for _, x, z in steps])
             writer.track(f"{WORLD}/{state.path}/tracks/{pid}", track_strips(np.array([s[0] for s in steps]), path),
                          tuple(colors[pid]))
+        statures = _stature_note(state.seq)
         for key, per_id in state.series.items():
             for pid, points in per_id.items():
-                writer.series(f"plots/{key}/{state.path}/{pid}", f"{state.label} {pid}", tuple(colors[pid]), points, fps)
+                note = f" ({statures})" if key == "stature_m" and statures else ""
+                writer.series(f"plots/{key}/{state.path}/{pid}", f"{state.label} {pid}{note}", tuple(colors[pid]),
+                              points, fps)
+
+
+def _stature_note(seq: Sequence) -> str:
+    """How an aligned row's statures are to be read (rotavat_cli.measure): "prior given back" when its camera's
+    scale came from the people's stature prior, else "measured"; "" for other rows (a raw prediction's statures
+    are its tool's bodies, the truth's the truth)."""
+    if "aligned_from" not in seq.meta:
+        return ""
+    return "prior given back" if scale_source(seq.camera_fit) == "prior" else "measured"
 
 
 def _footprints_xz(states: list[_RowState]) -> np.ndarray:
