@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import DegenerateSceneError, InputError
 from ..focal import CAMERA
+from ..measure import REFERENCE_SD_MAX_M
 from ..posture import summarize_postures
 from ..sequence import Sequence
 from ..words import count
@@ -50,11 +51,12 @@ class SequenceCalibration:
     per_frame: dict | None = None  # spread of per-frame estimates when asked
     mesh_focal_px: float | None = None  # the focal the sequence's meshes were made with (median over people)
     mesh_focal_kind: str | None = None  # "camera" | "assumed" (None: no focal stated)
+    scale_from: str = "prior"  # where the camera's scale comes from (rotavat_cli.measure.SCALE_SOURCES)
 
     def fit_dict(self) -> dict:
         """The camera.yaml ``fit:`` block: the fit's own, plus the focal policy, the meshes' focal and
         (``per_frame``) the spread of the frames calibrated alone."""
-        fit = {**self.result.fit_dict(), "focal_policy": self.focal_policy}
+        fit = {**self.result.fit_dict(), "focal_policy": self.focal_policy, "scale_from": self.scale_from}
         if self.mesh_focal_px is not None:
             fit.update(mesh_focal_px=float(self.mesh_focal_px), mesh_focal_kind=self.mesh_focal_kind)
         if self.per_frame is not None:
@@ -139,7 +141,9 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
                          determined_by={**result.determined_by, "focal_px": policy})
     if notes:
         result = replace(result, notes=tuple(notes) + result.notes)
-    return SequenceCalibration(result, pairs, policy, per_frame, mesh_focal, mesh_kind)
+    scale_from = ("camera_height" if options.camera_height_m is not None else "reference"
+                  if options.tracks is not None and options.person_height_sd_m <= REFERENCE_SD_MAX_M else "prior")
+    return SequenceCalibration(result, pairs, policy, per_frame, mesh_focal, mesh_kind, scale_from)
 
 
 _PP_NOTE_PX = 0.5  # a declared principal point this far from the image centre is named in a note
