@@ -37,9 +37,9 @@ from rotavat_cli.calibration import (  # noqa: E402
     fit_per_frame,
     paper_grid_search,
 )
-from rotavat_cli.calibration.pairs import in_view  # noqa: E402
 from rotavat_cli.camera import Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px, up_vector_cam  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
+from rotavat_cli.frame_points import in_view  # noqa: E402
 
 REALDATA = ROOT.parent / "shared" / "realdata"
 METRICS = ("focal %", "pitch °", "roll °", "height %", "horizon px")

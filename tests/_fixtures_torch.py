@@ -256,6 +256,21 @@ def gvhmr_K(image_size) -> np.ndarray:
     return np.array([[focal, 0, width / 2.0], [0, focal, height / 2.0], [0, 0, 1]], np.float32)
 
 
+def gvhmr_pred_cam(people: list[F.Person], transl: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """GVHMR's weak-perspective cameras (L, 3) (s, tx, ty) for one person per frame: its square crop
+    ``bbx_xys`` from the person's projected box as ``get_bbx_xys_from_xyxy`` makes it (fitted to a 192:256
+    aspect, side 1.2 x the longer), then ``get_a_pred_cam`` (hmr_cam.py), the inverse of
+    ``compute_transl_full_cam`` that made ``transl`` (L, 3)."""
+    focal, principal = K[:, 0, 0].astype(np.float64), K[:, :2, 2].astype(np.float64)
+    uv = np.stack([principal[i] + focal[i] * p.verts_cam[:, :2] / p.verts_cam[:, 2:] for i, p in enumerate(people)])
+    low, high = uv.min(axis=1), uv.max(axis=1)
+    centre, (w, h) = (low + high) / 2, (high - low).T
+    side = 1.2 * np.maximum(h, w / 0.75)
+    s = 2 * focal / (transl[:, 2] * side)
+    t_xy = transl[:, :2] - transl[:, 2:3] / focal[:, None] * (centre - principal)
+    return np.column_stack([s, t_xy])
+
+
 def gvhmr_results(people: list[F.Person], image_size, body_pose: np.ndarray | None = None, K=None) -> dict:
     """GVHMR ``DemoPL.predict``'s dict for a track of one person per frame (``people``, one per frame):
     SMPL-X parameters in the camera (``smpl_params_incam``) and gravity-view frames, ``K_fullimg``
@@ -270,7 +285,7 @@ def gvhmr_results(people: list[F.Person], image_size, body_pose: np.ndarray | No
     incam = {k: transposed(v) if k == "transl" else tensor(v) for k, v in params.items()}
     world = {"body_pose": tensor(pose), "betas": tensor(betas), "global_orient": tensor(orient[:, ::-1].copy()),
              "transl": transposed(transl + np.array([0.0, 1.0, -5.0], np.float32))}
-    net = {"model_output": {"pred_cam": tensor(np.ones((1, n, 3), np.float32))},
+    net = {"model_output": {"pred_cam": tensor(gvhmr_pred_cam(people, transl, K)[None].astype(np.float32))},
            "pred_smpl_params_incam": {k: tensor(v[None]) for k, v in params.items()}}
     return {"smpl_params_global": world, "smpl_params_incam": incam, "K_fullimg": tensor(K), "net_outputs": net}
 
@@ -328,5 +343,5 @@ def bent_elbow_pose(n: int) -> np.ndarray:
     return pose
 
 
-__all__ = ["Call", "Global", "Storage", "Tensor", "bent_elbow_pose", "gvhmr_K", "gvhmr_results", "legacy_bytes",
-           "np_save_tensors", "tensor", "torch_zip_bytes", "transposed", "write_gvhmr", "write_tram"]
+__all__ = ["Call", "Global", "Storage", "Tensor", "bent_elbow_pose", "gvhmr_K", "gvhmr_pred_cam", "gvhmr_results",
+           "legacy_bytes", "np_save_tensors", "tensor", "torch_zip_bytes", "transposed", "write_gvhmr", "write_tram"]

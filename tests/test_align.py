@@ -230,9 +230,11 @@ def test_people_csv_cells():
     cols.update(frame=np.array(["a,b", "000001"], dtype=object), person_id=np.array([7, 8]),
                 drift_mean_px=np.array([2.5, np.inf], dtype=np.float32), flag=np.array(["", "degenerate_mesh"], dtype=object))
     rows = list(csv.reader(_csv_rows(cols).splitlines()))
+    cols.update(stature_from=np.array(["prior", "prior"], dtype=object))
+    rows = list(csv.reader(_csv_rows(cols).splitlines()))
     assert rows[0] == ["a,b", "7", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333", "0.333333",
-                       "0.333333", "2.5", "0.333333", "0.333333", ""]
-    assert rows[1] == ["000001", "8"] + [""] * 10 + ["degenerate_mesh"]
+                       "0.333333", "0.333333", "2.5", "0.333333", "0.333333", "", "prior"]
+    assert rows[1] == ["000001", "8"] + [""] * 11 + ["degenerate_mesh", "prior"]
 
 
 def test_one_rule_picks_the_camera_align_uses():

@@ -23,7 +23,7 @@ from rotavat_cli.formats import import_sequence
 from rotavat_cli.formats.image_size import image_size_from_header
 from rotavat_cli.formats.keypoints import feet_heads_px
 from rotavat_cli.joint_layouts import LAYOUT_NAMES
-from rotavat_cli.landmarks import foot_head_points
+from rotavat_cli.landmarks import foot_head_points, sole_crown_points
 from rotavat_cli.sequence import open_sequence
 
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
@@ -98,7 +98,8 @@ def test_keypoint_rules_on_real_smpl_people():
     errors: dict[str, list] = {"feet mean": [], "smpl24 sole": [], "smpl24 crown": [], "ears crown": [], "lsp": []}
     for results in _bev_results():
         joints, verts = results["joints"].astype(np.float64), results["verts"].astype(np.float64)
-        feet, crowns = foot_head_points(verts)
+        left, right, crowns = sole_crown_points(verts)
+        feet = 0.5 * (left + right)  # the rules estimate the mid-sole (the foot point moves from it on its own)
         kept = np.linalg.norm(crowns - feet, axis=-1) > 1.4
         joints, feet, crowns = joints[kept], feet[kept], crowns[kept]
         for p in range(len(joints)):  # body frame: sole at the origin, +Y from sole to crown

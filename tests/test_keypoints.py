@@ -23,7 +23,7 @@ def unplaced_people(vertices, joints) -> np.ndarray:
     return np.logical_or(*people_not_placed(Frame("f", data, "f")))
 from rotavat_cli.formats.keypoints import LAYOUTS, PointRule, extrapolated, feet_heads_px, mean_of, recipe_for
 from rotavat_cli.joint_layouts import LAYOUT_NAMES, layout_by_count
-from rotavat_cli.landmarks import foot_head_points
+from rotavat_cli.landmarks import foot_head_points, sole_crown_points
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
 
@@ -145,7 +145,8 @@ def _ears(verts: np.ndarray, joints: np.ndarray, crown: np.ndarray) -> np.ndarra
 def test_documented_errors_on_the_packaged_bodies():
     """SMPL-24 sole rule (anny 0.8 / 1.4 % of stature) and ears crown rule (0.6 / 1.1 %), 96 views x 8 bodies."""
     bodies = load_bodies()
-    feet_cam, heads_cam = foot_head_points(bodies.vertices)
+    left, right, heads_cam = sole_crown_points(bodies.vertices)
+    feet_cam = 0.5 * (left + right)  # the rules estimate the mid-sole (the foot point moves from it on its own)
     ears = np.stack([_ears(v, j, h) for v, j, h in zip(bodies.vertices, bodies.joints, heads_cam)])
     names = ("left_hip", "right_hip", "left_ankle", "right_ankle", "left_foot", "right_foot", "left_shoulder",
              "right_shoulder")
@@ -181,7 +182,7 @@ def test_people_frame_writes_feet_and_heads_without_meshes_only():
     np.testing.assert_allclose(frame.data["heads_2d"], [[50, EARS_CROWN_V], [150, EARS_CROWN_V]], rtol=1e-6)
     meshes = people_frame("f", "src", [], vertices=np.ones((2, 10, 3)), keypoints_2d=kp, keypoints_layout="openpose25")
     assert "feet_2d" not in meshes.data  # meshes give their own landmarks
-    assert feet_heads_from("openpose25", True) == "mesh landmarks (mid-sole, crown vertices)"
+    assert feet_heads_from("openpose25", True) == "mesh landmarks (sole vertices' ground contact, crown vertex)"
     assert feet_heads_from("openpose25 (x)", False).startswith("keypoints_2d, openpose25: mid-sole = mean")
     assert feet_heads_from("nope", False) is None
 
@@ -228,7 +229,7 @@ def test_agora_45_joints_layout_says_what_it_is(tmp_path, scene):
     import_sequence(src, tmp_path / "out", "agora")
     meta = open_sequence(tmp_path / "out").meta["import"]
     assert meta["keypoints_2d_layout"].startswith("smpl45 ")
-    assert meta["feet_heads_from"] == "mesh landmarks (mid-sole, crown vertices)"
+    assert meta["feet_heads_from"] == "mesh landmarks (sole vertices' ground contact, crown vertex)"
     import_sequence(F.write_agora(tmp_path / "a24", scene), tmp_path / "out24", "agora")
     assert open_sequence(tmp_path / "out24").meta["import"]["keypoints_2d_layout"].startswith("smpl24 ")
 

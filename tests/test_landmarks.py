@@ -8,7 +8,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from rotavat_cli import landmarks
-from rotavat_cli.landmarks import SMPL, SMPLX, Topology, foot_head_points, register_topology, topology_for
+from rotavat_cli.landmarks import (SMPL, SMPLX, Topology, foot_head_points, ground_contact, register_topology,
+                                  sole_crown_points, topology_for)
 
 TOL_M = 0.01  # the brief's accuracy target for geometry mode: 1 cm
 STATURE_M = 1.70
@@ -92,13 +93,33 @@ def test_geometry_mode_recovers_mid_sole_and_crown_within_1cm():
     np.testing.assert_allclose(_dist(feet_cam, heads_cam), STATURE_M, atol=TOL_M)
 
 
+def _contact_truth(left: np.ndarray, right: np.ndarray, crown: np.ndarray) -> np.ndarray:
+    """(3,) the ground contact written out: the mid-sole slid down the mid-sole -> crown axis to the lower sole's
+    level, then moved toward the lower sole: not at all for a level difference under 10 % of the axis, all the
+    way from 20 %, linearly between."""
+    mid = 0.5 * (left + right)
+    length = np.linalg.norm(crown - mid)
+    up = (crown - mid) / length
+    levels = [float((left - mid) @ up), float((right - mid) @ up)]
+    on_axis = mid + min(levels) * up
+    share = float(np.clip(((max(levels) - min(levels)) / length - 0.10) / 0.10, 0.0, 1.0))
+    return on_axis + share * ((left if levels[0] <= levels[1] else right) - on_axis)
+
+
 def test_geometry_mode_stride_and_lifted_foot():
-    """Long stride (legs front/back) with the left foot 10 cm up: midpoint of the two sole points."""
+    """Long stride (legs front/back) with the left foot 10 cm up: the foot point is on the right (standing)
+    sole's level along the axis, under the mid-sole (the soles differ by 8.5 cm along it, 5 % of its length:
+    a walker's), 4.2 cm from the mid-sole."""
     rng = np.random.default_rng(0)
-    verts_cam, feet_true, heads_true = _placed_people(rng, 4, stride_m=0.25, lift_left_m=0.10)
+    verts_body, mid_body, crown_body = _humanoid_body(stride_m=0.25, lift_left_m=0.10)
+    soles = np.array([[0.10, 0.10, 0.30], [-0.10, 0.0, -0.20]])  # _humanoid_body's sole points (left lifted)
+    contact_body = _contact_truth(*soles, crown_body)
+    assert np.linalg.norm(contact_body - mid_body) == pytest.approx(0.0424, abs=1e-4)
+    placements = [_upright_placement(rng) for _ in range(4)]
+    verts_cam = np.stack([_to_cam(verts_body, R, t) for R, t in placements])
     feet_cam, heads_cam = foot_head_points(verts_cam)
-    np.testing.assert_array_less(_dist(feet_cam, feet_true), TOL_M)
-    np.testing.assert_array_less(_dist(heads_cam, heads_true), TOL_M)
+    np.testing.assert_array_less(_dist(feet_cam, np.stack([_to_cam(contact_body, R, t) for R, t in placements])), TOL_M)
+    np.testing.assert_array_less(_dist(heads_cam, np.stack([_to_cam(crown_body, R, t) for R, t in placements])), TOL_M)
 
 
 def test_geometry_mode_any_orientation_with_rough_hint():
@@ -174,8 +195,12 @@ def test_known_topology_uses_planted_sole_and_crown_vertices(topology, toes, hee
     verts_cam[:, topology.crown_index] = crown
     feet_cam, heads_cam = foot_head_points(verts_cam)
     sole_l, sole_r = 0.5 * (heel_l + toe_l), 0.5 * (heel_r + toe_r)  # half heel, half toes
-    np.testing.assert_allclose(feet_cam, np.tile(0.5 * (sole_l + sole_r), (2, 1)), atol=1e-12)
+    # the left sole is 5 mm higher (y down): the foot point is on the right sole's level along the axis
+    np.testing.assert_allclose(feet_cam, np.tile(_contact_truth(sole_l, sole_r, crown), (2, 1)), atol=1e-12)
     np.testing.assert_allclose(heads_cam, np.tile(crown, (2, 1)), atol=1e-12)
+    left, right, crowns = sole_crown_points(verts_cam)
+    np.testing.assert_allclose(left, np.tile(sole_l, (2, 1)), atol=1e-12)
+    np.testing.assert_allclose(right, np.tile(sole_r, (2, 1)), atol=1e-12)
 
 
 def test_cited_indices_are_pinned():

@@ -10,7 +10,7 @@ import pytest
 from _cli import invoke
 from conftest import tree_hash
 
-from rotavat_cli.landmarks import _points_by_geometry, foot_head_points
+from rotavat_cli.landmarks import _points_by_geometry, foot_head_points, ground_contact
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
 from rotavat_cli.synth.scene import SynthOptions, _pose_bodies, random_camera, synth_frames
@@ -107,8 +107,9 @@ def test_landmarks_match_generator_truth(geometry):
     scale = rng.uniform(0.95, 1.05, P)
     verts, _ = _pose_bodies(library, np.arange(P), scale, rng.uniform(-np.pi, np.pi, P), pos, camera)
     if geometry:
-        feet, heads, ok = _points_by_geometry(verts, np.tile(camera.up_cam, (P, 1)))
+        left, right, heads, ok = _points_by_geometry(verts, np.tile(camera.up_cam, (P, 1)))
         assert np.all(ok)
+        feet = ground_contact(left, right, heads)
     else:
         feet, heads = foot_head_points(verts)
     truth_feet = camera.cam_from_world(pos)

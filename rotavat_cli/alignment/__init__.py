@@ -1,5 +1,6 @@
 """Alignment: the RotAvat transform (:mod:`.transform`, pure and vectorised over people) and its
 application to frames and whole sequences (:mod:`.align`: re-expression into the camera, people.csv);
+who of a track is in the air (:mod:`.flight`);
 which camera a sequence is aligned into (:mod:`.camera_choice`) and the gate every camera passes before
 align, render or batch use it (:mod:`.camera_gate`); its options (:mod:`.options`)."""
 
@@ -8,9 +9,10 @@ from ..lazy import public_names
 # Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
 _PUBLIC = {
     ".align": (
-        "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignSummary", "align_frame", "align_sequence", "aligned_meta",
-        "summarize_people_csv", "track_statures"
+        "FLIGHT", "IMPLAUSIBLE_STATURE", "PEOPLE_COLUMNS", "AlignSummary", "align_frame", "align_sequence",
+        "aligned_meta", "flight_plan", "summarize_people_csv", "track_statures"
     ),
+    ".flight": ("foot_elevation_m", "flight_rows"),
     ".camera_choice": ("CALIBRATED", "GIVEN", "AlignCamera", "camera_for_align"),
     ".camera_gate": (
         "ImplausibleCameraError", "Remedies", "accepted_fit", "align_remedies", "batch_remedies",

@@ -2,7 +2,7 @@
 
 Per person (vectorised over people; the same transform for vertices and joints):
 
-(i)   scale about the camera centre by ``s1`` so the mid-sole point ``F`` lands on the ground:
+(i)   scale about the camera centre by ``s1`` so the foot point ``F`` lands on the ground:
       ``F1 = s1 F`` with ``n . F1 + h = 0``;
 (ii)  rotate about ``F1``, about the normal ``m`` of the plane through the camera centre, the
       foot and the crown, so the foot->crown axis points along ``n_p``, the ground normal
@@ -22,7 +22,13 @@ of the body is kept on its ray while re-expressing (root, foot) does not change 
 
 Options beyond the paper: ``upright="full"`` rotates the axis to the true vertical ``n`` and
 picks ``s3`` so the crown comes as close as possible to its ray (its pixel moves a little; the
-change is reported); a per-person ``stature_m`` (e.g. one per track) replaces step (iii).
+change is reported); a per-person ``stature_m`` (e.g. one per track) replaces step (iii); a
+per-person ``elevation_m`` puts the foot point that high above the ground instead of on it (a
+person in the air: :mod:`rotavat_cli.alignment.flight`).
+
+The foot point is the ground contact (:func:`rotavat_cli.landmarks.ground_contact`: the mid-sole
+when both soles are level, else on the lower sole's level), so a person on one leg ends with the
+standing foot on the ground.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import pixel_rays_cam, project_cam_to_px
-from ..rotations import axis_angle_to_matrix
+from ..rotations import axis_angle_to_matrix, cross3
 
 __all__ = [
     "FLAGS", "UPRIGHT", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",
@@ -47,6 +53,7 @@ FLAGS = {
     2: "foot_above_horizon",  # the foot ray never meets the ground in front of the camera
     3: "foot_head_same_ray",  # camera, foot and crown are collinear: no plane to rotate in
     4: "head_ray_misses_axis",  # the upright axis never meets the crown ray in front of the camera
+    5: "cut_by_border",  # its foot or crown pixel is outside the image or at its edge: no seen foot to re-seat it by
 }
 _EPS = 1e-9  # relative tolerance for parallel rays and zero-length axes
 UPRIGHT = ("paper", "full")  # the paper's in-plane vertical, or the true vertical
@@ -56,7 +63,7 @@ UPRIGHT = ("paper", "full")  # the paper's in-plane vertical, or the true vertic
 class AlignTransform:
     """Per-person RotAvat transforms: ``X' = pivot + s3 s1 R (X - foot)`` where flag == 0.
 
-    ``foot_cam`` is the mid-sole before, ``pivot_cam`` after (on the ground); when the foot lies on
+    ``foot_cam`` is the foot point before, ``pivot_cam`` after (on the ground); when the foot lies on
     its own ray (same focal) ``pivot = s1 foot`` and this is the paper's ``pivot + s3 R (s1 X - pivot)``.
     """
 
@@ -67,20 +74,12 @@ class AlignTransform:
     final_scale: np.ndarray  # (P,) s3
     stature_m: np.ndarray  # (P,) |crown - foot| after the transform
     flag: np.ndarray  # (P,) int, see FLAGS
-    foot_cam: np.ndarray  # (P, 3) F, the mid-sole before the transform
+    foot_cam: np.ndarray  # (P, 3) F, the foot point (ground contact) before the transform
 
     @property
     def ok(self) -> np.ndarray:
         """(P,) people that were aligned."""
         return self.flag == 0
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products (..., 3) of vectors (..., 3): ``np.cross``'s arithmetic at a third of its cost
-    on a frame's ~10 people (16 vs 48 us a call; three calls per frame)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -121,12 +120,17 @@ def rotavat_transforms(
     stature_m: np.ndarray | None = None,
     foot_rays_cam: np.ndarray | None = None,
     head_rays_cam: np.ndarray | None = None,
+    elevation_m: np.ndarray | None = None,
+    seen: np.ndarray | None = None,
 ) -> AlignTransform:
-    """RotAvat transforms from mid-sole and crown points (P, 3), camera frame; see the module doc.
+    """RotAvat transforms from foot (ground contact) and crown points (P, 3), camera frame; see the module doc.
 
     ``stature_m`` (P,) fixes the final foot->crown length instead of putting the crown back on
     its ray (NaN entries keep the ray rule). ``foot_rays_cam``/``head_rays_cam`` (P, 3): the rays
-    the foot and crown must end on (default: through the points themselves).
+    the foot and crown must end on (default: through the points themselves). ``elevation_m`` (P,):
+    the height above the ground the foot point ends at (default 0: on the ground; NaN entries: 0).
+    ``seen`` (P,) bool: whose foot and crown pixels are seen whole (:func:`rotavat_cli.frame_points.in_view`);
+    the others are left unchanged, flagged ``cut_by_border`` (default: everyone is seen).
     """
     if upright not in UPRIGHT:
         raise ValueError(f"upright must be one of {', '.join(UPRIGHT)}, got {upright!r}")
@@ -143,25 +147,26 @@ def rotavat_transforms(
     rF, rH = (np.where(finite[:, None], a, (0.0, 0.0, 1.0)) for a in (rF, rH))
     scale_ref = np.maximum(np.linalg.norm(F, axis=-1), 1e-12)
 
-    # (i) onto the ground along the foot's ray: F1 = t rF with n . F1 + h = 0
+    # (i) onto the ground (or ``elevation`` above it) along the foot's ray: F1 = t rF with n . F1 + h = elevation
+    elevation = np.zeros(P) if elevation_m is None else np.nan_to_num(np.asarray(elevation_m, dtype=np.float64))
     nr = rF @ n
     ray_len = np.linalg.norm(rF, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = -ground_offset_m / nr
-    foot_ok = (nr < -_EPS * ray_len) & (rF[:, 2] > 0) & (F[:, 2] > 0)
+        t = (elevation - ground_offset_m) / nr
+    foot_ok = (nr < -_EPS * ray_len) & (rF[:, 2] > 0) & (F[:, 2] > 0) & (elevation < ground_offset_m)
     F1 = np.where(foot_ok[:, None], t[:, None] * rF, F)
     s1 = np.where(foot_ok, F1[:, 2] / np.where(F[:, 2] > 0, F[:, 2], 1.0), 1.0)
 
     # (ii) rotate about F1 in the plane (O, F1, crown ray) so the axis follows n projected on it
     axis, length = _unit(H - F)
-    m, m_norm = _unit(_cross(F1, rH))
+    m, m_norm = _unit(cross3(F1, rH))
     degenerate = ~finite | (length <= _EPS * scale_ref)
     same_ray = m_norm <= _EPS * np.linalg.norm(F1, axis=-1) * np.maximum(np.linalg.norm(rH, axis=-1), 1e-12)
     if upright == "paper":
         target, _ = _unit(n - (m @ n)[:, None] * m)
     else:
         target = np.broadcast_to(n, F.shape).copy()
-    rot_axis, sin_a = _unit(_cross(axis, target))
+    rot_axis, sin_a = _unit(cross3(axis, target))
     angle = np.arctan2(sin_a, np.sum(axis * target, axis=-1))
     R = axis_angle_to_matrix(rot_axis, angle)
 
@@ -177,6 +182,8 @@ def rotavat_transforms(
     flag[misses] = 4
     flag[same_ray & ~degenerate] = 3
     flag[~foot_ok] = 2
+    if seen is not None:  # a person the image border cuts, who could otherwise be re-seated
+        flag[~np.asarray(seen, bool) & (flag == 0)] = 5
     flag[degenerate] = 1
     ok = flag == 0
     eye = np.broadcast_to(np.eye(3), (P, 3, 3))

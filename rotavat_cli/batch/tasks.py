@@ -21,6 +21,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 try:
     import resource
 except ImportError:  # not a POSIX system: no peak memory in the report
@@ -28,7 +30,7 @@ except ImportError:  # not a POSIX system: no peak memory in the report
 
 from ..version import __version__
 from ..atomic import atomic_open, atomic_write_text, staged_directory
-from ..alignment.align import align_sequence, summarize_people_csv
+from ..alignment.align import align_sequence, flight_plan, summarize_people_csv
 from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from ..alignment.camera_gate import (ImplausibleCameraError, batch_remedies, check_align_camera, implausible_findings,
                                      is_accepted)
@@ -179,6 +181,8 @@ def task_prepare(job: dict, plan: dict) -> dict:
     size = int(plan["chunk_frames"])
     if "align" in steps:  # track statures need the whole sequence: one chunk
         result["align_chunks"] = [(0, len(seq))] if plan["config"]["align"]["height_from"] == "track" else _chunks(len(seq), size)
+        if len(result["align_chunks"]) > 1:  # who is in flight needs whole tracks: found once, read by each chunk
+            _write_flight_plan(job, flight_plan(seq, chosen.camera, AlignOptions.from_config(plan["config"]["align"])))
     if "eval" in steps:
         gt = open_sequence(job["gt"], read_camera=False)
         result["eval_chunks"] = _chunks(len(set(seq.frame_names) | set(gt.frame_names)), size)
@@ -190,6 +194,26 @@ def _chunk_dir(job: dict, index: int) -> Path:
     return Path(job["out"]) / ALIGN_STAGING / f"chunk-{index:06d}"
 
 
+_FLIGHT_PLAN = "flight.json"  # in the align staging folder: the frames in flight (alignment.align.flight_plan)
+
+
+def _write_flight_plan(job: dict, found: dict) -> None:
+    """The whole sequence's flight plan (frame name -> elevations, NaN as null), for the align chunks."""
+    staging = Path(job["out"]) / ALIGN_STAGING
+    staging.mkdir(parents=True, exist_ok=True)
+    plain = {name: [None if not np.isfinite(e) else float(e) for e in values.tolist()] for name, values in found.items()}
+    atomic_write_text(staging / _FLIGHT_PLAN, json.dumps(plain))
+
+
+def _read_flight_plan(job: dict) -> dict | None:
+    """The flight plan prepare wrote (None when the sequence is aligned in one chunk: align finds it itself)."""
+    path = Path(job["out"]) / ALIGN_STAGING / _FLIGHT_PLAN
+    if not path.is_file():
+        return None
+    plain = json.loads(path.read_text(encoding="utf-8"))
+    return {name: np.array([np.nan if e is None else e for e in values], dtype=np.float64) for name, values in plain.items()}
+
+
 def task_align_chunk(job: dict, plan: dict, camera_yaml: dict, index: int, start: int, stop: int) -> dict:
     """Align frames [start, stop) into the chunk's staging folder (frames, people.csv, camera.yaml, meta.yaml)."""
     _apply_limits(plan)
@@ -198,7 +222,7 @@ def task_align_chunk(job: dict, plan: dict, camera_yaml: dict, index: int, start
     part = replace(seq, frame_names=seq.frame_names[start:stop])
     # jobs=1: the batch's own workers are the parallelism (no nested pools)
     options = replace(AlignOptions.from_config(plan["config"]["align"]), jobs=1)
-    align_sequence(part, camera, _chunk_dir(job, index), options, camera_fit=fit or None)
+    align_sequence(part, camera, _chunk_dir(job, index), options, camera_fit=fit or None, flight=_read_flight_plan(job))
     return {"frames": stop - start}
 
 

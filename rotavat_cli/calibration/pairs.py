@@ -11,9 +11,9 @@ method's camera frame (the mesh landmarks, or align's rule for joints:
 the vertical.
 
 **Who is in view.** A pair whose foot or crown pixel lies outside the image or within
-:func:`edge_margin_px` of its border (for a mesh, its projected mid-sole or crown: the tool drew
+:func:`rotavat_cli.frame_points.edge_margin_px` of its border (for a mesh, its projected mid-sole or crown: the tool drew
 legs the photo cuts off, as BEV on upper-body photos puts the feet 600-1300 px below a 2500-px
-image) is not a foot/head pair: :func:`in_view` marks it, ``FootHeadPairs.cut`` carries
+image) is not a foot/head pair: :func:`rotavat_cli.frame_points.in_view` marks it, ``FootHeadPairs.cut`` carries
 the mark, and calibration leaves it out with a note (:func:`rotavat_cli.calibration.sequence.calibrate_sequence`).
 """
 
@@ -24,38 +24,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..camera import project_cam_to_px
-from ..frame_points import MeshIntrinsics, frame_foot_head_cam
+from ..frame_points import MeshIntrinsics, beyond_border_px, edge_margin_px, frame_foot_head_cam
 from ..errors import InputError
 from ..landmarks import foot_head_points
 from ..posture import postures
 from ..sequence import Frame, Intrinsics, Sequence, can_align, people_not_placed
 
-__all__ = ["EDGE_MARGIN_FRACTION", "EDGE_MARGIN_MIN_PX", "FootHeadPairs", "beyond_border_px", "edge_margin_px", "in_view",
-           "frame_foot_head_px", "gather_pairs"]
-
-# A point this close to the image's border is not seen whole: a foot at the last row may be a cut leg, a detector's
-# keypoint clamped to the border, or a sole half outside. Half a percent of the shorter side (5 px at 1080), at least 2.
-EDGE_MARGIN_FRACTION = 0.005
-EDGE_MARGIN_MIN_PX = 2.0
-
-
-def edge_margin_px(image_size: tuple[int, int]) -> float:
-    """The border band (px) of an image of ``image_size (W, H)`` where a foot or crown is not seen whole."""
-    return max(EDGE_MARGIN_MIN_PX, EDGE_MARGIN_FRACTION * min(image_size))
-
-
-def in_view(points_px: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """(...) bool: pixels (..., 2) inside the image by more than :func:`edge_margin_px` (NaN: not in view).
-
-    >>> in_view(np.array([[100.0, 100.0], [100.0, 1078.0], [-3.0, 50.0], [np.nan, 5.0]]), (1920, 1080)).tolist()
-    [True, False, False, False]
-    """
-    m = edge_margin_px(image_size)
-    p = np.asarray(points_px, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        return (p[..., 0] >= m) & (p[..., 0] <= image_size[0] - m) & (p[..., 1] >= m) & (p[..., 1] <= image_size[1] - m)
-
-
+__all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
 
 @dataclass(frozen=True)
 class FootHeadPairs:
@@ -140,16 +115,6 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
                          not_in_front, np.concatenate(axes)[keep] if axes else np.zeros((0, 3)),
                          np.concatenate(poses)[keep] if poses else np.zeros(0, "<U8"),
                          None if size is None else beyond > -edge_margin_px(size), None if size is None else beyond)
-
-
-def beyond_border_px(points_px: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """(...) px: how far pixels (..., 2) lie beyond the image's nearest border (negative: inside, by that much);
-    inf for non-finite pixels."""
-    p = np.asarray(points_px, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        beyond = np.max(np.stack([-p[..., 0], p[..., 0] - image_size[0], -p[..., 1], p[..., 1] - image_size[1]]),
-                        axis=0)
-    return np.where(np.isfinite(beyond), beyond, np.inf)
 
 
 def _cut_beyond_px(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int] | None) -> np.ndarray:

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import DegenerateSceneError, InputError
 from ..focal import CAMERA
+from ..frame_points import edge_margin_px
 from ..measure import REFERENCE_SD_MAX_M
 from ..posture import summarize_postures
 from ..sequence import Sequence
@@ -33,7 +34,7 @@ from ..words import count
 from .fit import CalibrationResult, fit_camera, fit_per_frame
 from .objective import BodyAxes
 from .options import CalibrateOptions
-from .pairs import FootHeadPairs, edge_margin_px, gather_pairs
+from .pairs import FootHeadPairs, gather_pairs
 
 __all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence", "fit_pooled_pairs",
            "still_people_as_one", "whole_people"]
@@ -168,13 +169,13 @@ def _standing(seq: Sequence, pairs: FootHeadPairs) -> tuple[FootHeadPairs, str |
     else:
         people, what = int(away.sum()), summarize_postures(pairs.postures[away].tolist())
     if away.all():
-        raise DegenerateSceneError(f"{seq.label}: no one stands ({what}, by their joints' knee and hip angles): "
+        raise DegenerateSceneError(f"{seq.label}: no one stands ({what}, by what their joints say supports them): "
                                    "sitting or kneeling people are not verticals of known height; give the camera "
                                    f"(rotavat align {seq.label} --camera FILE, docs/conventions.md#camerayaml), or "
                                    f"calibrate from them anyway (rotavat calibrate {seq.label} --all-people)")
     who = "person who does not stand" if people == 1 else "people who do not stand"
-    note = (f"left out {people} {who} ({what}; {int(away.sum())} of {len(away)} pairs, by their joints' knee and "
-            "hip angles; --all-people keeps them)")
+    note = (f"left out {people} {who} ({what}; {int(away.sum())} of {len(away)} pairs, by what their joints say "
+            "supports them; --all-people keeps them)")
     return pairs.subset(~away), note
 
 

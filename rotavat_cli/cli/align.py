@@ -9,10 +9,11 @@ import typer
 
 from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from ..alignment.options import AlignOptions
-from ..alignment.camera_gate import align_remedies, check_align_camera, implausible_findings, reader_flags
+from ..alignment.camera_gate import align_remedies, check_align_camera, implausible_findings, reader_flags, what_to_give
 from ..alignment.align import align_sequence
 from ..calibration.plausibility import MEAN_STATURE_RANGE_M
 from ..errors import InputError, input_errors
+from ..measure import source_words
 from ..outputs import check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
@@ -68,9 +69,10 @@ def align(
                                      force=force)
     origin = chosen.source
     group_lo, group_hi = MEAN_STATURE_RANGE_M  # the same rule as calibrate's for a given camera height
-    plausible = not summary.aligned > summary.not_standing or group_lo <= summary.median_stature_m <= group_hi
+    plausible = not summary.in_medians or group_lo <= summary.median_stature_m <= group_hi
     result = {"out": str(out), "camera": origin, "camera_implausible": list(implausible_findings(chosen.fit)),
               **{k: v for k, v in vars(summary).items() if k != "out" and not k.startswith("_")},
+              "in_medians": summary.in_medians,
               "median_stature_plausible": plausible}
     if as_json:
         print_json(result)
@@ -85,15 +87,23 @@ def align(
              "(implausible_stature in people.csv): check the camera, or those people's detections")
     if not plausible:
         warn(f"the aligned people's median stature {summary.median_stature_m:.2f} m is outside {group_lo:g}-{group_hi:g} m: "
-             f"the camera is wrong (give what you know: rotavat calibrate {seq} --focal PX --camera-height M), or these "
-             "are not adults standing")
+             f"the camera is wrong ({what_to_give(chosen.fit, remedies.calibrate)}), or these are not adults standing")
     if summary.not_standing:
         info(f"note: {summary.not_standing} aligned people do not stand, by their joints (sitting, kneeling or bending "
              "in people.csv's flag): their feet are on the ground, but their implied stature means nothing and the "
              "medians leave them out", quiet)
-    if summary.aligned > summary.not_standing:
+    if summary.cut:
+        info(f"note: {count(summary.cut, 'person-frame is', 'person-frames are')} cut by the image border (cut_by_border "
+             "in people.csv's flag: foot or crown outside the image or at its edge): left where their tool put them, "
+             "since no seen foot re-seats them", quiet)
+    if summary.flight:
+        info(f"note: {count(summary.flight, 'person-frame is', 'person-frames are')} in the air (flight in "
+             "people.csv's flag: a run of a track's frames whose foot is above the ground for its stature): aligned at "
+             "their height above the ground (foot_height_m), left out of the medians", quiet)
+    if summary.in_medians:
         report(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
-               f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m; "
+               f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m "
+               f"({source_words(summary.stature_from, float((chosen.fit or {}).get('person_height_m', 1.70)))}); "
                f"foot and crown keep their pixels, the other points move {summary.median_drift_px:.0f} px (median), "
                f"{summary.max_drift_px:.0f} px at most (people.csv: drift_mean_px, drift_max_px)", quiet)
     report(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)

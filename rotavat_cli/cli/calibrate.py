@@ -12,10 +12,12 @@ from rich.table import Table
 
 from ..calibration.residuals import RESIDUAL_KINDS
 from ..calibration.options import CalibrateOptions
+from ..alignment.camera_gate import what_to_give
 from ..calibration.sequence import SequenceCalibration, calibrate_sequence
 from ..camera import camera_parameters
 from ..errors import InputError
 from ..focal import CAMERA
+from ..formats.model_fit import model_fit_finding
 from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
 from ..yaml_io import read_yaml
@@ -26,15 +28,18 @@ from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, Quiet
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
     """Calibrate with defaults < config file < flags (named by their ``calibrate`` config key), printing
-    notes and warnings unless quiet."""
+    notes and warnings unless quiet (warnings always), and whether the meshes fit their own pixels."""
     calib = calibrate_sequence(seq, CalibrateOptions.from_config(config_for(config, "calibrate", **flags)))
+    finding = model_fit_finding(seq)  # meshes that do not fit their own pixels: a wrong model or image size
+    if finding is not None:
+        warn(finding)
     for note in calib.result.notes:
         info(f"note: {escape(note)}", quiet)
     for warning in calib.result.warnings:
         warn(warning)
     if calib.result.implausible:
         warn(f"implausible camera: {'; '.join(calib.result.implausible)} (fit.implausible; align, render and batch "
-             "refuse it without --accept-camera): give what you know (--focal PX, --camera-height M, --pitch DEG)")
+             f"refuse it without --accept-camera): {what_to_give(calib.fit_dict())}")
     return calib
 
 

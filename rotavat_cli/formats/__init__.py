@@ -13,8 +13,9 @@ read from, are in ``docs/formats.md``.
 Frame keys written: ``vertices`` (P, V, 3) when meshes are known (given by the tool, or posed from
 its SMPL parameters with ``--smpl-model``), ``faces`` when the model file gives them, ``joints``
 (P, J, 3) in SMPL-24 order whenever possible (``meta.yaml`` ``import.joints_layout`` says which),
-``keypoints_2d`` (P, K, 2) in original-image pixels, ``person_ids`` (P,) for tracked sources, and
-per-frame ``focal_length`` / ``principal_point`` / ``image_size`` only when they vary per frame.
+``keypoints_2d`` (P, K, 2) in original-image pixels, ``person_ids`` (P,) for tracked sources, ``boxes_2d``
+(P, 4) where a tool's person boxes are its only 2D (GVHMR), and per-frame ``focal_length`` /
+``principal_point`` / ``image_size`` only when they vary per frame.
 
 Modules, from the converting down:
 
@@ -38,7 +39,9 @@ Modules, from the converting down:
   :mod:`.files` (a tool's file found), :mod:`.file_kinds` (files that are no tool's output, refused),
   :mod:`.tools` (the format names and how messages name each tool);
 - :mod:`.smpl` (posing SMPL-family parameters) and :mod:`.keypoints` (foot and head pixels from each 2D
-  keypoint layout).
+  keypoint layout);
+- :mod:`.model_fit`: whether a sequence's meshes fit its own pixels (a wrong or mismatched body model, a wrong
+  image size), said by ``import`` and ``calibrate``.
 """
 
 from ..lazy import public_names
@@ -47,6 +50,7 @@ from ..lazy import public_names
 _PUBLIC = {
     ".convert": ("import_sequence", "imported_sequence"),
     ".imported": ("ImportOptions", "ImportedSequence"),
+    ".model_fit": ("model_fit_finding", "sequence_model_fit"),
     ".read": ("read_format", "reading_errors"),
     ".registry": ("available_formats", "detect_format", "other_format"),
 }

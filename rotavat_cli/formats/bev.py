@@ -64,6 +64,10 @@ _NET_INPUT = 512
 # simple_romp's joints (romp/smpl.py VertexJointSelector): SMPL-24, 21 vertex joints, 9 regressed extra, 17 H36M;
 # older ROMP releases stop at 54 (formats/keypoints.py)
 _LAYOUT_BEV = "romp71 (SMPL-24, 21 vertex joints, 9 extra, 17 H36M)"
+# ROMP's camera, as rotavat reads it: its keypoints are the weak-perspective projection it predicted, its meshes
+# sit at cam_trans = 2 (tx/s, ty/s, 1/s) in the 60-degree camera, which draws them smaller and nearer the centre
+_ROMP_REPROJECTS = ("only approximately in the 60-degree camera (cam_trans is its rough depth 2/s; its 2D keypoints "
+                    "are the weak-perspective projection)")
 _LAYOUT_ROMP = _LAYOUT_BEV
 
 
@@ -276,8 +280,7 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
     intrinsics = [(focal_from_rule(fmt, size), (max(size) / 2.0 - left, max(size) / 2.0 - top))
                   for size, left, top in geometries]
     if fmt == "romp":
-        warnings.append("romp is weak-perspective: cam_trans is its rough depth (2/s), meshes reproject only "
-                        "approximately in the 60-degree camera")
+        warnings.append(f"romp is weak-perspective: its meshes reproject {_ROMP_REPROJECTS}")
     model = opts.body_model
     names = frame_names([_image_stem(name) for name, _ in sources], warnings)
     # BEV's meshes come whole: of the model, only its triangles are used (the rest need not stay loaded)
@@ -311,11 +314,13 @@ def _read(src: Path, opts: ImportOptions, fmt: str) -> ImportedSequence:
         "joints_layout": "smpl24",
         "root_joint": 0,
         "keypoints_2d_layout": layout,
-        "feet_heads_from": "mesh landmarks (mid-sole, crown vertices); keypoints_2d for frames without meshes: "
+        "feet_heads_from": feet_heads_from(None, True) + "; keypoints_2d for frames without meshes: "
                            + str(feet_heads_from(layout, False)),
         "conventions": f"camera frame = OpenCV, metres; vertices = verts + cam_trans; 60-degree FOV on the "
                        f"centred padded square (S = {', '.join(map(str, sides))})",
     })
+    if fmt == "romp":  # what model_fit names when the meshes miss their own keypoints
+        meta["import"]["meshes_reproject"] = _ROMP_REPROJECTS
     return ImportedSequence(tuple(names), build, meta, warnings)
 
 

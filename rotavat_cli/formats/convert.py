@@ -14,6 +14,7 @@ from ..errors import file_error
 from ..outputs import check_output_dir
 from ..plain import to_plain
 from ..sequence import Sequence, write_camera_yaml, write_frame, write_meta
+from .model_fit import fit_finding, sequence_model_fit
 from .read import read_format, reading_errors
 from .smpl import BodyModel
 from .source import forget, open_imported
@@ -33,8 +34,12 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
     lies inside ``src`` (:func:`rotavat_cli.outputs.check_output_dir`). ``progress()`` is called
     after each frame.
 
+    Every import ends with :mod:`.model_fit`'s check, on at most a few hundred frames read back: a warning
+    when the meshes do not fit the people's own 2D evidence or the image (a wrong or mismatched
+    ``--smpl-model``, a wrong ``--image-size``).
+
     Returns a summary: out, format, frames, people, empty_frames, image_size, focal_px,
-    has_vertices, joints_layout, camera_yaml, warnings.
+    has_vertices, joints_layout, camera_yaml, warnings, model_fit (the check's numbers).
     """
     src, out = Path(src), Path(out)
     check_output_dir(out, [src], overwrite)
@@ -43,9 +48,11 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
     with staged_directory(out, "import") as staging:
         frames = people = empty = 0
         has_vertices = False
+        names = []
         with reading_errors(src, fmt):
             for frame in imported.frames:
                 write_frame(staging, frame, "npz")
+                names.append(frame.name)
                 frames += 1
                 people += frame.n_people
                 empty += frame.n_people == 0
@@ -59,6 +66,8 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         write_meta(staging, meta)
         if imported.camera is not None:
             write_camera_yaml(staging / "camera.yaml", imported.camera, imported.camera_fit)
+        fit = sequence_model_fit(Sequence(staging, "npz", tuple(names), meta))  # meta.yaml keeps what --from reads
+    finding = fit_finding(fit, str(src))
     info = meta.get("import", {})
     return {
         "out": str(out),
@@ -71,7 +80,8 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         "has_vertices": has_vertices,
         "joints_layout": info.get("joints_layout"),
         "camera_yaml": imported.camera is not None,
-        "warnings": list(imported.warnings),
+        "warnings": [*imported.warnings, *([finding] if finding else [])],
+        "model_fit": fit.to_dict(),
     }
 
 

@@ -135,7 +135,8 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=p["joints"],
                             keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
                             faces=model_faces(model, None if verts is None else verts.shape[1]),
-                            n_verts=None if model is None else model.n_verts, keypoints_layout=_KEYPOINTS_LAYOUT)
+                            n_verts=None if model is None else model.n_verts, keypoints_layout=_KEYPOINTS_LAYOUT,
+                            joints_layout=_KEYPOINTS_LAYOUT if model is None else "smpl24")
 
     meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="4dhumans")
     meta["import"].update({

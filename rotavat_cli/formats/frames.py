@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import file_error
+from ..joint_layouts import layout_by_count
 from ..sequence import Frame, validate_frame
 from .ids import check_int64_ids
 from .keypoints import feet_heads_px
@@ -21,16 +22,23 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
                  joints: np.ndarray | None = None, keypoints_2d: np.ndarray | None = None,
                  person_ids: np.ndarray | None = None, faces: np.ndarray | None = None,
                  n_verts: int | None = None, extra: Mapping[str, np.ndarray] | None = None,
-                 keypoints_layout: str | None = None) -> Frame:
+                 keypoints_layout: str | None = None, boxes_2d: np.ndarray | None = None,
+                 joints_layout: str | None = None) -> Frame:
     """A validated contract frame; people with non-finite vertices or joints are dropped (with a warning).
 
     keypoints_layout: the layout of ``keypoints_2d`` (:mod:`.keypoints`); when it has a recipe and
-    the frame has no meshes, ``feet_2d``/``heads_2d`` (mid-sole, crown) are written from them, so
+    the frame has no meshes, ``feet_2d``/``heads_2d`` (foot point, crown) are written from them, so
     calibration and joint-level alignment work without a body model (meshes give their own
-    landmarks, which take precedence: :func:`.meta.feet_heads_from`). A person missing a recipe point
-    gets a NaN row (calibration drops the pair, align flags the person).
+    landmarks, which take precedence: :func:`.meta.feet_heads_from`). The foot point is the ground
+    contact when the frame's 3D ``joints`` show which foot is lower (their layout ``joints_layout``, by
+    default the SMPL family's of their count; :func:`.keypoints.feet_heads_px`), else the mid-sole. A
+    person missing a recipe point gets a NaN row (calibration drops the pair, align flags the person).
+
+    boxes_2d: (P, 4) the tool's own person boxes [x1, y1, x2, y2] px, where it stores nothing else in 2D
+    (GVHMR's crops): evidence that the meshes fit the image (:mod:`.model_fit`).
     """
-    arrays = {"vertices": vertices, "joints": joints, "keypoints_2d": keypoints_2d, "person_ids": person_ids}
+    arrays = {"vertices": vertices, "joints": joints, "keypoints_2d": keypoints_2d, "boxes_2d": boxes_2d,
+              "person_ids": person_ids}
     counts = {k: len(v) for k, v in arrays.items() if v is not None}
     if len(set(counts.values())) > 1:
         raise file_error(source, f"inconsistent people counts ({', '.join(f'{k}={v}' for k, v in counts.items())})")
@@ -62,7 +70,10 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
     if not data:
         data["person_ids"] = np.zeros(0, np.int64)
     if keypoints_layout is not None and "keypoints_2d" in data and "vertices" not in data:
-        found = feet_heads_px(data["keypoints_2d"], keypoints_layout)
+        joints3d = data.get("joints")
+        if joints_layout is None and joints3d is not None:
+            joints_layout = layout_by_count(joints3d.shape[1])
+        found = feet_heads_px(data["keypoints_2d"], keypoints_layout, joints3d, joints_layout)
         if found is not None:
             data["feet_2d"], data["heads_2d"] = (points.astype(np.float32) for points in found[:2])
     data.update(extra or {})

@@ -27,6 +27,13 @@ outputs/demo/<video>/hmr4d_results.pt``).
   so the import needs ``--smpl-model`` (SMPL-X, e.g. ``SMPLX_NEUTRAL.npz``); joints are SMPL-X's
   mapped to SMPL-24. Jaw, eyes and hands are posed at rest with a zero hand pose (flat hands), where
   GVHMR's renderer shows its model's mean hand pose: only finger vertices differ.
+- The person's crop box, recovered: ``transl = compute_transl_full_cam(pred_cam, bbx_xys, K_fullimg)``
+  (``hmr_cam.py``; ``pred_cam`` = (s, tx, ty) is ``net_outputs.model_output.pred_cam``, ``bbx_xys`` the
+  square crop: centre and side, 1.2 x the tracked box, ``get_bbx_xys_from_xyxy``) inverts to side
+  ``b = 2 f / (s tz)`` and centre ``(cx, cy) + f (transl_xy - (tx, ty)) / tz`` (GVHMR's
+  ``get_a_pred_cam`` solves the same equations for ``pred_cam``). Written as ``boxes_2d`` [x1, y1,
+  x2, y2] px: the only 2D evidence the file holds that the meshes, posed with ``--smpl-model``, land
+  where GVHMR saw the person (:mod:`.model_fit`). Without ``pred_cam`` no boxes are written.
 """
 
 from __future__ import annotations
@@ -106,6 +113,36 @@ def _intrinsics(K: np.ndarray, opts: ImportOptions, source: Path,
     return (stored[0], stored[1]), focal, principal, "K_fullimg principal point (estimate_K: the image centre)"
 
 
+def crop_boxes_px(pred_cam: np.ndarray, transl: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """GVHMR's square crops (L, 4) [x1, y1, x2, y2] px from its weak-perspective cameras ``pred_cam`` (L, 3)
+    (s, tx, ty), the translations they made ``transl`` (L, 3) m and ``K`` (L, 3, 3), inverting
+    ``compute_transl_full_cam``; NaN rows where ``s tz`` is not positive and finite.
+
+    >>> K = np.array([[[1000.0, 0, 320], [0, 1000.0, 240], [0, 0, 1]]])
+    >>> crop_boxes_px(np.array([[0.8, 0.1, 0.2]]), np.array([[0.6, 0.7, 5.0]]), K).round(1).tolist()
+    [[170.0, 90.0, 670.0, 590.0]]
+    """
+    s, t_xy = pred_cam[:, 0], pred_cam[:, 1:3]
+    focal, principal = K[:, 0, 0], K[:, :2, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        side = 2.0 * focal / (s * transl[:, 2])
+        centre = principal + focal[:, None] * (transl[:, :2] - t_xy) / transl[:, 2:3]
+    boxes = np.concatenate([centre - side[:, None] / 2.0, centre + side[:, None] / 2.0], axis=1)
+    boxes[~(np.isfinite(boxes).all(axis=1) & (side > 0))] = np.nan
+    return boxes
+
+
+def _pred_cam(data: Mapping, n_frames: int) -> np.ndarray | None:
+    """``net_outputs.model_output.pred_cam`` as (L, 3), or None when the file does not hold it as such."""
+    value: object = data
+    for key in ("net_outputs", "model_output", "pred_cam"):
+        value = value.get(key) if isinstance(value, Mapping) else None
+    if not isinstance(value, np.ndarray) or value.dtype.kind != "f":
+        return None
+    array = value[0] if value.ndim == 3 and value.shape[0] == 1 else value
+    return array.astype(np.float64) if array.shape == (n_frames, 3) else None
+
+
 def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     """GVHMR ``hmr4d_results.pt`` (or its output folder) -> contract frames, one person per frame."""
     path = _results_file(src)
@@ -135,6 +172,8 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         warnings.append(f"{path}: K_fullimg is not GVHMR's estimate_K (f = sqrt(W^2 + H^2) = {rule_focal:.1f} px): "
                         "its focal is kept as the method's own (focal_kind: assumed, no focal_rule)")
 
+    pred_cam = _pred_cam(data, n_frames)
+    boxes = None if pred_cam is None else crop_boxes_px(pred_cam, params["transl"][:, :3], K.astype(np.float64))
     model = opts.body_model
     require_model(model, path, "GVHMR", "smplx")
     layout = joints_to_smpl24(np.zeros((0, model.n_joints, 3)))[1]
@@ -149,7 +188,7 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                                      "principal_point": principal[index].astype(np.float64)}
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=vertices,
                             joints=joints_to_smpl24(joints55)[0], person_ids=np.zeros(1, np.int64), faces=faces,
-                            extra=extra)
+                            boxes_2d=None if boxes is None else boxes[index, None], extra=extra)
 
     meta = base_meta("gvhmr", path, opts, image_size, float(focal[0]) if constant else None,
                      (float(principal[0, 0]), float(principal[0, 1])) if constant else None,
@@ -161,6 +200,8 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
         "root_joint": 0,
         "keypoints_2d_layout": None,
         "feet_heads_from": feet_heads_from(None, True),
+        "boxes_2d_from": None if boxes is None else "GVHMR's square crops, recovered from net_outputs.model_output."
+                                                     "pred_cam and transl (compute_transl_full_cam inverted)",
         "person_ids": "0: GVHMR reconstructs one tracked person per video",
         "conventions": "camera frame = OpenCV, metres; vertices = SMPL-X(global_orient, body_pose, betas) + transl "
                        "(smpl_params_incam); focal = K_fullimg (GVHMR's estimate_K: sqrt(W^2 + H^2)); jaw, eyes and "

@@ -1,6 +1,7 @@
-"""Foot (mid-sole) and head (crown) pixels from an HPS tool's own 2D keypoints.
+"""Foot (ground contact: the mid-sole with both feet down) and head (crown) pixels from an HPS tool's own 2D
+keypoints.
 
-Calibration and joint-level alignment need, per person, the pixel of the mid-sole and of the
+Calibration and joint-level alignment need, per person, the pixel of the foot point and of the
 crown (``feet_2d`` / ``heads_2d``, docs/conventions.md). Meshes give them through their landmark
 vertices (:mod:`rotavat_cli.landmarks`); without a body model, an importer still has the tool's
 2D keypoints, and the importer passes its layout's name to
@@ -8,9 +9,12 @@ vertices (:mod:`rotavat_cli.landmarks`); without a body model, an importer still
 ``feet_2d``/``heads_2d`` and records which points were used (``meta.yaml``
 ``import.feet_heads_from``).
 
-Each layout has a recipe: a :class:`PointRule` for the mid-sole and one for the crown. A rule is
-an affine combination of keypoint means (weights summing to one), so it moves, turns and scales
-with the person in the image:
+Each layout has a recipe: a :class:`PointRule` for each foot's sole point (their midpoint is the
+mid-sole) and one for the crown. A rule is an affine combination of keypoint means (weights summing
+to one), so it moves, turns and scales with the person in the image. The foot pixel written is the
+ground contact (:func:`rotavat_cli.landmarks.ground_contact`): the two soles' and the crown's pixels
+weighted as the person's own 3D joints' ground contact is (:func:`contact_weights_3d`; the image
+cannot tell a raised foot from a nearer one), the mid-sole without 3D joints. The rules:
 
 - **points the layout has**: the mean of named keypoints (OpenPose's big toes, small toes and
   heels for the mid-sole, as the mesh landmark's own recipe in :data:`rotavat_cli.landmarks.SMPL`;
@@ -88,12 +92,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..joint_layouts import LAYOUT_NAMES, layout_key
+from ..landmarks import contact_weights, ground_contact
 
 __all__ = [
     "LAYOUTS",
     "KeypointRecipe",
     "PointRule",
+    "averaged",
+    "contact_weights_3d",
     "extrapolated",
+    "feet_heads_cam",
     "feet_heads_px",
     "mean_of",
     "recipe_for",
@@ -137,18 +145,29 @@ def extrapolated(anchor: tuple[int, ...], away_from: tuple[int, ...], k: float,
     return PointRule(tuple(terms), estimated=True)
 
 
+def averaged(a: PointRule, b: PointRule) -> PointRule:
+    """The midpoint of two rules' points (one rule: each term at half weight)."""
+    return PointRule(tuple((w / 2.0, idx) for w, idx in a.terms + b.terms), estimated=a.estimated or b.estimated)
+
+
 @dataclass(frozen=True)
 class KeypointRecipe:
-    """How a layout gives the mid-sole and the crown.
+    """How a layout gives each foot's sole point and the crown (the mid-sole: :attr:`sole`).
 
     ``n_keypoints``: the layout's length (a longer array is accepted: extra points are ignored);
     ``describes``: what the recipe uses, for meta.yaml.
     """
 
-    sole: PointRule
+    left_sole: PointRule
+    right_sole: PointRule
     crown: PointRule
     n_keypoints: int
     describes: str
+
+    @property
+    def sole(self) -> PointRule:
+        """The mid-sole: the midpoint of the two sole points."""
+        return averaged(self.left_sole, self.right_sole)
 
 
 # ---- layouts: the joint names of each layout live in rotavat_cli.joint_layouts (LAYOUT_NAMES) ----------
@@ -160,9 +179,9 @@ def _at(layout: str, *names: str) -> tuple[int, ...]:
     return tuple(order.index(n) for n in names)
 
 
-_FEET = ("left_big_toe", "left_small_toe", "left_heel", "right_big_toe", "right_small_toe", "right_heel")
+_FOOT = ("big_toe", "small_toe", "heel")  # OpenPose's foot points, per side
 _EARS, _SHOULDERS, _HIPS = ("left_ear", "right_ear"), ("left_shoulder", "right_shoulder"), ("left_hip", "right_hip")
-_ANKLES = ("left_ankle", "right_ankle")
+_SIDES = ("left", "right")
 
 # Measured coefficients (module docstring).
 K_SOLE_SMPL = 0.047  # SMPL-24 ankles + feet, away from the hips
@@ -180,50 +199,58 @@ _TXT_SMPL_SOLE = (f"mid-sole estimated as mean(ankles, feet) + {K_SOLE_SMPL} (th
                   "of stature on average, up to 1.4 %)")
 
 
-def _feet_mean(layout: str) -> PointRule:
-    return mean_of(*_at(layout, *_FEET))
+def _per_side(make) -> tuple[PointRule, PointRule]:
+    """(left, right) sole rules from ``make(side)``; their midpoint is the layout's mid-sole rule."""
+    left, right = (make(side) for side in _SIDES)
+    return left, right
+
+
+def _feet_soles(layout: str) -> tuple[PointRule, PointRule]:
+    return _per_side(lambda side: mean_of(*_at(layout, *(f"{side}_{part}" for part in _FOOT))))
+
+
+def _ankle_soles(layout: str, k: float, extra: tuple[str, ...] = (),
+                 facing: tuple[tuple[int, ...], tuple[int, ...], float] | None = None) -> tuple[PointRule, PointRule]:
+    """Each side's ankle (and ``{side}_{extra}`` joints) pushed away from the mid-hips by ``k`` [+ facing]."""
+    return _per_side(lambda side: extrapolated(_at(layout, f"{side}_ankle", *(f"{side}_{e}" for e in extra)),
+                                               _at(layout, *_HIPS), k, facing))
 
 
 def _ears_crown(layout: str) -> PointRule:
     return extrapolated(_at(layout, *_EARS), _at(layout, *_SHOULDERS), K_CROWN_EARS)
 
 
-def _smpl_sole(layout: str) -> PointRule:
-    return extrapolated(_at(layout, *_ANKLES, "left_foot", "right_foot"), _at(layout, *_HIPS), K_SOLE_SMPL)
-
-
-def _recipe(layout: str, sole: PointRule, crown: PointRule, describes: str) -> KeypointRecipe:
-    return KeypointRecipe(sole, crown, len(LAYOUT_NAMES[layout]), describes)
+def _recipe(layout: str, soles: tuple[PointRule, PointRule], crown: PointRule, describes: str) -> KeypointRecipe:
+    return KeypointRecipe(*soles, crown, len(LAYOUT_NAMES[layout]), describes)
 
 
 LAYOUTS: dict[str, KeypointRecipe] = {
-    "openpose25": _recipe("openpose25", _feet_mean("openpose25"), _ears_crown("openpose25"), f"{_TXT_FEET}; {_TXT_EARS}"),
-    **{name: _recipe(name, _feet_mean(name), mean_of(*_at(name, "head_top_lsp")), f"{_TXT_FEET}; {_TXT_LSP}")
+    "openpose25": _recipe("openpose25", _feet_soles("openpose25"), _ears_crown("openpose25"), f"{_TXT_FEET}; {_TXT_EARS}"),
+    **{name: _recipe(name, _feet_soles(name), mean_of(*_at(name, "head_top_lsp")), f"{_TXT_FEET}; {_TXT_LSP}")
        for name in ("spin49", "phalp44", "phalp45", "romp54", "romp71", "trace44")},
-    **{name: _recipe(name, _feet_mean(name), _ears_crown(name), f"{_TXT_FEET}; {_TXT_EARS}")
+    **{name: _recipe(name, _feet_soles(name), _ears_crown(name), f"{_TXT_FEET}; {_TXT_EARS}")
        for name in ("smpl45", "smplx127", "smplx144", "body26fk")},
     "coco17": _recipe(
         "coco17",
-        extrapolated(_at("coco17", *_ANKLES), _at("coco17", *_HIPS), K_SOLE_COCO,
-                     facing=(_at("coco17", "nose"), _at("coco17", *_EARS), K_SOLE_COCO_FACING)),
+        _ankle_soles("coco17", K_SOLE_COCO, facing=(_at("coco17", "nose"), _at("coco17", *_EARS), K_SOLE_COCO_FACING)),
         _ears_crown("coco17"),
         f"mid-sole estimated as mid-ankles + {K_SOLE_COCO} (mid-ankles - mid-hips) + {K_SOLE_COCO_FACING} "
         "(nose - mid-ears) (estimate: 1.1-1.5 % of stature on average, up to 3.8 %; assumes the face looks where "
         f"the feet point); {_TXT_EARS}"),
     "h36m17": _recipe(
         "h36m17",
-        extrapolated(_at("h36m17", *_ANKLES), _at("h36m17", *_HIPS), K_SOLE_H36M),
+        _ankle_soles("h36m17", K_SOLE_H36M),
         extrapolated(_at("h36m17", "head"), _at("h36m17", "thorax"), K_CROWN_H36M),
         f"mid-sole estimated as mid-ankles + {K_SOLE_H36M} (mid-ankles - mid-hips) (estimate: 3.9 % of stature on "
         f"average, up to 6.8 %); crown estimated as head + {K_CROWN_H36M} (head - thorax) (estimate: 0.7 % of "
         "stature on average, up to 1.7 %)"),
     "smpl24": _recipe(
-        "smpl24", _smpl_sole("smpl24"),
+        "smpl24", _ankle_soles("smpl24", K_SOLE_SMPL, ("foot",)),
         extrapolated(_at("smpl24", "head"), _at("smpl24", *_HIPS), K_CROWN_SMPL),
         f"{_TXT_SMPL_SOLE}; crown estimated as head joint + {K_CROWN_SMPL} (head - mid-hips) (estimate: 1.1 % of "
         "stature on average, up to 2.9 %, on SMPL's own joints)"),
     "hybrik29": _recipe(
-        "hybrik29", _smpl_sole("hybrik29"), mean_of(*_at("hybrik29", "head_top_411")),
+        "hybrik29", _ankle_soles("hybrik29", K_SOLE_SMPL, ("foot",)), mean_of(*_at("hybrik29", "head_top_411")),
         f"{_TXT_SMPL_SOLE}; crown = HybrIK's head-top leaf (SMPL vertex 411, 2-3.5 % of stature from the crown "
         "vertex 412)"),
 }
@@ -251,24 +278,71 @@ def rule_px(keypoints_2d: np.ndarray, rule: PointRule, dims: int = 2) -> np.ndar
     return sum(weight * _mean_points(keypoints_2d, indices, dims) for weight, indices in rule.terms)
 
 
-def feet_heads_cam(joints_cam: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """Mid-sole and crown (P, 3) of joints (P, J, 3) by the layout's recipe applied in 3D; None for a
-    layout without a recipe (or fewer joints than the layout has)."""
+def _recipe_points(points: np.ndarray, recipe: KeypointRecipe, dims: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Left sole, right sole and crown (P, dims) of keypoints or joints (P, K, dims [+ confidence])."""
+    return tuple(rule_px(points, rule, dims) for rule in (recipe.left_sole, recipe.right_sole, recipe.crown))
+
+
+def _joints_recipe(joints_cam: np.ndarray | None, layout: str | None) -> tuple[np.ndarray, KeypointRecipe] | None:
+    """Joints (P, J, 3) as float64 and their layout's recipe; None without joints, recipe or enough joints."""
     recipe = recipe_for(layout)
-    joints = np.asarray(joints_cam, dtype=np.float64)
-    if recipe is None or joints.ndim != 3 or joints.shape[1] < recipe.n_keypoints:
+    if joints_cam is None or recipe is None:
         return None
-    return rule_px(joints, recipe.sole, 3), rule_px(joints, recipe.crown, 3)
+    joints = np.asarray(joints_cam, dtype=np.float64)
+    if joints.ndim != 3 or joints.shape[-1] != 3 or joints.shape[1] < recipe.n_keypoints:
+        return None
+    return joints, recipe
 
 
-def feet_heads_px(keypoints_2d: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """Mid-sole and crown pixels (P, 2) each from keypoints (P, K, 2|3) in ``layout``, and what was used.
+def feet_heads_cam(joints_cam: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Foot points (ground contact, :func:`rotavat_cli.landmarks.ground_contact`) and crowns (P, 3) of joints
+    (P, J, 3) by the layout's recipe applied in 3D; None for a layout without a recipe (or fewer joints than
+    the layout has)."""
+    found = _joints_recipe(joints_cam, layout)
+    if found is None:
+        return None
+    left, right, crown = _recipe_points(*found, 3)
+    return ground_contact(left, right, crown), crown
 
-    None when the layout has no recipe or the array is shorter than the layout; NaN rows for
-    people whose recipe points are missing.
+
+def contact_weights_3d(joints_cam: np.ndarray | None, layout: str | None) -> np.ndarray | None:
+    """(P, 3) each person's ground contact weights (left sole, right sole, crown;
+    :func:`rotavat_cli.landmarks.contact_weights`) from 3D joints in ``layout``; the mid-sole's (0.5, 0.5, 0)
+    where a person's joints give no axis; None without joints in a layout with a recipe.
+
+    The image cannot tell a raised foot from a foot nearer the camera (a walker seen from above has its
+    front foot lower in the picture with both feet down), so the 2D foot point takes the raise from the
+    body, in 3D, where a raised foot is one that lies higher along the body's own axis.
+    """
+    found = _joints_recipe(joints_cam, layout)
+    if found is None:
+        return None
+    weights = contact_weights(*_recipe_points(*found, 3))
+    return np.where(np.isfinite(weights).all(axis=-1, keepdims=True), weights, [0.5, 0.5, 0.0])
+
+
+_TXT_CONTACT = ("; foot point = ground contact: the soles' and crown's points weighted as the 3D joints' raise of the "
+                "lower foot says (docs/conventions.md)")
+
+
+def feet_heads_px(keypoints_2d: np.ndarray, layout: str | None, joints_cam: np.ndarray | None = None,
+                  joints_layout: str | None = None) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """Foot and crown pixels (P, 2) each from keypoints (P, K, 2|3) in ``layout``, and what was used.
+
+    The foot pixel is the mid-sole; with the person's 3D joints (``joints_cam`` (P, J, 3) in
+    ``joints_layout``, the same people), the ground contact: the two soles' and the crown's pixels
+    weighted as in 3D (:func:`contact_weights_3d`). None when the layout has no recipe or the array is
+    shorter than the layout; NaN rows for people whose recipe points are missing.
     """
     recipe = recipe_for(layout)
     keypoints = np.asarray(keypoints_2d)
     if recipe is None or keypoints.ndim != 3 or keypoints.shape[1] < recipe.n_keypoints or keypoints.shape[2] < 2:
         return None
-    return rule_px(keypoints, recipe.sole), rule_px(keypoints, recipe.crown), f"{layout_key(layout)}: {recipe.describes}"
+    left, right, crown = _recipe_points(keypoints, recipe, 2)
+    feet = 0.5 * (left + right)
+    used = f"{layout_key(layout)}: {recipe.describes}"
+    weights = contact_weights_3d(joints_cam, joints_layout)
+    if weights is not None and len(weights) == len(feet):
+        feet = np.einsum("pk,pkd->pd", weights, np.stack([left, right, crown], axis=1))
+        used += _TXT_CONTACT
+    return feet, crown, used

@@ -41,6 +41,7 @@ def base_meta(fmt: str, src: Path, opts: ImportOptions, image_size: tuple[int, i
 def feet_heads_from(keypoints_layout: str | None, has_vertices: bool) -> str | None:
     """meta.yaml ``import.feet_heads_from``: which points give the foot and head pixels of an import."""
     if has_vertices:
-        return "mesh landmarks (mid-sole, crown vertices)"
+        return "mesh landmarks (sole vertices' ground contact, crown vertex)"
     recipe = recipe_for(keypoints_layout)
-    return None if recipe is None else f"keypoints_2d, {layout_key(keypoints_layout)}: {recipe.describes}"
+    return None if recipe is None else (f"keypoints_2d, {layout_key(keypoints_layout)}: {recipe.describes}; foot point "
+                                        "moved to the ground contact where the 3D joints show one foot raised")

@@ -1,8 +1,9 @@
 """Per-track plots over time: foot height, lean and stature of every person of a sequence (PNG, Pillow).
 
 For each frame and person (``person_id`` = the track), in the row's camera (its world: ground at
-``Y = 0``): the mid-sole's height above the ground (m, signed: below 0 = sunk), the lean of the
-mid-sole -> crown axis from the vertical (deg) and the stature (the mid-sole -> crown length, m).
+``Y = 0``): the foot point's height above the ground (m, signed: below 0 = sunk; the foot point is the
+ground contact, :func:`rotavat_cli.landmarks.ground_contact`), the lean of the foot -> crown axis from
+the vertical (deg) and the stature (the foot -> crown length, m).
 Mid-sole and crown are those ``rotavat align`` uses (:func:`rotavat_cli.frame_points.frame_foot_head_cam`:
 the mesh landmarks, or for joints-only people their ``feet_2d``/``heads_2d`` at the joints' depth),
 else for joints without those pixels the layout's keypoint recipe applied to the 3D joints
@@ -40,7 +41,7 @@ __all__ = ["TRACK_SERIES", "Tracks", "frame_track_values", "sequence_tracks", "p
 # (key, panel title, unit, reference line, smallest span shown): what the plot shows, top to bottom
 TRACK_SERIES = (("foot_height_m", "foot height above the ground", "m", 0.0, 0.1),
                 ("lean_deg", "lean from vertical", "°", 0.0, 2.0),
-                ("stature_m", "stature (mid-sole to crown)", "m", None, 0.1))
+                ("stature_m", "stature (foot point to crown)", "m", None, 0.1))
 
 
 @dataclass
@@ -50,7 +51,7 @@ class Tracks:
     label: str
     n_frames: int
     values: dict[str, dict[int, list[tuple[int, float]]]] = field(default_factory=lambda: {k: {} for k, *_ in TRACK_SERIES})
-    source: str = ""  # what gave the mid-sole/crown (mesh landmarks or the joints' recipe)
+    source: str = ""  # what gave the foot point and crown (mesh landmarks or the joints' recipe)
 
     @property
     def ids(self) -> list[int]:
@@ -72,8 +73,8 @@ def _feet_heads(seq: Sequence, frame: Frame, camera: Camera) -> tuple[np.ndarray
 
 def frame_track_values(seq: Sequence, frame: Frame, camera: Camera) -> tuple[dict[str, np.ndarray], np.ndarray, str] | None:
     """One frame's track values in ``camera``'s world: ``{key: (P,)}`` for each :data:`TRACK_SERIES` key,
-    the (P, 3) mid-soles (camera frame) they were measured from, and where those came from; None for a
-    frame without people or without a way to find their mid-soles and crowns."""
+    the (P, 3) foot points (camera frame) they were measured from, and where those came from; None for a
+    frame without people or without a way to find their foot points and crowns."""
     got = _feet_heads(seq, frame, camera) if frame.n_people else None
     if got is None:
         return None
@@ -139,7 +140,7 @@ def plot_tracks(path: Path, tracks: Tracks, palette: tuple[RGB, ...], size: tupl
     ids = tracks.ids
     colors = dict(zip(ids, person_colors(np.asarray(ids, dtype=np.int64), palette))) if ids else {}
     title = f"{tracks.label}: {len(ids)} track(s) over {tracks.n_frames} frame(s)"
-    draw.text((10, 8), title + (f"; mid-sole and crown from {tracks.source}" if tracks.source else "; no people"),
+    draw.text((10, 8), title + (f"; foot point and crown from {tracks.source}" if tracks.source else "; no people"),
               fill=(34, 34, 34), font=face)
     left, right, top, legend_h = 60, W - 20, 56, 28
     slot = (H - top - legend_h - 30) / len(TRACK_SERIES)
