@@ -425,3 +425,50 @@ def test_the_gate_passes_a_camera_accepted_earlier_with_a_warning(scene, tmp_pat
     result = invoke(runner, "align", scene / "pred", "--camera", camera, "--out", tmp_path / "out")
     assert result.exit_code == 0, result.stderr
     assert "accepted earlier" in result.stderr and FINDINGS[1][:20] in result.stderr
+
+
+def test_people_cut_by_the_border_are_not_reseated_by_an_invisible_foot():
+    """A person whose foot, as the tool drew it, lies below the image is left where the tool put it, flagged
+    cut_by_border; the whole person next to them is aligned."""
+    cam = Camera((640, 480), 500, None, np.deg2rad(20), 0.0, 3.0)
+    ground = cam.backproject_px_to_ground(np.array([[200.0, 400.0], [420.0, 560.0]]))  # the second foot: 80 px below
+    rng = np.random.default_rng(0)
+    blob = rng.normal(0, 0.1, (30, 3))
+    verts = np.stack([g + blob - blob.mean(0) + np.linspace(0, 1, 30)[:, None] * 1.7 * cam.up_cam
+                      for g in ground]).astype(np.float32)
+    frame = Frame("000000", {"vertices": verts, "person_ids": np.array([1, 2])})
+    new, cols = align_frame(frame, cam)
+    assert list(cols["flag"]) == ["", "cut_by_border"] and np.isnan(cols["stature_m"][1])
+    np.testing.assert_array_equal(new.data["vertices"][1], verts[1])
+    assert 1.4 < cols["stature_m"][0] < 2.0 and list(cols["stature_from"]) == ["given_camera"] * 2
+
+
+def test_align_says_where_its_statures_come_from(scene, tmp_path, runner):
+    """people.csv's stature_from and the summary line follow the camera's scale: a calibration from the people
+    gives the stature prior back; ground truth's camera (no fit block) measures."""
+    pred = scene / "pred"
+    cal = tmp_path / "cal.yaml"
+    assert invoke(runner, "calibrate", pred, "--out", cal, "-q").exit_code == 0
+    for camera, source, words in ((cal, "prior", "1.70 m stature prior given back"),
+                                  (scene / "gt" / "camera.yaml", "given_camera", "measured with a given camera")):
+        out = tmp_path / source
+        result = invoke(runner, "align", pred, "--camera", camera, "--out", out)
+        assert result.exit_code == 0, result.stderr
+        assert words in " ".join(result.stdout.split())
+        with open(out / "people.csv", newline="") as handle:
+            assert {row["stature_from"] for row in csv.DictReader(handle)} == {source}
+
+
+def test_the_camera_is_wrong_advice_never_repeats_what_was_given(scene, tmp_path, runner):
+    """The people of a given camera measuring 3.4 m: align's warning names what else is wrong, not the focal and
+    height the calibration was given (the advice used to loop: 'give --focal PX --camera-height M' to a user
+    who had)."""
+    pred = scene / "pred"
+    truth = read_camera_yaml(scene / "gt" / "camera.yaml")[0]
+    cal = tmp_path / "cal.yaml"
+    result = invoke(runner, "calibrate", pred, "--out", cal, "--focal", str(truth.focal_px), "--camera-height",
+                    str(2.0 * truth.height_m), "--pitch", str(np.rad2deg(truth.pitch_rad)), "-q")
+    assert result.exit_code == 0, result.stderr
+    aligned = invoke(runner, "align", pred, "--camera", cal, "--out", tmp_path / "al", "--accept-camera")
+    (line,) = [w for w in aligned.stderr.splitlines() if "median stature" in w]
+    assert "the people do not fit the model" in line and "--focal" not in line and "--camera-height" not in line
