@@ -23,8 +23,9 @@ at three ways (:func:`ground_findings`):
 
 Each finding names the people or the region, says what it may be and what to do. A finding weighs
 on the camera when the people it concerns hold :data:`IMPLAUSIBLE_SHARE` (a quarter) of the pairs
-the fit kept, or always for the whole-model spread: it is then also a plausibility finding
-(:mod:`.plausibility`).
+the fit kept (and, for a region, stand :data:`IMPLAUSIBLE_SHIFT`, 10%, or more off the others, with five
+people on each side), or
+always for the whole-model spread: it is then also a plausibility finding (:mod:`.plausibility`).
 
 >>> from rotavat_cli.camera import Camera
 >>> cam = Camera((1280, 720), 900.0, None, np.deg2rad(20.0), 0.0, 4.0)
@@ -47,7 +48,7 @@ from ..camera import Camera
 from ..measure import statures_from_camera_m
 
 __all__ = ["WHOLE_SPREAD_MAX", "REGION_SHIFT_MIN", "REGION_MIN_PEOPLE", "SIGNIFICANCE", "PERSON_RATIO_RANGE",
-           "IMPLAUSIBLE_SHARE", "GroundFinding", "implied_ratios", "ground_findings"]
+           "IMPLAUSIBLE_SHARE", "IMPLAUSIBLE_SHIFT", "IMPLAUSIBLE_MIN_PEOPLE", "GroundFinding", "implied_ratios", "ground_findings"]
 
 WHOLE_SPREAD_MAX = 0.25  # robust sd of the implied stature ratios beyond which the model does not hold
 REGION_SHIFT_MIN = 0.08  # a region's median implied stature this far (ratio) from the others'
@@ -55,12 +56,15 @@ REGION_MIN_PEOPLE = 3  # people (tracks, else pairs) a region needs to be judged
 SIGNIFICANCE = 4.0  # ... and its shift over its standard error
 PERSON_RATIO_RANGE = (0.75, 1.0 / 0.75)  # a person's implied stature over the median person's
 IMPLAUSIBLE_SHARE = 0.25  # findings about people holding this share of the kept pairs make the camera implausible
+IMPLAUSIBLE_SHIFT = 0.10  # ... for a region, when its people stand this much higher or lower (~17 cm: a step) ...
+IMPLAUSIBLE_MIN_PEOPLE = 5  # ... and each side holds this many people (3 short people near the camera are a warning)
 _GRID = 3  # regions: a 3 x 3 grid over the image
 _MAD_TO_SD = 1.4826  # median absolute deviation -> sd for normal data
 # The spread the significance uses is at least real adults' (a sd of 7 cm on 1.70 m, the stature prior's): a few
 # people's own spread about their median says little (12 walkers in one frame: 1 clean scene of 72 had 4 people
-# "10% shorter" at 4 of their own sd).
-_MIN_SPREAD = 0.04
+# "10% shorter" at 4 of their own sd); a median of n people has a standard error 1.2533 sd / sqrt(n).
+_MIN_SPREAD = 0.07 / 1.70
+_MEDIAN_SE = 1.2533
 _SHOWN = 8  # ids named in a message
 
 
@@ -119,7 +123,7 @@ def _regions(feet_px: np.ndarray, log_ratio: np.ndarray, people: np.ndarray, ima
         found = _shift(log_ratio, people, inside)
         if found is None:
             continue
-        shift = found[0]
+        shift, fewer = found[0], found[2]
         r, k = divmod(int(c), _GRID)
         x0, x1, y0, y1 = (round(k * W / _GRID), round((k + 1) * W / _GRID), round(r * H / _GRID),
                           round((r + 1) * H / _GRID))
@@ -130,11 +134,11 @@ def _regions(feet_px: np.ndarray, log_ratio: np.ndarray, people: np.ndarray, ima
             f"the {n_people} people with their feet in the image region x {x0}-{x1}, y {y0}-{y1} px measure "
             f"{100 * math.expm1(abs(shift)):.0f}% {what} than the others: they stand {why} than the ground the "
             "others share (a step, stairs, a stage or a raised row), or the ground is not flat; calibrate from "
-            "the people on one level (--track ID ...)", share, share >= IMPLAUSIBLE_SHARE))
+            "the people on one level (--track ID ...)", share, _weighs(share, shift, fewer)))
     return out
 
 
-def _shift(log_ratio: np.ndarray, people: np.ndarray, inside: np.ndarray) -> tuple[float, float] | None:
+def _shift(log_ratio: np.ndarray, people: np.ndarray, inside: np.ndarray) -> tuple[float, float, int] | None:
     """The median person's log ratio inside minus outside (``inside`` (N,) bool), when both sides hold
     :data:`REGION_MIN_PEOPLE` people and it passes both thresholds (module docstring); else None. Its
     standard error comes from the people's spread about their own side's median (a two-sample test: the
@@ -147,10 +151,19 @@ def _shift(log_ratio: np.ndarray, people: np.ndarray, inside: np.ndarray) -> tup
         return None
     shift = float(np.median(here) - np.median(there))
     spread = max(_robust_sd(np.concatenate([here - np.median(here), there - np.median(there)])), _MIN_SPREAD)
-    error = spread * math.sqrt(1.0 / len(here) + 1.0 / len(there))
+    error = _MEDIAN_SE * spread * math.sqrt(1.0 / len(here) + 1.0 / len(there))
     if abs(shift) < math.log1p(REGION_SHIFT_MIN) or abs(shift) < SIGNIFICANCE * error:
         return None
-    return shift, abs(shift) / error
+    return shift, abs(shift) / error, min(len(here), len(there))
+
+
+def _weighs(share: float, shift: float, fewer: int) -> bool:
+    """Whether a region's finding weighs on the camera: its people hold a quarter of the pairs and stand
+    :data:`IMPLAUSIBLE_SHIFT` or more off the others, with :data:`IMPLAUSIBLE_MIN_PEOPLE` people on each side
+    (``fewer``: the smaller side). Three short people near the camera, 13% under the other 6 of a synthetic crowd
+    under its right camera, are a warning; a back row of 10 on a 0.35 m step, 11-13% over the front row of 10
+    under the camera the step bent (pitch 13-17 deg for a true 6 with the focal given), weighs."""
+    return share >= IMPLAUSIBLE_SHARE and abs(shift) >= math.log1p(IMPLAUSIBLE_SHIFT) and fewer >= IMPLAUSIBLE_MIN_PEOPLE
 
 
 def _split_rows(rows_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -172,19 +185,19 @@ def _row_split(feet_px: np.ndarray, log_ratio: np.ndarray, people: np.ndarray, n
             upper = feet_px[:, 1] < row  # farther up the image: farther, or higher
             found = _shift(log_ratio, people, upper)
             if found is not None and (best is None or found[1] > best[1]):
-                best = (found[0], found[1], float(row), upper)
+                best = (found[0], found[1], found[2], float(row), upper)
         if best is not None:
             break
     if best is None:
         return None
-    shift, _, row, upper = best
+    shift, _, fewer, row, upper = best
     what = "taller" if shift > 0 else "shorter"
     share = float(upper.sum()) / n_kept if shift > 0 else float((~upper).sum()) / n_kept
     return GroundFinding(
         f"the {len(np.unique(people[upper]))} people with their feet above image row {row:.0f} px measure "
         f"{100 * math.expm1(abs(shift)):.0f}% {what} than the {len(np.unique(people[~upper]))} below: the ground "
         "is not one plane (a step, a raised back row, stairs, a slope); calibrate from the people on one level "
-        "(--track ID ...)", share, share >= IMPLAUSIBLE_SHARE)
+        "(--track ID ...)", share, _weighs(share, shift, fewer))
 
 
 def _people(log_ratio: np.ndarray, people: np.ndarray, tracked: bool, n_kept: int) -> GroundFinding | None:

@@ -33,7 +33,7 @@ import numpy as np
 from ..camera import up_vector_cam
 from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, slot
 
-__all__ = ["RAY_EPS", "Z_MIN", "foot_terms", "undistort", "head_errors", "predict_heads_px"]
+__all__ = ["RAY_EPS", "Z_MIN", "foot_terms", "undistort", "head_errors", "head_gain", "predict_heads_px"]
 
 RAY_EPS = 1e-12  # foot ray "parallel to the ground" (as camera.backproject_px_to_plane)
 Z_MIN = 0.05  # refinement: head depth / foot depth below this -> head (nearly) behind the camera, invalid pair
@@ -88,6 +88,36 @@ def head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, stat
     z = np.maximum(z, max(z_min, _Z_FLOOR))
     coef, dcoef = k / z, dk / (z * z)
     return (diff[..., 0] + coef * m_u, diff[..., 1] + coef * m_v), (dcoef * m_u, dcoef * m_v), valid
+
+
+def head_gain(rel_feet: np.ndarray, params: np.ndarray, stature_m: float | np.ndarray) -> np.ndarray | None:
+    """How each predicted head moves with its foot pixel, in closed form: ``d head / d foot`` (Q, N, 2, 2),
+    rows (u, v) of the head, columns (u, v) of the foot; None when the parameter sets hold a lens distortion or a
+    box depth (then :func:`head_errors` by finite differences says it).
+
+    With ``d`` and ``M`` of the module docstring, ``d' = -n_xy / f`` and ``c = k / z``: the head is
+    ``F + c M``, so ``dH/dF = I + M (dc/dF)^T + c dM/dF`` with ``dM/dF = (f n_xy - n_z F) d'^T - d n_z I`` and
+    ``dc/dF = -c^2 n_z d'`` (``k = S / h`` does not depend on the foot).
+    """
+    if np.any(slot(params, DISTORTION)) or np.any(slot(params, BOX_DEPTH)):
+        return None
+    f, pitch, roll, h = (slot(params, i) for i in (FOCAL, PITCH, ROLL, HEIGHT))
+    n = up_vector_cam(pitch[:, 0], roll[:, 0])
+    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
+    u, v = rel_feet[..., 0], rel_feet[..., 1]
+    d, m_u, m_v = foot_terms(u, v, f, nx, ny, nz)
+    k = stature_m / h
+    z = np.maximum(1.0 + k * nz * d, _Z_FLOOR)
+    c = k / z
+    dd = (-nx / f, -ny / f)  # d d / d (u, v), (Q, 1) each
+    a = (f * nx - nz * u, f * ny - nz * v)  # M / d, (Q, N) each
+    gain = np.empty(np.broadcast(u, c).shape + (2, 2))
+    for i in range(2):  # head row (u, v)
+        m_i = (m_u, m_v)[i]
+        for j in range(2):  # foot column (u, v)
+            dm = a[i] * dd[j] - (d * nz if i == j else 0.0)
+            gain[..., i, j] = (1.0 if i == j else 0.0) - m_i * c * c * nz * dd[j] + c * dm
+    return gain
 
 
 def _box_k(u: np.ndarray, v: np.ndarray, f: np.ndarray, h: np.ndarray, d: np.ndarray, box: np.ndarray,

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..camera import up_vector_cam
-from .model import head_errors
+from .model import head_errors, head_gain
 from .params import PITCH, ROLL, from_internal, to_internal
 from .priors import Priors
 from .residuals import PairCovariance, ResidualKind
@@ -127,10 +127,14 @@ def make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_hei
 def foot_gain(prob: Problem, params: np.ndarray, e: tuple[np.ndarray, np.ndarray],
               stature_m: float | np.ndarray) -> np.ndarray:
     """How each predicted head moves with its foot pixel: ``G[q, n] = d e / d foot`` (Q, N, 2, 2), rows
-    (u, v) of the head error, columns (u, v) of the foot, by forward differences of half a pixel.
+    (u, v) of the head error, columns (u, v) of the foot: in closed form (:func:`.model.head_gain`), or with a
+    lens distortion or a box depth by forward differences of half a pixel.
 
     e: the head errors (u, v) (Q, N) at params (Q, 6) and stature_m (as :func:`.model.head_errors`).
     """
+    closed = head_gain(prob.rel_feet, params, stature_m)
+    if closed is not None:
+        return closed
     columns = []
     for step in ((_FOOT_STEP_PX, 0.0), (0.0, _FOOT_STEP_PX)):
         moved, _, _ = head_errors(prob.rel_feet + step, prob.diff + step, params, stature_m, prob.radius_px)
