@@ -178,25 +178,24 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
     """
     Q, T = len(params), prob.n_tracks
     e, de, valid = head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m, prob.radius_px)
-    cov = pair_covariance(prob, foot_gain(prob, params, e, prob.person_height_m) if prob.foot_noise else None,
-                          effective)
     delta = np.zeros((Q, T))
     stature = prob.person_height_m
     if T:
         tracked = prob.track >= 0
         flat = (np.arange(Q)[:, None] * T + np.maximum(prob.track, 0)[None, :]).ravel()
         prec = 1.0 / prob.stature_sd_m**2
+        steps_cov = pair_covariance(prob, None, effective)  # the statures' steps weigh by the pixel noise alone
         for _ in range(2):
-            r = prob.residual.whitened(e, prob.axis, cov) / scale
-            j = prob.residual.whitened(de, prob.axis, cov) / scale
+            r = prob.residual.whitened(e, prob.axis, steps_cov) / scale
+            j = prob.residual.whitened(de, prob.axis, steps_cov) / scale
             w = (valid & tracked) / (1.0 + (r[..., 0] / 3.0) ** 2)
             num = np.bincount(flat, (w * np.sum(j * r, axis=-1)).ravel(), Q * T).reshape(Q, T) + delta * prec
             den = np.bincount(flat, (w * np.sum(j * j, axis=-1)).ravel(), Q * T).reshape(Q, T) + prec
             delta = delta - num / den
             stature = prob.person_height_m + np.where(tracked, delta[:, np.maximum(prob.track, 0)], 0.0)
             e, de, valid = head_errors(prob.rel_feet, prob.diff, params, stature, prob.radius_px)
-        if prob.foot_noise:  # the foot's gain at each person's own stature: the pairs then cannot see the scale
-            cov = pair_covariance(prob, foot_gain(prob, params, e, stature), effective)
+    # The foot's gain at each person's own stature: the pairs then cannot see the scene's scale.
+    cov = pair_covariance(prob, foot_gain(prob, params, e, stature) if prob.foot_noise else None, effective)
     return e, valid, delta, cov
 
 
