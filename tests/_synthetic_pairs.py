@@ -19,6 +19,7 @@ import numpy as np
 
 from rotavat_cli.camera import Camera
 from rotavat_cli.synth import random_camera
+from rotavat_cli.synth.layouts import STILL_SWAY_M  # a standing person's offset from their place per frame, sd
 
 __all__ = ["LAYOUTS", "SyntheticPairs", "box_points_px", "distort_px", "random_surveillance_camera", "synthetic_pairs"]
 
@@ -27,7 +28,6 @@ MAX_DISTANCE_M = 45.0  # people farther than this are too small to be detected
 MIN_PERSON_PX = 12.0  # smaller people are not detected
 OUTLIER_KINDS = ("sitting", "cropped", "random_head")
 LAYOUTS = ("walk", "still", "mix")
-STILL_SWAY_M = 0.05  # a standing person's offset from their place in each frame, sd per ground axis
 
 
 @dataclass(frozen=True)

@@ -204,7 +204,21 @@ def test_walk_crosses_the_view_at_one_image_row(seed, camera_kind):
     _assert_in_view(camera, feet_px, heads_px)
 
 
-@pytest.mark.parametrize("layout", ["walk", "row"])
+def test_still_people_stand_about_their_places_at_many_depths():
+    """The ``still`` layout: each person sways a few centimetres about one place (STILL_SWAY_M per frame and ground
+    axis), and the places spread over the depths the camera sees (not one row: the calibration's hard case)."""
+    from rotavat_cli.synth.layouts import STILL_SWAY_M
+
+    opts = SynthOptions(seed=3, frames=30, people=10, layout="still", image_size=(1920, 1080))
+    camera, feet, feet_px, heads_px = _gt_feet_heads(opts)
+    places = feet.reshape(30, 10, 3)
+    sway = places - places.mean(axis=0)
+    assert 0.6 * STILL_SWAY_M < sway[..., [0, 2]].std() < 1.4 * STILL_SWAY_M and np.abs(sway).max() < 6 * STILL_SWAY_M
+    depth = np.linalg.norm(places.mean(axis=0)[:, [0, 2]], axis=-1)
+    assert depth.max() > 1.5 * depth.min()
+
+
+@pytest.mark.parametrize("layout", ["walk", "row", "still"])
 def test_layouts_are_deterministic_and_keep_the_rest(tmp_path, runner, layout):
     args = ["--seed", "5", "--frames", "2", "--people", "3", "--layout", layout, "--camera-height-range", "1.2", "2",
             "--pitch-range", "-5", "15", "-q"]

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import Camera
-from ..measure import statures_from_camera_m
+from ..measure import statures_by_track, statures_from_camera_m
 
 __all__ = ["WHOLE_SPREAD_MAX", "REGION_SHIFT_MIN", "REGION_MIN_PEOPLE", "SIGNIFICANCE", "PERSON_RATIO_RANGE",
            "IMPLAUSIBLE_SHARE", "IMPLAUSIBLE_SHIFT", "IMPLAUSIBLE_MIN_PEOPLE", "GroundFinding", "implied_ratios", "ground_findings"]
@@ -90,12 +90,9 @@ def _robust_sd(values: np.ndarray) -> float:
 
 
 def _per_person(log_ratio: np.ndarray, people: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each person's median log ratio: (ids (T,), medians (T,), pair counts (T,))."""
-    ids, inverse = np.unique(people, return_inverse=True)
-    order = np.argsort(inverse, kind="stable")
-    starts = np.searchsorted(inverse[order], np.arange(len(ids)))
-    groups = np.split(log_ratio[order], starts[1:])
-    return ids, np.array([np.median(g) for g in groups]), np.array([len(g) for g in groups])
+    """Each person's median log ratio: (ids (T,), medians (T,), pair counts (T,)) (:func:`statures_by_track`)."""
+    per = statures_by_track(log_ratio, np.asarray(people, dtype=np.int64))
+    return per.ids, per.median_m, per.pairs
 
 
 def _whole(log_ratio: np.ndarray) -> GroundFinding | None:

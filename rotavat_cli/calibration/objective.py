@@ -187,7 +187,7 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
         # The statures' steps weigh as the objective does (the foot's gain at the prior stature): weighed by the
         # pixel noise alone, the profiled statures are not the objective's own and people standing still drift
         # again (2,000 frames: focal 2.3% off, against 0.7%).
-        steps_cov = pair_covariance(prob, foot_gain(prob, params, e, stature) if prob.foot_noise else None, effective)
+        steps_cov = _covariance_at(prob, params, e, stature, effective)
         for _ in range(2):
             r = prob.residual.whitened(e, prob.axis, steps_cov) / scale
             j = prob.residual.whitened(de, prob.axis, steps_cov) / scale
@@ -198,8 +198,14 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
             stature = prob.person_height_m + np.where(tracked, delta[:, np.maximum(prob.track, 0)], 0.0)
             e, de, valid = head_errors(prob.rel_feet, prob.diff, params, stature, prob.radius_px)
     # The foot's gain at each person's own stature: the pairs then cannot see the scene's scale.
-    cov = pair_covariance(prob, foot_gain(prob, params, e, stature) if prob.foot_noise else None, effective)
-    return e, valid, delta, cov
+    return e, valid, delta, _covariance_at(prob, params, e, stature, effective)
+
+
+def _covariance_at(prob: Problem, params: np.ndarray, e: tuple[np.ndarray, np.ndarray], stature_m: float | np.ndarray,
+                   effective: bool) -> PairCovariance:
+    """:func:`pair_covariance` with the foot's gain at ``params`` (Q, 6) and ``stature_m`` where the problem carries
+    the foot's noise (``e``: the head errors there, (Q, N) each)."""
+    return pair_covariance(prob, foot_gain(prob, params, e, stature_m) if prob.foot_noise else None, effective)
 
 
 def whitened(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: bool = False

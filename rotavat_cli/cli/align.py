@@ -13,7 +13,7 @@ from ..alignment.camera_gate import align_remedies, check_align_camera, implausi
 from ..alignment.align import align_sequence
 from ..calibration.plausibility import MEAN_STATURE_RANGE_M
 from ..errors import InputError, input_errors
-from ..measure import source_words
+from ..measure import stature_provenance
 from ..outputs import check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
@@ -103,7 +103,7 @@ def align(
     if summary.in_medians:
         report(f"median depth correction x{summary.median_depth_scale:.3f} ({summary.median_abs_depth_change_pct:.1f}%), "
                f"median tilt removed {summary.median_rotation_deg:.2f}°, median stature {summary.median_stature_m:.2f} m "
-               f"({source_words(summary.stature_from, float((chosen.fit or {}).get('person_height_m', 1.70)))}); "
+               f"({stature_provenance(chosen.fit)}); "
                f"foot and crown keep their pixels, the other points move {summary.median_drift_px:.0f} px (median), "
                f"{summary.max_drift_px:.0f} px at most (people.csv: drift_mean_px, drift_max_px)", quiet)
     report(f"camera: {origin}; wrote {out} (frames, camera.yaml, people.csv)", quiet)
