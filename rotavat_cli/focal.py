@@ -19,6 +19,15 @@ Examples
 37500
 >>> round(float(np.degrees(2 * np.arctan(1920 / 2 / focal_from_rule("romp", (1920, 1080))))), 3)
 60.0
+
+The camera's own focal as people know it, a 35 mm-equivalent focal length (what phones and EXIF
+state), in px: :func:`focal_px_from_35mm`; the same camera's focal on a resized image:
+:func:`focal_px_at_size`.
+
+>>> round(focal_px_from_35mm(26.0, (4032, 3024)), 2)     # a phone's main camera, 4:3 photo
+3028.66
+>>> round(focal_px_at_size(3028.66, (4032, 3024), (1440, 1080)), 2)    # the same camera, resized
+1081.66
 """
 
 from __future__ import annotations
@@ -30,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["FOCAL_KINDS", "CAMERA", "ASSUMED", "BEV_FOCAL_ON_512", "FocalRule", "FOCAL_RULES", "focal_from_rule", "hybrik_focal_px",
-           "focal_kind_or_default"]
+           "focal_kind_or_default", "FULL_FRAME_DIAGONAL_MM", "ASPECT_TOLERANCE", "focal_px_from_35mm", "focal_px_at_size"]
 
 CAMERA = "camera"  # the focal is the camera's own: ground truth, a calibrated camera, rotavat's aligned output
 ASSUMED = "assumed"  # the focal is an HPS method's guess
@@ -123,3 +132,48 @@ def focal_kind_or_default(value: object) -> str:
     if value not in FOCAL_KINDS:
         raise ValueError(f"key 'focal_kind' must be one of {', '.join(FOCAL_KINDS)}, got {value!r}")
     return str(value)
+
+
+# ---- the camera's own focal as people know it ------------------------------------------------------
+FULL_FRAME_DIAGONAL_MM = math.hypot(36.0, 24.0)  # 43.27 mm: the diagonal of a 36 x 24 mm ("35 mm") frame
+# Two image sizes are one camera's pictures resized when their aspect ratios agree this closely (relative):
+# rounding each side to whole pixels moves it by under 1% down to 100 px sides; a crop (4:3 photo, 16:9 video) by 33%.
+ASPECT_TOLERANCE = 0.01
+
+
+def focal_px_from_35mm(focal_35mm_mm: float, image_size: tuple[int, int]) -> float:
+    """The focal (px) on an image of ``image_size`` (W, H) px of a 35 mm-equivalent focal length (mm).
+
+    35 mm equivalent (EXIF FocalLengthIn35mmFilm, what phones state): the focal giving the same
+    diagonal field of view on a 36 x 24 mm frame, so ``f_px = MM / 43.27 mm * sqrt(W^2 + H^2)``.
+    ValueError unless ``focal_35mm_mm`` is positive and finite.
+
+    >>> round(focal_px_from_35mm(43.266615305567875, (1920, 1080)), 6) == round(math.hypot(1920, 1080), 6)
+    True
+    """
+    if isinstance(focal_35mm_mm, bool) or not isinstance(focal_35mm_mm, (int, float, np.number)) \
+            or not math.isfinite(focal_35mm_mm) or focal_35mm_mm <= 0:
+        raise ValueError(f"a 35 mm-equivalent focal must be a positive number of mm, got {focal_35mm_mm!r}")
+    width, height = (int(v) for v in image_size)
+    return float(focal_35mm_mm) / FULL_FRAME_DIAGONAL_MM * math.hypot(width, height)
+
+
+def focal_px_at_size(focal_px: float, from_size: tuple[int, int], to_size: tuple[int, int]) -> float:
+    """A focal (px) on an image of ``from_size`` (W, H) carried to the same camera's image resized to ``to_size``,
+    held either way (a portrait photo of a landscape video's camera): scaled by the ratio of the long sides.
+    ValueError when the shapes differ by more than :data:`ASPECT_TOLERANCE` (another crop of the sensor, e.g. a
+    4:3 photo and a 16:9 video: the focal does not carry over).
+
+    >>> focal_px_at_size(1000.0, (4000, 3000), (2000, 1500)), focal_px_at_size(1000.0, (3000, 4000), (2000, 1500))
+    (500.0, 500.0)
+    >>> focal_px_at_size(1000.0, (4000, 3000), (1920, 1080))
+    Traceback (most recent call last):
+    ...
+    ValueError: a 4000x3000 image (aspect 1.333) is not a resize of a 1920x1080 one (aspect 1.778)
+    """
+    (w0, h0), (w1, h1) = ((int(v) for v in size) for size in (from_size, to_size))
+    long0, short0, long1, short1 = max(w0, h0), min(w0, h0), max(w1, h1), min(w1, h1)
+    if abs((long0 / short0) / (long1 / short1) - 1.0) > ASPECT_TOLERANCE:
+        raise ValueError(f"a {w0}x{h0} image (aspect {w0 / h0:.3f}) is not a resize of a {w1}x{h1} one "
+                         f"(aspect {w1 / h1:.3f})")
+    return float(focal_px) * long1 / long0

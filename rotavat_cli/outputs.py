@@ -225,14 +225,19 @@ def written_by_rotavat(path: str | os.PathLike, signature: bytes | None = None) 
 
 
 def _glb_generator(path: Path) -> str:
-    """``asset.generator`` of a binary glTF file ('' when unreadable); reads the JSON chunk only (<= 1 MB)."""
+    """``asset.generator`` of a binary glTF file ('' when unreadable); reads the JSON chunk only (<= 1 MB; of a
+    longer one, its opening ``asset`` block)."""
     try:
         with open(path, "rb") as handle:
             header = handle.read(20)
             length = int.from_bytes(header[12:16], "little")
-            if len(header) < 20 or header[16:20] != b"JSON" or length > (1 << 20):
+            if len(header) < 20 or header[16:20] != b"JSON":
                 return ""
-            data = json.loads(handle.read(length))
+            if length > (1 << 20):  # a long animated scene: rotavat writes its "asset" block first
+                found = re.match(rb'\s*\{\s*"asset"\s*:\s*(\{[^{}]*\})', handle.read(4096))
+                data = {"asset": json.loads(found.group(1))} if found else {}
+            else:
+                data = json.loads(handle.read(length))
     except (OSError, ValueError, RecursionError):
         return ""
     asset = data.get("asset") if isinstance(data, dict) else None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["axis_angle_to_matrix", "cross3", "rotation_between"]
+__all__ = ["axis_angle_to_matrix", "cross3", "matrix_to_axis_angle", "rotation_between"]
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -49,3 +49,21 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     axis = np.cross(a, b)
     angle = np.arctan2(np.linalg.norm(axis, axis=-1), np.sum(a * b, axis=-1))
     return axis, angle
+
+
+def matrix_to_axis_angle(rot: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) -> axis-angle vectors (..., 3) (angle in [0, pi], radians).
+
+    The inverse of :func:`axis_angle_to_matrix` (scipy's quaternion route: stable near 0 and pi).
+
+    >>> R = axis_angle_to_matrix(np.array([0.0, 0.0, 1.0]), np.pi / 2)
+    >>> np.round(matrix_to_axis_angle(R), 12).tolist()
+    [0.0, 0.0, 1.570796326795]
+    """
+    from scipy.spatial.transform import Rotation  # lazy: scipy takes ~0.1 s to import, only exports need it
+
+    rot = np.asarray(rot, dtype=np.float64)
+    flat = rot.reshape(-1, 3, 3)
+    if not len(flat):
+        return np.zeros(rot.shape[:-2] + (3,))
+    return Rotation.from_matrix(flat).as_rotvec().reshape(rot.shape[:-2] + (3,))

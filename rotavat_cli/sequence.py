@@ -36,6 +36,8 @@ __all__ = [
     "FrameSource",
     "DirectorySource",
     "PER_PERSON_KEYS",
+    "SMPL_PARAM_KEYS",
+    "WORLD_PARAM_KEYS",
     "open_sequence",
     "is_sequence_dir",
     "read_frame_npz",
@@ -58,7 +60,25 @@ PER_PERSON_KEYS: dict[str, tuple[int | None | tuple[int, ...], ...]] = {
     "heads_2d": ((2,),),
     "boxes_2d": ((4,),),
     "person_ids": (),
+    # body-model parameters (docs/conventions.md, "Body-model parameters"): camera frame, then world (aligned)
+    "smpl_global_orient": ((3,),),
+    "smpl_body_pose": (None,),
+    "smpl_betas": (None,),
+    "smpl_transl": ((3,),),
+    "smpl_pelvis": ((3,),),
+    "smpl_scale": (),
+    "world_global_orient": ((3,),),
+    "world_transl": ((3,),),
+    # the tool's own world (WHAM, GVHMR; meta.yaml ``tool_world``): its claim, copied through by align unchanged
+    "tool_cam_global_orient": ((3,),),
+    "tool_world_global_orient": ((3,),),
+    "tool_world_transl": ((3,),),
+    "tool_world_pelvis": ((3,),),
 }
+# The body-model parameters a frame may carry: all five or none (docs/conventions.md, "Body-model parameters").
+SMPL_PARAM_KEYS = ("smpl_global_orient", "smpl_body_pose", "smpl_betas", "smpl_transl", "smpl_pelvis")
+# What an aligned frame adds to them: the scale about the pelvis and the world-frame root.
+WORLD_PARAM_KEYS = ("smpl_scale", "world_global_orient", "world_transl")
 # Keys where NaN marks a missing value instead of an error (undetected 2D keypoints).
 _NAN_ALLOWED = {"keypoints_2d", "feet_2d", "heads_2d", "boxes_2d"}  # a person may lack a keypoint or box (NaN row)
 META_FILE = "meta.yaml"
@@ -178,6 +198,7 @@ def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
         detail = ", ".join(f"{k}={v}" for k, v in counts.items())
         raise file_error(source, f"inconsistent people counts between keys ({detail})")
     n_people = next(iter(counts.values()), 0)
+    _check_param_groups(data, source)
     if "faces" in data:
         faces = data["faces"]
         if faces.dtype.kind not in "iu" or faces.ndim != 2 or faces.shape[1] != 3:
@@ -186,6 +207,17 @@ def validate_frame(data: Mapping[str, np.ndarray], source: str) -> None:
         if verts is not None and faces.size and verts.shape[0] and (faces.min() < 0 or faces.max() >= verts.shape[1]):
             raise file_error(source, f"key 'faces' indexes vertices outside 0..{verts.shape[1] - 1}")
     _intrinsics_from_mapping(data, source, n_people)
+
+
+def _check_param_groups(data: Mapping[str, np.ndarray], source: str) -> None:
+    """Body-model parameters come whole: all of :data:`SMPL_PARAM_KEYS` or none, world keys only with them."""
+    given = [key for key in SMPL_PARAM_KEYS if key in data]
+    if given and len(given) < len(SMPL_PARAM_KEYS):
+        missing = [key for key in SMPL_PARAM_KEYS if key not in data]
+        raise file_error(source, f"body-model parameters come together: has {', '.join(given)} but not {', '.join(missing)}")
+    world = [key for key in WORLD_PARAM_KEYS if key in data]
+    if world and (len(world) < len(WORLD_PARAM_KEYS) or not given):
+        raise file_error(source, f"keys {', '.join(WORLD_PARAM_KEYS)} come together, with {', '.join(SMPL_PARAM_KEYS)}")
 
 
 def _intrinsics_from_mapping(data: Mapping[str, Any], source: str, n_people: int | None = None) -> Intrinsics:

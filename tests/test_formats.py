@@ -620,9 +620,10 @@ def _ok(result):
 
 
 def _report(result) -> dict:
-    """A --json eval result without the prediction's name (a path, which differs by design)."""
+    """A --json eval result without the prediction's name (a path, which differs by design) and the tool's own
+    world (WHAM's, GVHMR's: compared with the aligned sequence given alongside, which differs by design)."""
     rows = json.loads(result.stdout)["predictions"]
-    return [{k: v for k, v in row.items() if k not in ("pred", "gt")} for row in rows]
+    return [{k: v for k, v in row.items() if k not in ("pred", "gt", "tool_world")} for row in rows]
 
 
 # ---- each format imported once, then through the chain, as a sequence and with --from --------------

@@ -61,7 +61,7 @@ def test_wham_known_people_come_out_in_the_camera_frame(tmp_path, scene, model_p
     assert np.all(frames[0].data["joints"][:, 0, 2] > 6.0)  # 7-10 m in front of the camera, not in WHAM's world
     info = seq.meta["import"]
     assert info["joints_layout"] == "smpl24" and info["model_vs_wham_verts_max_m"] < 1e-4
-    assert "pose_world" in info["ignored"] and info["source_frames"] == [0, 1]
+    assert seq.meta["tool_world"]["tool"] == "wham" and info["source_frames"] == [0, 1]  # its world: tests/test_tool_world.py
     assert summary["warnings"] == []
 
 

@@ -182,8 +182,8 @@ def test_model_file_errors(tmp_path):
     np.savez(tmp_path / "sparse.npz", **{**data, "J_regressor": sparse_like})
     with pytest.raises(InputError, match="pickled object"):
         load_body_model(tmp_path / "sparse.npz")
-    (tmp_path / "SMPL_NEUTRAL.pkl").write_bytes(b"whatever")
-    with pytest.raises(InputError, match=r"\.npz release"):
+    (tmp_path / "SMPL_NEUTRAL.pkl").write_bytes(b"whatever")  # .pkl models: tests/test_smpl_pkl.py
+    with pytest.raises(InputError, match=r"SMPL_NEUTRAL\.pkl: not a readable pickle"):
         load_body_model(tmp_path / "SMPL_NEUTRAL.pkl")
     with pytest.raises(InputError, match="file not found"):
         load_body_model(tmp_path / "nope.npz")

@@ -26,6 +26,9 @@ echo "== 3. RotAvat: re-seat every mesh on the ground"
 echo "== 4. evaluate before and after against the ground truth"
 "$rotavat" eval "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --out "$out/eval"
 
+echo "== 4b. the same before/after without ground truth, as for a video of your own: each against its scene's ground"
+"$rotavat" eval "$scene/pred" "$out/pred_aligned" --out "$out/eval_no_gt"
+
 echo "== 5. render the before/after figure (rows: prediction, aligned, ground truth; the truth as a ghost over the others)"
 # each row in its own camera: the prediction in the estimated one (--camera), the aligned output in the camera it
 # was aligned with, the ground truth in the true one (gt/camera.yaml)
@@ -46,6 +49,7 @@ echo "outputs in $out/:"
 echo "  camera.yaml          the estimated camera"
 echo "  pred_aligned/        aligned meshes (npz), camera.yaml, people.csv"
 echo "  eval/metrics.md      before/after metrics (also metrics.json)"
+echo "  eval_no_gt/metrics.md  before/after without ground truth: feet height, penetration, lean, sliding, stature"
 echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth (errors in the row captions)"
 echo "$view_line"
 exit 0

@@ -44,6 +44,7 @@ from ..posture import POSTURES, postures
 from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 from .flight import TrackRows, flight_rows
 from .options import AlignOptions
+from .body_params import aligned_body_params
 from .transform import (FLAGS, AlignTransform, apply_transforms, method_rays_cam, points_from_coords,
                         rotavat_transforms, transformed_blocks)
 
@@ -238,6 +239,7 @@ def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = Non
     else:  # joint-level alignment: the joints are the points, and their drift is measured
         new_joints, drift_mean, drift_max = _align_points(frame.data["joints"], transform, mesh, camera)
         arrays = {"joints": new_joints}
+    arrays.update(aligned_body_params(frame.data, transform, camera))
     new_heads = apply_transforms(heads_cam[:, None], transform)[:, 0]
     heads_drawn_px = project_cam_to_px(heads_cam, mesh.focal_px, mesh.principal_point)
     foot_world = camera.world_from_cam(transform.pivot_cam)

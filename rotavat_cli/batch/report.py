@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..atomic import atomic_write_text
+from ..metrics.ground_free_eval import GROUND_FREE_METRICS, GROUND_FREE_UNITS
 from ..metrics.protocols import detection, protocol
 from ..metrics.report import REPORT_COLUMNS, format_value
 from ..plain import to_plain
@@ -77,7 +78,10 @@ def aggregate_rows(rows: list[dict]) -> dict:
     value is missing; for a protocol's per-track metrics, the matched-weighted mean of the
     sequences' pooled values); the detection scores and errors over F1 are recomputed from the
     summed match counts by the protocol's own rule (AGORA's rounding included); camera errors and
-    estimated camera parameters get mean, people-weighted mean, median, min and max.
+    estimated camera parameters get mean, people-weighted mean, median, min and max. Without ground
+    truth (rows with ``ground_free``: the input's and the aligned output's measures), each measure is the
+    mean over sequences weighted by their people-frames (exactly the pooled value for the means and
+    shares: feet height, floating, penetration, lean).
     """
     ok = [r for r in rows if r["status"] in ("done", "skipped")]
     counts = {"sequences": len(rows), "done": sum(r["status"] == "done" for r in rows),
@@ -106,6 +110,14 @@ def aggregate_rows(rows: list[dict]) -> dict:
         cameras = {k: _stats([_num(res.get("camera", {}).get(k)) for res in results], people) for k in cam_keys}
         out["eval"][side] = {"sequences": len(results), "protocol": proto.name, **pooled, "metrics": metrics,
                              "camera": cameras}
+    out["ground_free"] = {}
+    for side in ("before", "after"):
+        results = [r["ground_free"][side] for r in ok if (r.get("ground_free") or {}).get(side)]
+        if results:
+            weights = [res["people_pred"] for res in results]
+            out["ground_free"][side] = {
+                "sequences": len(results), "people_frames": sum(weights),
+                "metrics": {m: _weighted([_num(res["metrics"].get(m)) for res in results], weights) for m in GROUND_FREE_METRICS}}
     cams = [(r["sequence"], r["camera"], r.get("people") or 0) for r in ok if r.get("camera")]
     out["cameras"] = {
         "per_sequence": [{"sequence": s, **{k: c.get(k) for k in ("origin", "focal_px", "pitch_deg", "roll_deg", "height_m", "rmse_px",
@@ -158,6 +170,7 @@ def markdown_batch_report(report: BatchReport) -> str:
             lines.append(f"\n{names[s]}: {e['sequences']} sequences, {e['matched']} matched of {e['people_gt']} true people, "
                          f"{e['false_positives']} false positives" + (f"; median camera errors: {cams}" if cams else ""))
         lines.append("")
+    lines += _ground_free_lines(report)
     cams = agg["cameras"]
     if cams["per_sequence"]:
         lines += ["## Cameras", "", "| parameter | mean | people-weighted mean | median | min | max |", "|---|---|---|---|---|---|"]
@@ -183,6 +196,50 @@ def markdown_batch_report(report: BatchReport) -> str:
     if report.failed:
         lines += ["", "## Failed", ""] + [f"- `{r['sequence']}`: {r['reason']}" for r in report.failed]
     return "\n".join(lines) + "\n"
+
+
+# The per-sequence columns without ground truth: input -> aligned for each, then the aligned output's statures.
+_GROUND_FREE_COLUMNS = ("feet_height", "penetration_pct", "floating_pct", "lean", "sliding", "accel")
+
+
+def _ground_free_lines(report: BatchReport) -> list[str]:
+    """batch_report.md's section without ground truth: the dataset aggregate (input vs aligned), then one row per
+    sequence: each measure input -> aligned, the aligned output's statures and its people.csv flags."""
+    agg = report.aggregate.get("ground_free") or {}
+    if not agg:
+        return []
+    sides = [s for s in ("before", "after") if s in agg]
+    names = {"before": "input", "after": "aligned"}
+    lines = ["## Without ground truth: each sequence against its scene's ground", "",
+             "Definitions: docs/metrics.md, \"Without ground truth\" (`rotavat eval INPUT ALIGNED`: the input measured "
+             "in the aligned output's camera unless it has its own); each value the mean over sequences weighted by "
+             "their people-frames.", "",
+             "| measure | " + " | ".join(names[s] for s in sides) + (" | change |" if len(sides) == 2 else ""),
+             "|---" * (1 + len(sides) + (len(sides) == 2)) + "|"]
+    for m in GROUND_FREE_METRICS:
+        vals = [agg[s]["metrics"].get(m, float("nan")) for s in sides]
+        if not any(math.isfinite(v) for v in vals):
+            continue
+        change = ""
+        if len(vals) == 2:
+            change = " | " + (f"{100.0 * (vals[1] - vals[0]) / abs(vals[0]):+.1f}%" if all(map(math.isfinite, vals)) and vals[0] else "–")
+        lines.append(f"| {m} ({GROUND_FREE_UNITS[m]}) | " + " | ".join(format_value(m, v) for v in vals) + change + " |")
+    header = " | ".join(f"{m} ({GROUND_FREE_UNITS[m]}) in → aligned" for m in _GROUND_FREE_COLUMNS)
+    lines += ["", f"| sequence | {header} | stature m (spread mm), aligned | people.csv flags |",
+              "|---" * (3 + len(_GROUND_FREE_COLUMNS)) + "|"]
+    for r in report.rows:
+        gf = r.get("ground_free") or {}
+        if not gf:
+            continue
+        cells = [" → ".join(format_value(m, _num((gf[s] or {}).get("metrics", {}).get(m))) for s in ("before", "after")
+                            if gf.get(s)) for m in _GROUND_FREE_COLUMNS]
+        after = (gf.get("after") or {}).get("metrics", {})
+        stature = f"{format_value('stature', _num(after.get('stature')))} ({format_value('stature_spread', _num(after.get('stature_spread')))})"
+        flagged = (r.get("align") or {}).get("flagged")
+        flags = (gf.get("after") or {}).get("flags") if flagged is None else flagged
+        flag_text = "–" if flags is None else (", ".join(f"{k} {n}" for k, n in sorted(flags.items()) if k) or "none")
+        lines.append(f"| `{r['sequence']}` | " + " | ".join(cells) + f" | {stature} | {flag_text} |")
+    return lines + [""]
 
 
 def camera_checks(rows: list[dict]) -> list[str]:

@@ -3,7 +3,8 @@
 ``prepare`` (import, then calibration on the pooled whole sequence), one ``align`` task per chunk of
 frames (each into its own staging folder), ``merge`` (the chunks' frames moved into ``aligned/``,
 their people.csv concatenated in order: byte-identical to one ``align_sequence`` call), one ``eval``
-task per chunk and side, and ``finish`` (metrics merged, reports, render, the marker written last).
+task per chunk and side, and ``finish`` (metrics merged, or without ground truth the input's and the aligned
+output's measures against their ground, reports, render, the marker written last).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from ..formats.convert import import_sequence
 from ..limits import Limits
 from ..limits import configure as configure_limits
 from ..metrics.evaluate import EvalOptions, evaluate, merge_results
+from ..metrics.ground_free_eval import measure_sequence, scene_cameras
 from ..metrics.report import write_reports
 from ..plain import to_plain
 from ..render.sequences import FigureOptions, render_sequences
@@ -273,6 +275,14 @@ def task_eval_chunk(job: dict, plan: dict, side: str, start: int, stop: int) -> 
     return {"part": part, "frames": stop - start}
 
 
+def _ground_free(job: dict) -> dict:
+    """The input's ('before') and the aligned output's ('after') measures without ground truth, each in its scene
+    camera (``rotavat eval INPUT ALIGNED``: the input in the aligned output's camera unless it has its own)."""
+    seqs = [open_sequence(job["seq"]), open_sequence(Path(job["out"]) / "aligned")]
+    return {side: measure_sequence(seq, scene).as_dict()
+            for side, seq, scene in zip(("before", "after"), seqs, scene_cameras(seqs)) if scene is not None}
+
+
 def _figure_rows(job: dict, steps: list[str], state: dict) -> tuple[dict[str, Path], Path | None]:
     """The rows render and view show for a sequence, by name (``input``, ``aligned``, ``gt``: the ground truth
     last), and the camera.yaml for the rows without one: the one align used, else the calibrated (or given) one."""
@@ -307,6 +317,10 @@ def task_finish(job: dict, plan: dict, state: dict) -> dict:
         row["eval"] = dict(zip(("before", "after"), (r.as_dict() for r in results)))
         row["people"] = row["people"] if row["people"] is not None else results[0].people_pred
         seconds["eval"] = seconds.get("eval", 0.0) + time.perf_counter() - start
+    if "align" in steps and not job["gt"]:  # no truth: the input and the aligned output against their scene's ground
+        start = time.perf_counter()
+        row["ground_free"] = _ground_free(job)
+        seconds["ground_free"] = time.perf_counter() - start
     if row["people"] is None and state["camera"] and state["camera"].get("pairs") is not None:
         row["people"] = state["camera"]["pairs"]  # calibrate only: the foot/head pairs offered
     if "render" in steps:

@@ -175,7 +175,7 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     search bound is refused.
     Raises ValueError for malformed input and DegenerateSceneError when no camera can be given.
     """
-    options = _with_changes(options, changes)
+    options = _focal_in_px(_with_changes(options, changes), image_size)
     method = options.method
     points, notes = resolve_points(feet_px, heads_px, options.points, method)
     with _naming_the_chosen_model(notes, points):
@@ -297,6 +297,17 @@ def _with_changes(options: CalibrateOptions | None, changes: dict) -> CalibrateO
         raise TypeError(f"options must be a CalibrateOptions (CalibrateOptions.from_config(section) for a config "
                         f"section), got {type(options).__name__}")
     return options.replace(**changes) if changes else options
+
+
+def _focal_in_px(options: CalibrateOptions, image_size: tuple[int, int]) -> CalibrateOptions:
+    """``options`` with a 35 mm-equivalent ``focal_mm`` turned into ``focal_px`` on ``image_size`` (W, H) px."""
+    if options.focal_mm is None:
+        return options
+    try:
+        focal_px = options.given_focal_px(image_size)
+    except (TypeError, ValueError):
+        raise ValueError(f"image_size must be (W, H) in pixels, got {image_size!r}") from None
+    return options.replace(focal_px=focal_px, focal_mm=None)
 
 
 @contextlib.contextmanager

@@ -24,6 +24,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InputError
+from ..focal import focal_px_from_35mm
 from ..option_rules import Rule, check_fields
 from .grid import GridSpec
 from .priors import FOCAL_PRIORS
@@ -34,7 +35,7 @@ __all__ = ["METHODS", "POINTS", "FOCAL_PRIORS", "CalibrateOptions", "SECTION_RUL
 METHODS = ("grid", "refine")
 POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
 _NOT_IN_CONFIG = {"config": False}  # field metadata: an option Python sets, absent from configs/default.yaml
-_OPTIONAL = {"focal_px", "camera_height_m", "principal_point_sd_px", "fov_prior_deg", "pitch_deg"}  # None: not given
+_OPTIONAL = {"focal_px", "focal_mm", "camera_height_m", "principal_point_sd_px", "fov_prior_deg", "pitch_deg"}  # None: not given
 _POSITIVE = Rule(low=0, open_low=True)
 _NON_NEGATIVE = Rule(low=0)
 
@@ -58,6 +59,7 @@ class CalibrateOptions:
     estimate_roll: bool = True  # refine only; the paper fixes roll at 0
     estimate_focal: bool = False  # sequences: estimate f even when the sequence's focal is the camera's own
     focal_px: float | None = None  # fix the focal length (px); None: estimated
+    focal_mm: float | None = None  # fix it as a 35 mm-equivalent focal (mm), converted at the image size; not with focal_px
     camera_height_m: float | None = None  # known camera height (m): fixes the scale, the mean stature is estimated
     pitch_deg: float | None = None  # fix the pitch (deg, + = looking down); None: estimated
     principal_point: tuple[float, float] | None = None  # (cx, cy) px; None = the sequence's, else the image centre
@@ -71,6 +73,9 @@ class CalibrateOptions:
     # ---- not in the config ----
     noise_px: float = field(default=2.0, metadata=_NOT_IN_CONFIG)  # pixel noise of the points (refine weights)
     fov_prior_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
+    # Where a given focal (focal_px or focal_mm) came from, for the fit block's focal_source (the CLI: "--focal",
+    # "EXIF FocalLengthIn35mmFilm 26 mm of IMG.jpg"); None: named after the option (given_focal_source).
+    focal_source: str | None = field(default=None, metadata=_NOT_IN_CONFIG)
     # Assumed-but-unknown quantities, propagated into the reported std: the principal point per axis
     # (None: 2% of the larger image side, or 0 when principal_point is given), radial distortion unless
     # fitted (corner displacement over the half-diagonal), the people's mean stature (not when
@@ -95,6 +100,7 @@ class CalibrateOptions:
         "focal_prior": Rule(names=FOCAL_PRIORS),
         "person_height_m": Rule(low=0.5, high=3.0, unit="m"), "person_height_sd_m": Rule(low=0, high=1.0, unit="m"),
         "box_depth_m": Rule(low=-1.0, high=2.0, unit="m"), "focal_px": Rule(low=1e-3, high=1e7, unit="px"),
+        "focal_mm": Rule(low=1e-3, high=1e5, unit="mm"),
         "camera_height_m": Rule(low=0.01, high=1e5, unit="m"), "pitch_deg": Rule(low=-89.9, high=89.9, unit="deg"),
         "fov_prior_deg": Rule(low=0.1, high=179.9, unit="deg"), "principal_point": Rule(low=-1e6, high=1e6, unit="px"),
         # not in the config
@@ -111,6 +117,12 @@ class CalibrateOptions:
                                                  or len(self.principal_point) != 2):
             raise ValueError(f"principal_point must be (cx, cy) in pixels, got {self.principal_point!r}")
         check_fields(self, self.RULES)
+        if self.focal_px is not None and self.focal_mm is not None:
+            raise ValueError("focal_px and focal_mm both fix the focal length: give one, not both")
+        if self.focal_source is not None and (not isinstance(self.focal_source, str)
+                                              or (self.focal_px is None and self.focal_mm is None)):
+            raise ValueError(f"focal_source names where a given focal came from: a text with focal_px or focal_mm, "
+                             f"got {self.focal_source!r}")
         if self.method == "grid" and (self.distortion or self.points == "boxes"):
             raise ValueError("distortion and points='boxes' need method 'refine' (the grid is the paper's model)")
         if not isinstance(self.grid, GridSpec):
@@ -143,6 +155,29 @@ class CalibrateOptions:
         for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes",
                      "errors_in_variables"):
             object.__setattr__(self, name, bool(getattr(self, name)))
+
+    def given_focal_px(self, image_size: tuple[int, int]) -> float | None:
+        """The focal (px) the options fix on an image of ``image_size`` (W, H): ``focal_px``, else ``focal_mm``
+        converted (:func:`~rotavat_cli.focal.focal_px_from_35mm`), else None (not given).
+
+        >>> CalibrateOptions(focal_mm=26.0).given_focal_px((4032, 3024)) == focal_px_from_35mm(26.0, (4032, 3024))
+        True
+        """
+        if self.focal_px is not None:
+            return self.focal_px
+        return None if self.focal_mm is None else focal_px_from_35mm(self.focal_mm, image_size)
+
+    def given_focal_source(self, px_name: str = "calibrate.focal_px", mm_name: str = "calibrate.focal_mm") -> str | None:
+        """Where the given focal came from (the fit block's ``focal_source``): ``focal_source``, else the option
+        that gave it, named ``px_name`` or ``mm_name`` (the CLI: ``--focal``, ``--focal-mm``); None when no focal
+        is given.
+
+        >>> CalibrateOptions(focal_mm=26.0).given_focal_source(), CalibrateOptions(focal_px=900.0).given_focal_source()
+        ('calibrate.focal_mm 26 (35 mm equivalent)', 'calibrate.focal_px')
+        """
+        if self.focal_source is not None or (self.focal_px is None and self.focal_mm is None):
+            return self.focal_source
+        return px_name if self.focal_px is not None else f"{mm_name} {self.focal_mm:g} (35 mm equivalent)"
 
     def replace(self, **changes) -> CalibrateOptions:
         """A copy with some options changed (validated); TypeError naming an unknown option."""

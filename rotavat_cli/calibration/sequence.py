@@ -3,7 +3,8 @@
 Focal policy (docs/calibration.md, "The focal length"): the camera's focal is estimated from the
 people unless it is known:
 
-- ``focal_px`` given (``--focal``): fixed to it ("given");
+- ``focal_px`` given (``--focal``), or ``focal_mm`` (``--focal-mm``, a 35 mm-equivalent focal converted at the
+  sequence's image size): fixed to it ("given"), and the fit block says where it came from (``focal_source``);
 - the sequence's focal is the camera's own (meta.yaml ``focal_kind: camera``: ground truth, a
   calibrated camera, rotavat's aligned output): fixed to it ("declared"), unless ``estimate_focal``
   (the paper grid always grids it);
@@ -53,11 +54,14 @@ class SequenceCalibration:
     mesh_focal_px: float | None = None  # the focal the sequence's meshes were made with (median over people)
     mesh_focal_kind: str | None = None  # "camera" | "assumed" (None: no focal stated)
     scale_from: str = "prior"  # where the camera's scale comes from (rotavat_cli.measure.SCALE_SOURCES)
+    focal_source: str | None = None  # where a given focal came from (CalibrateOptions.given_focal_source)
 
     def fit_dict(self) -> dict:
         """The camera.yaml ``fit:`` block: the fit's own, plus the focal policy, the meshes' focal and
         (``per_frame``) the spread of the frames calibrated alone."""
         fit = {**self.result.fit_dict(), "focal_policy": self.focal_policy, "scale_from": self.scale_from}
+        if self.focal_source is not None:
+            fit["focal_source"] = self.focal_source
         if self.mesh_focal_px is not None:
             fit.update(mesh_focal_px=float(self.mesh_focal_px), mesh_focal_kind=self.mesh_focal_kind)
         if self.per_frame is not None:
@@ -102,8 +106,9 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
         notes += [note] if note else []
     mesh_focal = declared_focal(seq)
     mesh_kind = seq.focal_kind if mesh_focal is not None else None
-    if options.focal_px is not None:
-        focal, policy = options.focal_px, "given"
+    given_focal = options.given_focal_px(image_size)
+    if given_focal is not None:
+        focal, policy = given_focal, "given"
     elif mesh_kind == CAMERA and not options.estimate_focal and options.method != "grid":
         focal, policy = mesh_focal, "declared"
     else:
@@ -116,7 +121,7 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
             notes.append(f"principal point ({pp[0]:g}, {pp[1]:g}) from the sequence (what its HPS tool projected "
                          "with), not the image centre (--principal-point CX CY to override)")
     try:
-        fit_options = replace(options, focal_px=focal, principal_point=pp)
+        fit_options = replace(options, focal_px=focal, focal_mm=None, focal_source=None, principal_point=pp)
         result, pairs = fit_pooled_pairs(pairs, image_size, fit_options)
         tracks = pairs.person_ids if pairs.tracked else None
         per_frame = None
@@ -144,7 +149,8 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
         result = replace(result, notes=tuple(notes) + result.notes)
     scale_from = ("camera_height" if options.camera_height_m is not None else "reference"
                   if options.tracks is not None and options.person_height_sd_m <= REFERENCE_SD_MAX_M else "prior")
-    return SequenceCalibration(result, pairs, policy, per_frame, mesh_focal, mesh_kind, scale_from)
+    source = options.given_focal_source() if policy == "given" else None
+    return SequenceCalibration(result, pairs, policy, per_frame, mesh_focal, mesh_kind, scale_from, source)
 
 
 _PP_NOTE_PX = 0.5  # a declared principal point this far from the image centre is named in a note

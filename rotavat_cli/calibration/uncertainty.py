@@ -322,7 +322,7 @@ def fit_warnings(camera: Camera, std: dict[str, float], corr: float, inliers: in
                                  camera.up_cam))
     if lost:
         out.append(f"the pairs cannot determine {', '.join(lost)}: their values are arbitrary (the horizon, "
-                   f"row {horizon:.0f} at the centre, may still be right); give the focal length (--focal PX) or "
+                   f"row {horizon:.0f} at the centre, may still be right); give the focal length (--focal PX or --focal-mm MM) or "
                    "a field-of-view prior (--fov-prior DEG)")
     from_prior = [k for k, v in determined.items() if "people" not in v.split("+") and "prior" in v.split("+")]
     if from_prior:
@@ -334,7 +334,7 @@ def fit_warnings(camera: Camera, std: dict[str, float], corr: float, inliers: in
         valley = (f"; focal and pitch trade off (correlation {corr:+.2f}): the horizon is better determined than "
                   "either") if abs(corr) > WARN_FOCAL_PITCH_CORR else ""
         out.append(f"focal length poorly determined: {camera.focal_px:.0f} +- {f_sd:.0f} px "
-                   f"({100 * f_sd / camera.focal_px:.0f}%){valley}; give --focal PX if it is known")
+                   f"({100 * f_sd / camera.focal_px:.0f}%){valley}; give --focal PX (or --focal-mm MM, 35 mm equivalent) if it is known")
     if math.isfinite(std["pitch_deg"]) and std["pitch_deg"] > WARN_PITCH_SD_DEG and "pitch_deg" not in from_prior:
         out.append(f"pitch poorly determined: +- {std['pitch_deg']:.1f} deg")
     if (math.isfinite(std["height_m"]) and std["height_m"] > WARN_HEIGHT_REL_SD * camera.height_m

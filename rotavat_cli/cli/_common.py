@@ -35,7 +35,8 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable 
 FromOpt = Annotated[str | None, typer.Option("--from", help="Read the input in an HPS tool's own format, converted on the fly (formats: see `rotavat import --help`).")]
 ImageSizeOpt = Annotated[tuple[int, int] | None, typer.Option(help="With --from: original image width and height (px), for formats that do not store it.")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Replace an existing output that rotavat did not write (never an input).")]
-SmplModelOpt = Annotated[Path | None, typer.Option(help="With --from: SMPL/SMPL-X .npz model to pose parameter-only formats.", dir_okay=False)]
+SmplModelOpt = Annotated[Path | None, typer.Option(help="With --from: SMPL/SMPL-X model (.npz, or the official .pkl) to pose parameter-only formats.", dir_okay=False)]
+FocalMmOpt = Annotated[float | None, typer.Option("--focal-mm", help="The camera's known focal length as a 35 mm-equivalent focal (mm, as phones and EXIF state it), converted at the sequence's image size: f_px = MM / 43.27 * sqrt(W^2 + H^2). Not with --focal.")]
 
 
 def _default_text(value: Any, flag: str) -> str:
@@ -158,6 +159,21 @@ def _flag_name(key: str) -> str:
             key = key[: -len(unit)]
             break
     return "--" + key.replace("_", "-")
+
+
+def check_focal_flags(focal_px: float | None, focal_mm: float | None) -> None:
+    """InputError when both --focal and --focal-mm are given: each fixes the focal length."""
+    if focal_px is not None and focal_mm is not None:
+        raise InputError("--focal and --focal-mm both fix the focal length: give one, not both")
+
+
+def focal_flag_wins(section: dict, focal_px: float | None, focal_mm: float | None) -> dict:
+    """A merged ``calibrate`` section in which the focal a flag gave (--focal, or --focal-mm) replaces the config
+    file's other focal key (flags override the file: ``calibrate.focal_mm`` then no longer applies, and back)."""
+    check_focal_flags(focal_px, focal_mm)
+    if focal_px is not None:
+        return {**section, "focal_mm": None}
+    return {**section, "focal_px": None} if focal_mm is not None else section
 
 
 def use_config(config_file: Path | None, overrides: dict | None = None) -> dict:

@@ -17,8 +17,8 @@ from ..batch.driver import run_batch
 from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
-from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, print_json,
-                      progress_enabled, report, use_config)
+from ._common import (ConfigOpt, FocalMmOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, check_focal_flags,
+                      console, focal_flag_wins, print_json, progress_enabled, report, use_config)
 
 
 def batch(
@@ -32,6 +32,7 @@ def batch(
     scheduler: Annotated[str | None, typer.Option(help="dask: address of an existing scheduler, e.g. tcp://10.0.0.5:8786 (default: a LocalCluster here).")] = None,
     chunk_frames: Annotated[int | None, typer.Option(help="Align/eval longer sequences as tasks of this many frames.", min=1)] = None,
     focal: Annotated[float | None, typer.Option("--focal", help="The cameras' known focal length (px), for every sequence's calibration (calibrate.focal_px).")] = None,
+    focal_mm: FocalMmOpt = None,
     camera_height: Annotated[float | None, typer.Option(help="The cameras' known height above the ground (m), for every sequence's calibration (calibrate.camera_height_m).")] = None,
     pitch: Annotated[float | None, typer.Option("--pitch", help="The cameras' known pitch (deg, + = looking down), for every sequence's calibration (calibrate.pitch_deg).")] = None,
     camera: Annotated[Path | None, typer.Option(help="A camera.yaml to use for every sequence instead of calibrating (the calibrate step copies it).", dir_okay=False)] = None,
@@ -49,11 +50,13 @@ def batch(
     failing sequence is reported with its reason and the others go on. Exit status: 0 all ok, 1 a
     sequence failed, 2 bad input or usage.
     """
-    known = {"focal_px": focal, "camera_height_m": camera_height, "pitch_deg": pitch}  # what the user knows of the cameras
+    known = {"focal_px": focal, "focal_mm": focal_mm, "camera_height_m": camera_height, "pitch_deg": pitch}  # what the user knows of the cameras
     if camera is not None and any(v is not None for v in known.values()):
-        raise InputError("--camera replaces the calibration: give it, or --focal/--camera-height/--pitch, not both")
+        raise InputError("--camera replaces the calibration: give it, or --focal/--focal-mm/--camera-height/--pitch, not both")
+    check_focal_flags(focal, focal_mm)
     cfg = use_config(config, {"batch": {"steps": steps, "executor": executor, "jobs": jobs, "scheduler": scheduler,
                                          "chunk_frames": chunk_frames}, "calibrate": known})
+    cfg = {**cfg, "calibrate": focal_flag_wins(cfg["calibrate"], focal, focal_mm)}
     if gt_from is not None and gt_root is None:
         raise InputError("--gt-from needs --gt-root (the ground truth in that format, mirroring ROOT's tree)")
     options = BatchOptions.from_config(cfg, gt_root=gt_root, fmt=from_, gt_fmt=gt_from, image_size=image_size,

@@ -22,14 +22,22 @@ from ..outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
 from ..yaml_io import read_yaml
 from ..words import count
-from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, info,
-                      input_sequence, print_json, report, warn)
+from ._common import (ConfigOpt, FocalMmOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt,
+                      check_focal_flags, config_for, focal_flag_wins, info, input_sequence, print_json, report, warn)
 
 
-def run_calibration(seq: Sequence, config: Path | None, quiet: bool, **flags) -> SequenceCalibration:
+def run_calibration(seq: Sequence, config: Path | None, quiet: bool, focal_source: str | None = None,
+                    **flags) -> SequenceCalibration:
     """Calibrate with defaults < config file < flags (named by their ``calibrate`` config key), printing
-    notes and warnings unless quiet (warnings always), and whether the meshes fit their own pixels."""
-    calib = calibrate_sequence(seq, CalibrateOptions.from_config(config_for(config, "calibrate", **flags)))
+    notes and warnings unless quiet (warnings always), and whether the meshes fit their own pixels.
+
+    A focal flag (``focal_px``, ``focal_mm``) replaces the config file's other focal key; ``focal_source``
+    says where a given focal came from (default: the flag, ``--focal`` or ``--focal-mm``, else the config key)."""
+    section = focal_flag_wins(config_for(config, "calibrate", **flags), flags.get("focal_px"), flags.get("focal_mm"))
+    options = CalibrateOptions.from_config(section)
+    if focal_source is None and (flags.get("focal_px") is not None or flags.get("focal_mm") is not None):
+        focal_source = options.given_focal_source("--focal", "--focal-mm")
+    calib = calibrate_sequence(seq, options.replace(focal_source=focal_source) if focal_source else options)
     finding = model_fit_finding(seq)  # meshes that do not fit their own pixels: a wrong model or image size
     if finding is not None:
         warn(finding)
@@ -51,6 +59,8 @@ def calibrate(
     out: Annotated[Path | None, typer.Option(help="Where to write camera.yaml; default SEQ/camera.yaml.", dir_okay=False)] = None,
     method: Annotated[str | None, typer.Option(help="grid: the paper's 50^3 search exactly; refine: grid + robust refinement.")] = None,
     focal: Annotated[float | None, typer.Option("--focal", help="The camera's known focal length (px). Otherwise it is estimated from the people, unless the sequence says its focal is the camera's own (focal_kind: camera).")] = None,
+    focal_mm: FocalMmOpt = None,
+    image: Annotated[Path | None, typer.Option("--image", help="A photo taken with the camera (same lens and zoom), or the folder of the sequence's frames (as for render and view: its first frame's image): its EXIF focal length (FocalLengthIn35mmFilm, else FocalLength with FocalPlaneXResolution), carried to the sequence's image size, is the given focal unless --focal or --focal-mm.")] = None,
     estimate_focal: Annotated[bool | None, typer.Option("--estimate-focal", help="Estimate f even when the sequence's focal is the camera's own.")] = None,
     camera_height: Annotated[float | None, typer.Option(help="The camera's known height above the ground (m): fixes the scale; the people's mean stature is estimated and reported.")] = None,
     pitch: Annotated[float | None, typer.Option("--pitch", help="The camera's known pitch (deg, + = looking down).")] = None,
@@ -78,12 +88,19 @@ def calibrate(
 ) -> None:
     if from_ and out is None:
         raise InputError("with --from, pass --out FILE for the camera.yaml (the input is not a contract sequence)")
+    check_focal_flags(focal, focal_mm)
     target = out or seq / "camera.yaml"
     check_output_file(target, [seq], force, inside_input_ok=("camera.yaml",) if from_ is None else ())
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False, quiet=quiet or as_json) as sequence:
         _never_replace_a_given_camera(target, seq, sequence)
+        source = None
+        if image is not None:
+            photo = _photo_focal(image, sequence, given=focal is not None or focal_mm is not None, quiet=quiet or as_json)
+            if photo is not None:
+                focal, source = photo
         calib = run_calibration(
-            sequence, config, quiet or as_json, method=method, focal_px=focal, estimate_focal=estimate_focal,
+            sequence, config, quiet or as_json, focal_source=source, method=method, focal_px=focal, focal_mm=focal_mm,
+            estimate_focal=estimate_focal,
             camera_height_m=camera_height, pitch_deg=pitch, focal_prior=focal_prior, tracks=list(track) if track else None,
             standing_only=standing_only, body_axes=body_axes,
             estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
@@ -102,6 +119,31 @@ def calibrate(
         report(table, quiet)
         report(line, quiet)
     report(f"wrote {target}", quiet)
+
+
+def _photo_focal(image: Path, sequence: Sequence, given: bool, quiet: bool) -> tuple[float, str] | None:
+    """The focal (px, on the sequence's images) the EXIF of ``image`` states and its ``focal_source``, or None
+    with a note: when --focal/--focal-mm gave one (they win), or its EXIF states none. ``image`` is a photo,
+    or a folder of frames (its first frame's image, matched by name as render and view do)."""
+    from ..formats.exif import read_photo_focal
+
+    if image.is_dir():
+        from ..render.rows import frame_image_path
+
+        if not sequence.frame_names:
+            raise InputError(f"{image}: the sequence {sequence.path} has no frame to match an image to")
+        image = frame_image_path(image, sequence.frame_names[0])
+    photo = read_photo_focal(image)
+    if given:
+        if photo.focal_px is not None:
+            info(f"note: the focal given on the command line wins over {escape(str(image))}'s EXIF ({escape(photo.tags)})",
+                 quiet)
+        return None
+    if photo.focal_px is None:
+        info(f"note: {escape(str(image))}: no focal length from its EXIF ({escape(photo.tags)})", quiet)
+        return None
+    size = sequence.require_image_size()
+    return photo.at_size(size), photo.source(size)
 
 
 def _never_replace_a_given_camera(target: Path, seq: Path, sequence: Sequence) -> None:
@@ -143,11 +185,12 @@ def _table(summary: dict) -> tuple[Table, str]:
         table.add_row("distortion", f"{fit['distortion']:+.4f}", _std_cell(std.get("distortion"), None))
     mesh = (f"; meshes made with f {fit['mesh_focal_px']:.0f} px ({fit['mesh_focal_kind']})"
             if fit.get("mesh_focal_px") is not None else "")
+    given = f"; focal from {fit['focal_source']}" if fit.get("focal_source") else ""
     alone = (f"; {spread['frames_fitted']} frames calibrated alone ({spread['frames_skipped']} skipped)"
              if spread else "")
     return table, (f"{fit.get('inliers')}/{count(fit.get('pairs'), 'pair')} inliers over "
                    f"{count(fit.get('frames'), 'frame')}, head rmse {fit.get('rmse_px', float('nan')):.2f} px, points "
-                   f"{fit.get('points', 'landmarks')}{mesh}{alone}")
+                   f"{fit.get('points', 'landmarks')}{given}{mesh}{alone}")
 
 
 def _undetermined_keys(fit: dict) -> set[str]:

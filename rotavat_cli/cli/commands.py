@@ -38,17 +38,17 @@ COMMANDS: tuple[CommandEntry, ...] = (
     CommandEntry("align", "align", "align", "align",
                  "Re-seat every mesh on the ground plane, upright, keeping its foot and crown pixels (RotAvat)."),
     CommandEntry("eval", "eval", "eval_", "eval",
-                 "Score predictions against ground truth: MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera, "
-                 "temporal."),
+                 "Score predictions against ground truth (MPJPE, PA-MPJPE, PVE, W-MPJPE, W-PVE, detection, camera, "
+                 "temporal), or without it measure feet height, penetration, sliding, lean, stature and jitter."),
     CommandEntry("render", "render", "render", "render",
                  "Draw the meshes from the camera (front) and orthographically from the side and top, where floating, "
                  "sunk and leaning bodies show."),
     CommandEntry("view", "view", "view", "view",
                  "Write a Rerun recording (.rrd) of sequences over time: before, after and truth in one 3D world, the "
                  "camera and its uncertainty, tracks and their series."),
-    CommandEntry("export", "export", "export", "render",
-                 "Write one frame as a .glb (glTF 2.0, Y up, metres): people coloured by id, ground quad, camera "
-                 "frustum and camera."),
+    CommandEntry("export", "export", "export", "export",
+                 "Write the sequence as an animated .glb (glTF 2.0, Y up, metres: people, ground, camera), one frame "
+                 "(--frame), or each person's motion as BVH or AMASS (--format)."),
     CommandEntry("import", "import_", "import_", "",
                  "Convert HPS results (CLIFF, BEV/ROMP, 4D-Humans, Multi-HMR, SPEC, AGORA, BEDLAM, WHAM, GVHMR, TRAM, "
                  "HybrIK, PyMAF-X, TRACE, SLAHMR, GLAMR) into the contract (OpenCV camera frame, metres)."),

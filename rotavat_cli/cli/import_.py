@@ -23,7 +23,7 @@ def import_(
     out: Annotated[Path, typer.Argument(help="New sequence directory (npz frames + meta.yaml [+ camera.yaml]).", file_okay=False)],
     from_: Annotated[str | None, typer.Option("--from", help=f"Source format: {_FORMATS}. Default: detected from SRC.")] = None,
     image_size: Annotated[tuple[int, int] | None, typer.Option(help="Original image width and height (px), for formats that do not store it.")] = None,
-    smpl_model: Annotated[Path | None, typer.Option(help="SMPL/SMPL-X .npz model you downloaded, to pose parameter-only formats (CLIFF, 4D-Humans, BEDLAM, AGORA params).", dir_okay=False)] = None,
+    smpl_model: Annotated[Path | None, typer.Option(help="SMPL/SMPL-X model (.npz, or the official .pkl) you downloaded, to pose parameter-only formats (CLIFF, 4D-Humans, BEDLAM, AGORA params).", dir_okay=False)] = None,
     fov: Annotated[float | None, typer.Option("--fov", help="Field of view (deg) the method ran with (multihmr: its --fov, default 60).")] = None,
     video: Annotated[str | None, typer.Option("--video", metavar="NAME", help="Import only this video of a file that holds several (hybrik: a res.pk of demo runs sharing one --out-dir; NAME is the image names' prefix, IMG_6412 for IMG_6412-000001.png).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a non-empty OUT that rotavat did not write (never SRC).")] = False,

@@ -39,7 +39,7 @@ from .frames import people_frame
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces
-from .smpl import joints_to_smpl24, lbs
+from .smpl import joints_to_smpl24, lbs, smpl_param_arrays
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
 
@@ -108,12 +108,15 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
         ids = np.array([sub_ids[0][sub_ids[1][r]] for r in rows], dtype=np.int64) if sub_ids else None
         extra = {} if constant_focal else {"focal_length": np.float64(fx[rows[0]])}
         kp = gtkps[rows][..., :2] if gtkps is not None else None
-        vertices = joints = None
+        vertices = joints = params = None
         if model is not None:  # posed here, one image's people at a time: memory stays that of the file
-            vertices, joints55 = lbs(model, betas[rows], pose[rows], trans[rows] + cam_ext[rows, :3, 3])
+            transl = trans[rows] + cam_ext[rows, :3, 3]
+            vertices, joints55 = lbs(model, betas[rows], pose[rows], transl)
             joints = joints_to_smpl24(joints55)[0]
+            params = smpl_param_arrays(model, betas[rows], pose[rows], transl, joints55)
         return people_frame(names[index], f"{path} [{image}]", notes.warnings, vertices=vertices, joints=joints,
-                            keypoints_2d=kp, person_ids=ids, faces=faces, extra=extra, keypoints_layout=kp_layout)
+                            keypoints_2d=kp, person_ids=ids, faces=faces, extra=extra, keypoints_layout=kp_layout,
+                            body_params=params)
 
     meta = base_meta("bedlam", path, opts, image_size, float(fx[0]) if n_rows and constant_focal else None, principal_point,
                      focal_kind=CAMERA)

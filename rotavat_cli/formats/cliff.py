@@ -41,7 +41,7 @@ from .image_size import image_size_from_header
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces, no_model_warning
-from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints
+from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints, smpl_param_arrays
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
 
@@ -144,11 +144,13 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
                 raise file_error(path, str(exc)) from None
         else:
             vertices, frame_joints = None, joints[rows]
+        params = None if model is None else smpl_param_arrays(model, betas[rows], rot[rows], global_t[rows], frame_joints)
         keypoints = None if model is not None else project_cam_to_px(pred_joints[rows], focal, principal_point)
         return people_frame(
             names[i], f"{path} [image {i}]", notes.warnings, vertices=vertices, joints=frame_joints,
             keypoints_2d=keypoints, person_ids=track_col[rows] if use_ids else None,
-            faces=faces, n_verts=None if vertices is None else vertices.shape[1], keypoints_layout=kp_layout)
+            faces=faces, n_verts=None if vertices is None else vertices.shape[1], keypoints_layout=kp_layout,
+            body_params=params)
 
     meta = base_meta("cliff", path, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="cliff")
     meta["import"].update({

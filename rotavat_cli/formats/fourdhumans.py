@@ -25,6 +25,7 @@ PHALP: ``HMR2_4dhuman``).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,7 @@ from .image_size import padded_square
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces, no_model_warning
-from .smpl import lbs
+from .smpl import lbs, smpl_param_arrays
 
 _KEYPOINTS_LAYOUT = "phalp44 (OpenPose-25 + 19 extra)"
 
@@ -100,7 +101,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         warnings.append(no_model_warning("4D-Humans/PHALP"))
     check_model_kind(model, src, "4D-Humans", "smpl")
 
-    def people(frame: Mapping, source: str) -> dict[str, np.ndarray | None]:
+    def people(frame: Mapping, source: str) -> dict[str, Any]:
         tids = list(get(frame, "tid", source))
         tracked = frame.get("tracked_time")
         tracked = [0] * len(tids) if tracked is None else list(tracked)
@@ -109,7 +110,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         keep = [i for i, t in enumerate(tracked) if t == 0]
         n = len(keep)
         cams = np.stack([as_array(frame["camera"][i], "camera", source).reshape(3) for i in keep]) if n else np.zeros((0, 3))
-        out: dict[str, np.ndarray | None] = {"person_ids": np.asarray([tids[i] for i in keep], dtype=np.int64)}
+        out: dict[str, Any] = {"person_ids": np.asarray([tids[i] for i in keep], dtype=np.int64)}
         kp = [as_array(frame["2d_joints"][i], "2d_joints", source).reshape(-1, 2) for i in keep] if "2d_joints" in frame else []
         out["keypoints_2d"] = (np.stack(kp)[:, :44] * side - np.array([left, top])) if n and kp else None
         if model is not None:
@@ -119,6 +120,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
                             for s in smpl]) if n else np.zeros((0, 24, 3, 3))
             betas = np.stack([as_array(get(s, "betas", source), "betas", source).reshape(-1) for s in smpl]) if n else np.zeros((0, 10))
             out["vertices"], out["joints"] = lbs(model, betas, rot, cams)
+            out["params"] = smpl_param_arrays(model, betas, rot, cams, out["joints"])
         else:
             j3d = [as_array(frame["3d_joints"][i], "3d_joints", source, ndim=2, last=(3,)) for i in keep]
             out["vertices"] = None
@@ -136,7 +138,7 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
                             keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
                             faces=model_faces(model, None if verts is None else verts.shape[1]),
                             n_verts=None if model is None else model.n_verts, keypoints_layout=_KEYPOINTS_LAYOUT,
-                            joints_layout=_KEYPOINTS_LAYOUT if model is None else "smpl24")
+                            joints_layout=_KEYPOINTS_LAYOUT if model is None else "smpl24", body_params=p.get("params"))
 
     meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="4dhumans")
     meta["import"].update({

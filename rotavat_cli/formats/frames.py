@@ -23,7 +23,7 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
                  person_ids: np.ndarray | None = None, faces: np.ndarray | None = None,
                  n_verts: int | None = None, extra: Mapping[str, np.ndarray] | None = None,
                  keypoints_layout: str | None = None, boxes_2d: np.ndarray | None = None,
-                 joints_layout: str | None = None) -> Frame:
+                 joints_layout: str | None = None, body_params: Mapping[str, np.ndarray] | None = None) -> Frame:
     """A validated contract frame; people with non-finite vertices or joints are dropped (with a warning).
 
     keypoints_layout: the layout of ``keypoints_2d`` (:mod:`.keypoints`); when it has a recipe and
@@ -36,6 +36,8 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
 
     boxes_2d: (P, 4) the tool's own person boxes [x1, y1, x2, y2] px, where it stores nothing else in 2D
     (GVHMR's crops): evidence that the meshes fit the image (:mod:`.model_fit`).
+    body_params: the people's body-model parameters (:func:`.smpl.smpl_param_arrays`, P rows each), kept
+    in float64 for the people kept.
     """
     arrays = {"vertices": vertices, "joints": joints, "keypoints_2d": keypoints_2d, "boxes_2d": boxes_2d,
               "person_ids": person_ids}
@@ -76,6 +78,7 @@ def people_frame(name: str, source: Any, warnings: list[str], *, vertices: np.nd
         found = feet_heads_px(data["keypoints_2d"], keypoints_layout, joints3d, joints_layout)
         if found is not None:
             data["feet_2d"], data["heads_2d"] = (points.astype(np.float32) for points in found[:2])
+    data.update({key: np.asarray(value, dtype=np.float64)[keep] for key, value in (body_params or {}).items()})
     data.update(extra or {})
     validate_frame(data, str(source))
     return Frame(name, data, str(source))

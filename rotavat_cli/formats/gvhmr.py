@@ -18,7 +18,16 @@ outputs/demo/<video>/hmr4d_results.pt``).
   "net_outputs": {...}}``, L = the video's frames. One person: GVHMR follows the one track of
   ``Tracker.get_one_track`` (``person_ids`` = 0).
 - Frame: ``SMPL-X(global_orient, body_pose, betas) + transl`` (``smpl_params_incam``, axis-angle)
-  is the camera frame: OpenCV axes, metres; ``smpl_params_global`` (gravity-view world) is not used.
+  is the camera frame: OpenCV axes, metres.
+- Its world, kept as GVHMR's claim beside the camera frame (``tool_world_*`` keys, docs/conventions.md):
+  ``smpl_params_global`` holds the same ``body_pose`` and ``betas`` with a world ``global_orient`` and
+  ``transl`` (SMPL-X's own ``transl``). ``get_smpl_params_w_Rt_v2`` (``gvhmr_pipeline.py``) builds them in
+  the gravity-view frame, whose y axis is gravity (``get_R_c2gv``: ``R_w2c @ axis_gravity``, pointing
+  down), and turns them by ``get_tgtcoord_rootparam(..., tsf="any->ay")``, R_z(pi): the saved world is
+  **Y-up** ("ay"; ``render_global`` puts the ground at the lowest vertex's y), origin where the
+  rollout starts (x = z = 0 at the first frame), heading that of the first frame's gravity-view
+  frame (the camera's view axis on the ground). The pelvis in that world is exact: the root turns
+  about itself, so it sits at ``J0(betas) + transl``.
 - Focal: ``K_fullimg`` = ``estimate_K``: f = sqrt(W^2 + H^2) (the ``cliff`` rule), principal point
   = image centre. It is GVHMR's guess, never the camera's: ``focal_kind: assumed``, with
   ``focal_rule: cliff`` when K equals the rule (a K edited into the demo is kept, without a rule).
@@ -55,11 +64,12 @@ from .image_size import centre_image_size
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces, require_model
-from .smpl import joints_to_smpl24, lbs, pose_from_body
+from .smpl import joints_to_smpl24, lbs, pose_from_body, smpl_param_arrays
 
 _RESULTS = "hmr4d_results.pt"
 _PARAMS = ("global_orient", "body_pose", "betas", "transl")
 _RULE_RTOL = 1e-5  # K is float32: the rule's focal comes back within a few 1e-7 of itself
+UP_AXIS = (0.0, 1.0, 0.0)  # GVHMR's saved world ("ay") is Y-up
 
 
 def _results_file(path: Path) -> Path | None:
@@ -83,14 +93,64 @@ def sniff(path: Path) -> str | None:
     return "gvhmr" if b"smpl_params_incam" in text and b"K_fullimg" in text else None
 
 
-def _per_frame(value: object, name: str, source: Path, width: int) -> np.ndarray:
+def _per_frame(value: object, name: str, source: Path, width: int, group: str = "smpl_params_incam") -> np.ndarray:
     """A parameter as (L, width): GVHMR's (L, width), or with the batch axis (1, L, width) of ``net_outputs``."""
-    array = as_array(value, name, source)
+    array = as_array(value, f"{group}.{name}", source)
     if array.ndim == 3 and array.shape[0] == 1:
         array = array[0]
     if array.ndim != 2 or array.shape[1] < width:
-        raise file_error(source, f"'smpl_params_incam.{name}' must be (L, {width}), got {list(array.shape)}")
+        raise file_error(source, f"'{group}.{name}' must be (L, {width}), got {list(array.shape)}")
     return array
+
+
+def _world_params(data: Mapping, source: Path, n_frames: int) -> dict[str, np.ndarray] | None:
+    """``smpl_params_global``'s ``global_orient`` and ``transl`` as (L, 3), or None when the file has none."""
+    world = data.get("smpl_params_global")
+    if world is None:
+        return None
+    if not isinstance(world, Mapping):
+        raise file_error(source, "'smpl_params_global' is not a dict of parameters")
+    out = {name: _per_frame(get(world, name, source), name, source, 3, "smpl_params_global")[:, :3]
+           for name in ("global_orient", "transl")}
+    for name, array in out.items():
+        if len(array) != n_frames:
+            raise file_error(source, f"'smpl_params_global.{name}' has {len(array)} frames, 'transl' {n_frames}")
+    return out
+
+
+def world_arrays(root_cam: np.ndarray, transl_cam: np.ndarray, root_world: np.ndarray, transl_world: np.ndarray,
+                 pelvis_cam: np.ndarray) -> dict[str, np.ndarray]:
+    """GVHMR's world for P people, as frame keys (float64, (P, 3) each): ``tool_cam_global_orient`` and
+    ``tool_world_global_orient`` (the root in the camera and in GVHMR's world, axis-angle), ``tool_world_transl``
+    (SMPL-X's ``transl`` there) and ``tool_world_pelvis``: the root joint, ``pelvis_cam - transl_cam + transl_world``
+    (the root turns about itself, so ``J0(betas)`` is the same offset in both frames).
+
+    >>> keys = world_arrays(np.zeros((1, 3)), np.array([[0.0, 0.4, 4.0]]), np.zeros((1, 3)), np.array([[0.0, 1.3, 0.0]]),
+    ...                     np.array([[0.0, 0.05, 4.0]]))
+    >>> keys["tool_world_pelvis"].round(6).tolist()
+    [[0.0, 0.95, 0.0]]
+    """
+    transl_world = np.asarray(transl_world, dtype=np.float64)
+    return {"tool_cam_global_orient": np.asarray(root_cam, dtype=np.float64),
+            "tool_world_global_orient": np.asarray(root_world, dtype=np.float64),
+            "tool_world_transl": transl_world,
+            "tool_world_pelvis": np.asarray(pelvis_cam, dtype=np.float64) - np.asarray(transl_cam, dtype=np.float64) + transl_world}
+
+
+def tool_world_meta() -> dict:
+    """meta.yaml's ``tool_world`` block of a GVHMR import: what its ``tool_world_*`` keys are."""
+    return {
+        "tool": "gvhmr",
+        "up_axis": list(UP_AXIS),
+        "units": "m",
+        "frame": "GVHMR's world (smpl_params_global, 'ay'): Y up; origin at the first frame's x = z = 0, heading "
+                 "of the first frame's gravity-view frame",
+        "global_orient": "smpl_params_global.global_orient (axis-angle); tool_cam_global_orient = "
+                         "smpl_params_incam.global_orient",
+        "transl": "smpl_params_global.transl: SMPL-X's transl",
+        "pelvis": "SMPL-X joint 0: J0(betas) + smpl_params_global.transl",
+        "ground": "not stored; GVHMR's renderer puts it at the lowest vertex of the sequence",
+    }
 
 
 def _intrinsics(K: np.ndarray, opts: ImportOptions, source: Path,
@@ -162,6 +222,7 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
             raise file_error(path, f"'{name}' has {len(array)} frames, 'transl' {n_frames}")
     if n_frames == 0:
         raise file_error(path, "no frames in the results")
+    world = _world_params(data, path, n_frames)
 
     warnings: list[str] = []
     image_size, focal, principal, size_from = _intrinsics(K, opts, path, warnings)
@@ -183,12 +244,17 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     def build(index: int, notes: FrameNotes) -> Frame:
         pose = pose_from_body(params["global_orient"][index, None, :3], params["body_pose"][index, None, :63],
                               model.n_joints)
-        vertices, joints55 = lbs(model, params["betas"][index][None], pose, params["transl"][index, :3][None])
+        betas, transl = params["betas"][index][None], params["transl"][index, :3][None]
+        vertices, joints55 = lbs(model, betas, pose, transl)
+        body = smpl_param_arrays(model, betas, pose, transl, joints55)
+        if world is not None:
+            body.update(world_arrays(pose[:, 0], transl, world["global_orient"][index, None],
+                                     world["transl"][index, None], joints55[:, 0]))
         extra = {} if constant else {"focal_length": np.float64(focal[index]),
                                      "principal_point": principal[index].astype(np.float64)}
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=vertices,
                             joints=joints_to_smpl24(joints55)[0], person_ids=np.zeros(1, np.int64), faces=faces,
-                            boxes_2d=None if boxes is None else boxes[index, None], extra=extra)
+                            boxes_2d=None if boxes is None else boxes[index, None], extra=extra, body_params=body)
 
     meta = base_meta("gvhmr", path, opts, image_size, float(focal[0]) if constant else None,
                      (float(principal[0, 0]), float(principal[0, 1])) if constant else None,
@@ -207,6 +273,10 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
                        "(smpl_params_incam); focal = K_fullimg (GVHMR's estimate_K: sqrt(W^2 + H^2)); jaw, eyes and "
                        "hands at rest (flat hands)",
     })
+    if world is not None:
+        meta["tool_world"] = tool_world_meta()
+    else:
+        meta["import"]["tool_world"] = "none: the file has no smpl_params_global"
     return ImportedSequence(tuple(names), build, meta, warnings)
 
 

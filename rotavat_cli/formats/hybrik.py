@@ -67,7 +67,7 @@ from .frames import people_frame
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces, no_model_warning
-from .smpl import lbs, pose_to_matrices
+from .smpl import lbs, pose_to_matrices, smpl_param_arrays
 
 __all__ = ["sniff", "read_hybrik", "READERS", "HYBRIK29_JOINT_NAMES", "fitted_depth_factor_m", "uvd_to_px", "video_of"]
 
@@ -352,17 +352,18 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
     tracked = all(len(picks) == 1 for _, picks in frames)  # the demo's single IoU-tracked person (per video)
     faces = model_faces(model, None if pose is None else model.n_verts)
 
-    def posed(picks: list[int]) -> tuple[np.ndarray, np.ndarray]:
-        """Camera-frame meshes and SMPL-24 joints, the model's pelvis joint at ``transl``."""
+    def posed(picks: list[int]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Camera-frame meshes, SMPL-24 joints (the model's pelvis joint at ``transl``) and body parameters."""
         rot, betas = pose
         verts, joints = lbs(model, betas[picks], rot[picks])
         shift = rows["transl"][picks] - joints[:, 0]
-        return verts + shift[:, None], joints + shift[:, None]
+        joints = joints + shift[:, None]
+        return verts + shift[:, None], joints, smpl_param_arrays(model, betas[picks], rot[picks], shift, joints)
 
     def build(index: int, notes: FrameNotes) -> Frame:
         path, picks = frames[index]
         source = f"{src} [{path}]"
-        verts, joints = posed(picks) if pose is not None else (None, joints29[picks, :24])
+        verts, joints, params = posed(picks) if pose is not None else (None, joints29[picks, :24], None)
         # people_frame drops people with non-finite joints or vertices: their focals go with them
         kept = np.isfinite(joints).reshape(len(picks), -1).all(axis=1)
         if verts is not None:
@@ -373,7 +374,7 @@ def read_hybrik(src: Path, opts: ImportOptions) -> ImportedSequence:
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=joints,
                             keypoints_2d=uv_px[picks], faces=faces,
                             person_ids=row_video[picks] if tracked else None,
-                            extra=extra or None, keypoints_layout=_KEYPOINTS_LAYOUT)
+                            extra=extra or None, keypoints_layout=_KEYPOINTS_LAYOUT, body_params=params)
 
     size, centre = (None, None) if per_frame_sizes else (stored[0], (stored[0][0] / 2.0, stored[0][1] / 2.0))
     meta = base_meta("hybrik", src, opts, size, None, centre, focal_kind=ASSUMED)

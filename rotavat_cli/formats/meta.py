@@ -30,6 +30,9 @@ def base_meta(fmt: str, src: Path, opts: ImportOptions, image_size: tuple[int, i
         meta["focal_length"] = float(focal_px)
     if principal_point is not None:
         meta["principal_point"] = [float(principal_point[0]), float(principal_point[1])]
+    if opts.body_model is not None:  # the model the meshes (and any body-model parameters) were made with
+        model = opts.body_model
+        meta["body_model"] = {"kind": model.kind, "file": model.name, "joints": model.n_joints}
     meta["import"] = {
         "format": fmt,
         "source_path": str(src.resolve()),

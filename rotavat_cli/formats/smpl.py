@@ -1,9 +1,12 @@
-"""SMPL-family body models in numpy: load a user-supplied ``.npz`` model and pose it (linear blend skinning).
+"""SMPL-family body models in numpy: load a user-supplied model file and pose it (linear blend skinning).
 
 The licensed SMPL / SMPL-X model files are never shipped or downloaded: the user passes the file
-they downloaded themselves (``--smpl-model SMPL_NEUTRAL.npz`` or ``SMPLX_NEUTRAL.npz``). The file
-is read with ``allow_pickle=False``; only these keys are used (the layout of the official npz
-releases, as read by ``vchoutas/smplx`` ``body_models.py``):
+they downloaded themselves (``--smpl-model SMPL_NEUTRAL.npz``, ``SMPLX_NEUTRAL.npz``, or the
+``.pkl`` releases such as ``basicModel_neutral_lbs_10_207_0_v1.0.0.pkl``). An ``.npz`` is read with
+``allow_pickle=False``; a ``.pkl`` (a Python 2 pickle holding chumpy arrays and scipy sparse
+matrices) with the restricted unpickler, which rebuilds those as numpy arrays from their stored
+values (:mod:`rotavat_cli.unpickle.model_files`). Only these keys are used (the layout of the
+official releases, as read by ``vchoutas/smplx`` ``body_models.py``):
 
 ==================  ====================  =====================================================
 key                 shape                 meaning
@@ -11,7 +14,7 @@ key                 shape                 meaning
 ``v_template``      (V, 3)                rest-pose template, metres, SMPL canonical frame
 ``shapedirs``       (V, 3, S)             shape (and, for SMPL-X, expression from column 300) blend shapes
 ``posedirs``        (V, 3, 9 (J-1))       pose-corrective blend shapes
-``J_regressor``     (J, V)                joints from the shaped rest mesh (dense)
+``J_regressor``     (J, V)                joints from the shaped rest mesh (dense; sparse in a .pkl)
 ``weights``         (V, J)                skinning weights
 ``kintree_table``   (2, J)                row 0: parent of each joint (root's entry ignored)
 ``f``               (F, 3)                triangles (optional)
@@ -40,7 +43,8 @@ import numpy as np
 
 from .. import limits
 from ..errors import InputError, file_error
-from ..rotations import axis_angle_to_matrix
+from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from ..unpickle.model_files import load_model_pickle
 from ..unpickle.npz import open_npz
 
 __all__ = [
@@ -55,6 +59,7 @@ __all__ = [
     "joints_to_smpl24",
     "SMPL_PARENTS",
     "toy_chain_model",
+    "smpl_param_arrays",
 ]
 
 # SMPL-X kinematic joints 0..21 are SMPL's 0..21 (same names); SMPL's 'left_hand'/'right_hand'
@@ -96,10 +101,10 @@ class BodyModel:
 
 
 def _model_arrays(path: Path) -> dict[str, np.ndarray]:
-    """Required (and optional 'f') arrays of an npz model file, without pickle."""
+    """Required (and optional 'f') arrays of a model file: an ``.npz`` (read without pickle) or an
+    official ``.pkl`` (:func:`_pickled_model_arrays`)."""
     if path.suffix.lower() == ".pkl":
-        raise file_error(path, "pickled SMPL models are not read (they hold chumpy/scipy objects); "
-                               "pass the .npz release of the model (e.g. SMPL_NEUTRAL.npz, SMPLX_NEUTRAL.npz)")
+        return _pickled_model_arrays(path)
     with open_npz(path) as npz:  # declared sizes checked against the limits before reading
         missing = [k for k in _REQUIRED if k not in npz.keys()]
         if missing:
@@ -114,8 +119,31 @@ def _model_arrays(path: Path) -> dict[str, np.ndarray]:
             raise
 
 
+def _pickled_model_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Required (and optional 'f') arrays of an official ``.pkl`` model: the restricted unpickler
+    rebuilds its chumpy arrays and scipy sparse matrices as numpy arrays
+    (:mod:`rotavat_cli.unpickle.model_files`); the other keys (``bs_style``, ``J``, ``hands_componentsl``
+    ...) are not used."""
+    content = load_model_pickle(path)
+    if not isinstance(content, dict):
+        raise file_error(path, f"not an SMPL-family .pkl model (it holds a {type(content).__name__}, "
+                               "not a dict of arrays)")
+    missing = [k for k in _REQUIRED if k not in content]
+    if missing:
+        raise file_error(path, f"not an SMPL-family .pkl model (missing {', '.join(missing)})")
+    arrays = {}
+    for key in _REQUIRED + (("f",) if "f" in content else ()):
+        value = content[key]
+        if not isinstance(value, np.ndarray) or value.dtype.kind not in "biuf":
+            kind = f"a {value.dtype} array" if isinstance(value, np.ndarray) else f"a {type(value).__name__}"
+            raise file_error(path, f"'{key}' is {kind}, not a numeric array")
+        arrays[key] = value
+    return arrays
+
+
 def load_body_model(path: str | Path) -> BodyModel:
-    """Load and validate an SMPL / SMPL-H / SMPL-X ``.npz`` model file (no pickle).
+    """Load and validate an SMPL / SMPL-H / SMPL-X model file: ``.npz`` (no pickle) or the official
+    ``.pkl`` (restricted unpickler: :func:`_pickled_model_arrays`).
 
     Read once per process for each version of the file (its path, size and modification time) under the
     same :mod:`rotavat_cli.limits`: a batch's tasks, or a sequence read frame by frame, pose from one copy,
@@ -347,3 +375,32 @@ def toy_chain_model() -> BodyModel:
     weights = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [0, 0, 1.0]])
     return BodyModel("toy", v_template, np.zeros((4, 3, 0)), np.zeros((18, 12)), J_regressor, weights,
                      np.array([-1, 0, 1]), np.array([[0, 1, 2], [1, 2, 3]]))
+
+
+def smpl_param_arrays(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarray | None,
+                      joints: np.ndarray) -> dict[str, np.ndarray]:
+    """The frame keys ``sequence.SMPL_PARAM_KEYS`` of people posed by :func:`lbs` (camera frame, float64).
+
+    betas (P, B), pose (P, J, 3) axis-angle or (P, J, 3, 3) matrices, transl (P, 3) or None: what was
+    given to :func:`lbs`; joints (P, J, 3): the joints it returned, whose joint 0 is the root (pelvis).
+    ``smpl_body_pose`` holds every non-root joint of the model, axis-angle (P, 3 (J - 1)); ``smpl_pelvis``
+    the root joint where these parameters put it (the model's rest root for these betas plus ``transl``),
+    so a consumer can place the body without the model (``rotavat align`` moves it as a point).
+
+    >>> model = toy_chain_model()
+    >>> keys = smpl_param_arrays(model, np.zeros((1, 0)), np.zeros((1, 3, 3)), np.ones((1, 3)),
+    ...                          lbs(model, np.zeros((1, 0)), np.zeros((1, 3, 3)), np.ones((1, 3)))[1])
+    >>> keys["smpl_pelvis"].tolist(), keys["smpl_body_pose"].shape
+    ([[1.0, 1.0, 1.0]], (1, 6))
+    """
+    rot = pose_to_matrices(pose, model.n_joints)
+    n_people = rot.shape[0]
+    rotvec = matrix_to_axis_angle(rot)  # (P, J, 3)
+    transl = np.zeros((n_people, 3)) if transl is None else np.asarray(transl, dtype=np.float64).reshape(n_people, 3)
+    betas = np.asarray(betas, dtype=np.float64)
+    n_betas = betas.shape[-1] if betas.ndim > 1 or not n_people else betas.size // n_people
+    return {"smpl_global_orient": rotvec[:, 0].copy(),
+            "smpl_body_pose": rotvec[:, 1:].reshape(n_people, 3 * (model.n_joints - 1)),
+            "smpl_betas": betas.reshape(n_people, n_betas),
+            "smpl_transl": transl.copy(),
+            "smpl_pelvis": np.asarray(joints, dtype=np.float64)[:, 0].copy()}

@@ -53,7 +53,7 @@ from .image_size import centre_image_size, image_size_from_header
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces, require_model
-from .smpl import lbs
+from .smpl import lbs, smpl_param_arrays
 
 _TRACK = re.compile(r"hps_track_(\d+)\.npy$")
 _MOVING_M, _MOVING_DEG = 1e-3, 0.05  # SLAM motion under these is a static camera (TRAM writes exact zeros then)
@@ -200,7 +200,8 @@ def read_tram(src: Path, opts: ImportOptions) -> ImportedSequence:
         trans = np.stack([tracks[t]["trans"][r] for t, r in rows]) if rows else np.zeros((0, 3))
         vertices, joints = lbs(model, shape, rotmat, trans)
         return people_frame(names[index], f"{folder} [frame {index}]", notes.warnings, vertices=vertices, joints=joints,
-                            person_ids=np.array([ids[t] for t, _ in rows], np.int64), faces=faces, n_verts=model.n_verts)
+                            person_ids=np.array([ids[t] for t, _ in rows], np.int64), faces=faces, n_verts=model.n_verts,
+                            body_params=smpl_param_arrays(model, shape, rotmat, trans, joints))
 
     meta = base_meta("tram", folder, opts, image_size, focal, (float(center[0]), float(center[1])), focal_kind=ASSUMED,
                      focal_rule=rule)

@@ -11,8 +11,7 @@ are with that camera).
 - File: a joblib dump of a ``defaultdict`` keyed by track id; per track, N = the frames it was
   seen in: ``pose`` (N, 72) SMPL axis-angle, global orientation in the camera frame; ``trans``
   (N, 3); ``betas`` (N, 10); ``verts`` (N, 6890, 3); ``frame_ids`` (N,) 0-based video frame
-  indices; ``pose_world`` / ``trans_world`` (N, 72) / (N, 3): WHAM's own gravity-aligned world
-  trajectory (SLAM camera motion), not read here: the contract is the camera frame.
+  indices; ``pose_world`` / ``trans_world`` (N, 72) / (N, 3): WHAM's own world trajectory (below).
 - Frame: ``verts = SMPL(pose, betas) - offset + trans_cam`` and ``trans = trans_cam - offset``
   (``offset`` = the mid-hip of WHAM's joint regressor), so ``verts = SMPL(pose, betas) + trans``:
   ``trans`` is SMPL's ``transl`` in the camera frame. OpenCV axes (``full_perspective_projection``
@@ -25,6 +24,17 @@ are with that camera).
   frames hold the meshes only (feet and heads from their landmarks).
 - Frames: one per video frame index seen in any track (frames where WHAM tracked nobody are
   not in the file and not imported), named by that index; ``person_ids`` = track ids.
+- Its world, kept as WHAM's claim beside the camera frame (``tool_world_*`` keys, docs/conventions.md):
+  ``demo.py`` runs the network with ``return_y_up=True``; ``Network.rollout`` (``lib/models/wham.py``)
+  integrates each track's root velocities from zero in its Y-down gravity frame and turns the result by
+  ``yup2ydown = R_x(pi)``: ``pose_world[:, :3]`` is the root orientation in a **Y-up** world (gravity
+  along -y; ``run_vis_on_demo`` puts the ground at the lowest vertex's y), ``trans_world`` where that
+  world puts the mid-hip of ``SMPL.get_output`` (the mean of WHAM's regressor's hips 11 and 12, the
+  ``offset``), metres. Each track has its own world: origin at its first frame, heading from its
+  first camera-frame root (``CustomDataset``: ``init_root``). ``pose_world[:, 3:]`` repeats ``pose``'s
+  body pose and is not kept. With ``--smpl-model`` the pelvis (SMPL joint 0) in WHAM's world is
+  ``trans_world`` moved by the body's own pelvis - mid-hip offset, the mid-hip taken as the mean of
+  SMPL's hip joints (1, 2): a stand-in for WHAM's regressor, a few centimetres off it.
 """
 
 from __future__ import annotations
@@ -36,6 +46,7 @@ import numpy as np
 
 from ..errors import file_error
 from ..focal import ASSUMED, focal_from_rule
+from ..rotations import axis_angle_to_matrix
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get
@@ -46,12 +57,14 @@ from .image_size import need_image_size
 from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces
-from .smpl import BodyModel, lbs
+from .smpl import BodyModel, lbs, smpl_param_arrays
 
 __all__ = ["sniff", "read_wham", "READERS"]
 
 _MAX_SNIFF_BYTES = 512 << 20
 _POSED_MISMATCH_M = 0.01  # the model reproduces WHAM's own meshes to float32 round-off when it is WHAM's SMPL
+_WORLD_KEYS = ("pose_world", "trans_world")
+UP_AXIS = (0.0, 1.0, 0.0)  # WHAM's saved world is Y-up (demo.py: return_y_up=True)
 
 
 def sniff(path: Path) -> str | None:
@@ -82,6 +95,15 @@ def _track_arrays(track: Mapping, source: str, model: BodyModel | None) -> dict[
     if n_rows and frame_ids.min() < 0:
         raise file_error(source, "'frame_ids' holds negative frame indices")
     out = {"verts": verts, "frame_ids": frame_ids.astype(np.int64)}
+    given = [key for key in _WORLD_KEYS if key in track]
+    if given and len(given) < len(_WORLD_KEYS):
+        missing = [key for key in _WORLD_KEYS if key not in track]
+        raise file_error(source, f"has '{given[0]}' but not '{missing[0]}' (WHAM writes its world trajectory as both)")
+    if given:  # WHAM's world, kept beside the camera frame: its root orientations need the camera-frame ones
+        for key, width in (("pose", 72), ("pose_world", 72), ("trans_world", 3)):
+            out[key] = as_array(get(track, key, source), key, source, ndim=2, last=(width,))
+            if len(out[key]) != n_rows:
+                raise file_error(source, f"'{key}' has {len(out[key])} rows but 'verts' has {n_rows}")
     if model is not None:
         if verts.shape[1] != model.n_verts:
             raise file_error(source, f"'verts' have {verts.shape[1]} vertices but --smpl-model {model.name} has {model.n_verts}")
@@ -104,18 +126,49 @@ def _rows_by_frame(tracks: dict[int, dict[str, np.ndarray]]) -> dict[int, list[t
 
 
 def _posed_joints(model: BodyModel, tracks: dict, picks: list[tuple[int, int]],
-                  verts_cam: np.ndarray) -> tuple[np.ndarray, float]:
-    """SMPL-24 camera-frame joints (P, 24, 3) of ``picks`` posed on ``model``, and how far (m) the
-    posed meshes lie from WHAM's own ``verts_cam`` (P, V, 3) at worst."""
+                  verts_cam: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], float]:
+    """SMPL-24 camera-frame joints (P, 24, 3) of ``picks`` posed on ``model``, their body-model parameters
+    (:func:`.smpl.smpl_param_arrays`), and how far (m) the posed meshes lie from WHAM's own ``verts_cam``
+    (P, V, 3) at worst."""
     pose = np.stack([tracks[t]["pose"][r] for t, r in picks])
     betas = np.stack([tracks[t]["betas"][r] for t, r in picks])
     trans = np.stack([tracks[t]["trans"][r] for t, r in picks])
     posed_verts, joints = lbs(model, betas, pose, trans)
-    return joints, float(np.nanmax(np.linalg.norm(posed_verts - verts_cam, axis=-1), initial=0.0))
+    params = smpl_param_arrays(model, betas, pose, trans, joints)
+    return joints, params, float(np.nanmax(np.linalg.norm(posed_verts - verts_cam, axis=-1), initial=0.0))
+
+
+def _rotvec_matrices(rotvec: np.ndarray) -> np.ndarray:
+    """Axis-angle (P, 3) -> rotation matrices (P, 3, 3)."""
+    return axis_angle_to_matrix(rotvec, np.linalg.norm(rotvec, axis=-1))
+
+
+def world_arrays(root_cam: np.ndarray, root_world: np.ndarray, trans_world: np.ndarray,
+                 joints_cam: np.ndarray | None) -> dict[str, np.ndarray]:
+    """WHAM's world for P people, as frame keys (float64): ``tool_cam_global_orient`` (P, 3) = ``pose[:, :3]``
+    (root orientation, camera frame), ``tool_world_global_orient`` (P, 3) = ``pose_world[:, :3]``,
+    ``tool_world_transl`` (P, 3) = ``trans_world`` (WHAM's mid-hip in its world), and, given the posed SMPL-24
+    ``joints_cam`` (P, 24, 3), ``tool_world_pelvis`` (P, 3): joint 0 in WHAM's world, ``trans_world`` plus the
+    pelvis - mid-hip offset turned from the camera into WHAM's world (mid-hip = mean of joints 1 and 2).
+
+    >>> joints = np.zeros((1, 24, 3)); joints[0, 1:3] = [[0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]]   # hips 10 cm below (y down)
+    >>> flip = np.array([[np.pi, 0.0, 0.0]])                       # the body upright in a Y-up world, upside down in the camera
+    >>> world_arrays(flip, np.zeros((1, 3)), np.array([[1.0, 0.9, 2.0]]), joints)["tool_world_pelvis"].round(6).tolist()
+    [[1.0, 1.0, 2.0]]
+    """
+    out = {"tool_cam_global_orient": np.asarray(root_cam, dtype=np.float64),
+           "tool_world_global_orient": np.asarray(root_world, dtype=np.float64),
+           "tool_world_transl": np.asarray(trans_world, dtype=np.float64)}
+    if joints_cam is not None:
+        root_cam_m = _rotvec_matrices(out["tool_cam_global_orient"])
+        world_from_cam = _rotvec_matrices(out["tool_world_global_orient"]) @ root_cam_m.transpose(0, 2, 1)
+        offset_cam = joints_cam[:, 0] - (joints_cam[:, 1] + joints_cam[:, 2]) / 2.0
+        out["tool_world_pelvis"] = out["tool_world_transl"] + np.einsum("pij,pj->pi", world_from_cam, offset_cam)
+    return out
 
 
 def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
-    """WHAM ``wham_output.pkl`` -> contract frames (camera frame; WHAM's world trajectory is not read)."""
+    """WHAM ``wham_output.pkl`` -> contract frames (camera frame; WHAM's world trajectory kept as ``tool_world_*``)."""
     image_size = need_image_size(opts, src, "WHAM reads it from the video")
     data = load_file(src)
     if not isinstance(data, Mapping) or not data:
@@ -136,6 +189,9 @@ def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
     warnings: list[str] = []
     names = frame_names([f"{i:0{width}d}" for i in frame_ids], warnings)
     faces = model_faces(model, model.n_verts if model is not None else None)
+    has_world = all("pose_world" in track for track in tracks.values())
+    if not has_world and any("pose_world" in track for track in tracks.values()):
+        raise file_error(src, "some tracks have WHAM's world trajectory (pose_world, trans_world) and others not")
     if model is None:
         warnings.append("wham stores meshes but no joints, and no --smpl-model was given: imported meshes only "
                         "(no joints: MPJPE-type metrics are unavailable; pass the SMPL model WHAM used for SMPL-24 joints)")
@@ -145,11 +201,16 @@ def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
         picks = rows[frame_id]
         source = f"{src} [frame {frame_id}]"
         verts = np.stack([tracks[t]["verts"][r] for t, r in picks])
-        joints = None
+        joints, params = None, {}
         if model is not None:
-            joints, notes.facts["posed_mismatch_m"] = _posed_joints(model, tracks, picks, verts)
+            joints, params, notes.facts["posed_mismatch_m"] = _posed_joints(model, tracks, picks, verts)
+        if has_world:
+            pose, pose_world, trans_world = (np.stack([tracks[t][key][r] for t, r in picks])
+                                             for key in ("pose", "pose_world", "trans_world"))
+            params = {**params, **world_arrays(pose[:, :3], pose_world[:, :3], trans_world, joints)}
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=joints,
-                            person_ids=np.array([t for t, _ in picks], dtype=np.int64), faces=faces)
+                            person_ids=np.array([t for t, _ in picks], dtype=np.int64), faces=faces,
+                            body_params=params or None)
 
     def conclude(all_notes: list[FrameNotes]) -> Conclusion:
         worst = max((n.facts.get("posed_mismatch_m", 0.0) for n in all_notes), default=0.0)
@@ -173,12 +234,31 @@ def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
         "keypoints_2d_layout": None,
         "feet_heads_from": feet_heads_from(None, True),
         "person_ids": "WHAM track ids",
-        "ignored": "pose_world, trans_world (WHAM's world trajectory); the camera frame is kept",
         "conventions": "camera frame = OpenCV, metres; vertices = WHAM 'verts' (= SMPL(pose, betas) + trans); "
                        "focal = sqrt(W^2 + H^2), principal point = image centre; frames = video frame indices "
                        "with at least one track",
     })
+    if has_world:
+        meta["tool_world"] = tool_world_meta(model is not None)
+    else:
+        meta["import"]["tool_world"] = "none: the file has no pose_world / trans_world"
     return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
+
+
+def tool_world_meta(has_pelvis: bool) -> dict:
+    """meta.yaml's ``tool_world`` block of a WHAM import: what its ``tool_world_*`` keys are."""
+    return {
+        "tool": "wham",
+        "up_axis": list(UP_AXIS),
+        "units": "m",
+        "frame": "WHAM's world (demo.py, return_y_up=True): Y up, gravity along -y; one world per track, origin "
+                 "and heading from its first frame",
+        "global_orient": "pose_world[:, :3], root orientation (axis-angle); tool_cam_global_orient = pose[:, :3]",
+        "transl": "trans_world: WHAM's mid-hip (its regressor's hips 11, 12), not SMPL's transl",
+        "pelvis": "SMPL joint 0: trans_world + (pelvis - mid-hip of SMPL's hip joints 1, 2) turned into WHAM's world"
+                  if has_pelvis else None,
+        "ground": "not stored; WHAM's renderer puts it at the lowest vertex of the track",
+    }
 
 
 READERS = {"wham": read_wham}

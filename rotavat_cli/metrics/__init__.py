@@ -22,7 +22,9 @@ pass runs compiled (numba, :mod:`._compiled`) when ``rotavat[fast]`` is installe
 Modules: :mod:`.points` (the single-metric functions, float64), :mod:`.fused`
 (:func:`person_errors_mm`, all of them at once for ``evaluate``; its precision note),
 :mod:`.scene` (ground-aware, detection and camera errors), :mod:`.temporal` (acceleration error,
-jitter, foot sliding, GVHMR's chunked W-/WA-MPJPE and RTE of tracks), :mod:`.person_metrics` (the
+jitter, foot sliding, GVHMR's chunked W-/WA-MPJPE and RTE of tracks), :mod:`.ground_free` (the
+measures without ground truth: feet height, penetration, sliding on contact, lean, stature,
+acceleration) and :mod:`.ground_free_eval` (a sequence measured in its scene camera), :mod:`.person_metrics` (the
 registry of per-person metrics ``evaluate`` scores), :mod:`.protocols` (each benchmark's root, joint
 set, matching, units and rounding: ``evaluate(..., protocol=...)``).
 """
@@ -39,6 +41,11 @@ _PUBLIC = {
         "mpjpe", "point_errors_mm", "procrustes_align", "pve", "to_gravity_frame", "umeyama", "w_spec_errors_mm",
         "w_spec_mpjpe", "w_spec_pve"
     ),
+    ".ground_free": (
+        "acceleration_m", "consecutive_windows", "contact_sliding_m", "feet_height_summary", "lean_summary",
+        "stature_summary"
+    ),
+    ".ground_free_eval": ("GroundFreeResult", "SceneCamera", "measure_sequence", "scene_cameras"),
     ".scene": (
         "camera_errors", "detection_scores", "lean_deg", "normalize_by_f1", "root_err_mm", "stature_err_mm",
         "stature_m"

@@ -109,6 +109,7 @@ class EvalResult:
     tracks: TrackSeries | None = None  # the tracks' temporal state (merged by merge_results; not reported)
     fps: float | None = None  # the ground truth's meta.yaml fps
     stature_from: str | None = None  # where the prediction's camera scale comes from (measure.SCALE_SOURCES); None: no camera
+    tool_world: dict | None = None  # the tool's own world against rotavat's (metrics.tool_world), None without one
 
     def as_dict(self, per_person: bool = False) -> dict:
         """Plain dict for JSON (per-person rows only when asked)."""

@@ -1,4 +1,5 @@
-"""Evaluation reports (metrics.json, metrics.md) and ``--fail-if`` quality gates."""
+"""Evaluation reports (metrics.json, metrics.md) and ``--fail-if`` quality gates, with ground truth
+(:class:`~.evaluate.EvalResult`) and without (:class:`~.ground_free_eval.GroundFreeResult`)."""
 
 from __future__ import annotations
 
@@ -16,12 +17,14 @@ from ..measure import source_words
 from ..plain import to_plain
 from ..version import WRITTEN_BY
 from .evaluate import EvalResult
+from .ground_free_eval import CAMERA_STD_METRICS, GROUND_FREE, GROUND_FREE_METRICS, GroundFreeResult
 from .person_metrics import PERSON_METRICS
 from .protocols import PROTOCOLS
+from .tool_world import tool_world_markdown
 
 __all__ = ["REPORT_COLUMNS", "GATE_METRICS", "Gate", "parse_gate", "check_gate_rows", "check_gate_metrics",
            "check_gates", "report_rows", "format_value", "metric_label", "metric_value", "markdown_report",
-           "write_reports"]
+           "write_reports", "ground_free_rows", "markdown_ground_free", "write_ground_free_reports"]
 
 # Columns of the summary table, in order (camera columns appear when present; each protocol fills its own).
 REPORT_COLUMNS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
@@ -29,7 +32,10 @@ REPORT_COLUMNS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe", "pve", "pa_pve", "
                   "precision", "recall", "f1", "nmje", "nmve")
 _COUNT_METRICS = ("matched", "missed", "false_positives")
 _CAMERA_METRICS = ("cam_focal_pct", "cam_pitch_deg", "cam_roll_deg", "cam_height_pct")
-GATE_METRICS = frozenset((*REPORT_COLUMNS, *_COUNT_METRICS, *_CAMERA_METRICS))  # what --fail-if may name
+_GROUND_FREE_GATES = frozenset((*GROUND_FREE_METRICS, *CAMERA_STD_METRICS))  # what eval without --gt reports
+# A measure without ground truth -> the metric of the same idea against it (named in a refused gate's message).
+_COUNTERPARTS = {"feet_height": "foot_height", "lean": "lean_deg", "sliding": "foot_sliding", "accel": "accel_err"}
+GATE_METRICS = frozenset((*REPORT_COLUMNS, *_COUNT_METRICS, *_CAMERA_METRICS, *_GROUND_FREE_GATES))  # what --fail-if may name
 _OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt, ">": operator.gt}
 _GATE = re.compile(r"^\s*(?:(?P<row>[^:]+):)?\s*(?P<metric>[A-Za-z_0-9]+)\s*(?P<op><=|>=|==|!=|<|>)\s*(?P<value>[-+0-9.eE]+)\s*$")
 
@@ -73,7 +79,22 @@ def check_gate_rows(gates: Sequence[Gate], preds: Sequence[str | Path]) -> None:
 
 
 def check_gate_metrics(gates: Sequence[Gate], protocol: str) -> None:
-    """InputError for a gate on a metric the protocol never reports (it would always trip on NaN)."""
+    """InputError for a gate on a metric the protocol never reports (it would always trip on NaN);
+    ``protocol`` :data:`~.ground_free_eval.GROUND_FREE`: eval without ground truth."""
+    if protocol == GROUND_FREE:
+        for gate in gates:
+            if gate.metric not in _GROUND_FREE_GATES:
+                near = {v: k for k, v in _COUNTERPARTS.items()}.get(gate.metric)
+                hint = f"; without it: {near}" if near else ""
+                raise InputError(f"--fail-if '{gate}': {gate.metric} needs --gt{hint} (without ground truth eval "
+                                 f"reports {', '.join(sorted(_GROUND_FREE_GATES))})")
+        return
+    for gate in gates:
+        if gate.metric in _GROUND_FREE_GATES:
+            near = _COUNTERPARTS.get(gate.metric)
+            hint = f"; against the ground truth: {near}" if near else ""
+            raise InputError(f"--fail-if '{gate}': {gate.metric} is measured without --gt (docs/metrics.md, "
+                             f"\"Without ground truth\"){hint}")
     proto = PROTOCOLS[protocol]
     reported = set(proto.pair_metrics) | set(proto.track_metrics) | set(_COUNT_METRICS) | set(_CAMERA_METRICS)
     reported |= {"precision", "recall", "f1", "nmje", "nmve"} if proto.detection else set()
@@ -85,10 +106,13 @@ def check_gate_metrics(gates: Sequence[Gate], protocol: str) -> None:
 
 
 def metric_label(result: EvalResult, metric: str) -> str:
-    """How a table names a metric: ``name (protocol, unit)``; camera errors keep their own names."""
+    """How a table names a metric: ``name (protocol, unit)``; camera errors keep their own names; a measure
+    without ground truth ``name (unit)`` (one set of definitions: the table's title says which)."""
     if metric not in result.metrics:
         return metric
     unit = result.units.get(metric, "")
+    if result.protocol == GROUND_FREE:
+        return f"{metric} ({unit})" if unit else metric
     return f"{metric} ({result.protocol}{', ' + unit if unit else ''})"
 
 
@@ -123,16 +147,19 @@ def report_rows(results: Sequence[EvalResult]) -> list[str]:
     return cols + cams
 
 
-_RATIOS = ("precision", "recall", "f1")
+_RATIOS = ("precision", "recall", "f1", "stature", "sliding")  # stature m, sliding m/s: to the mm
+_RATES = ("accel_err", "jitter", "foot_sliding", "rte", "accel", "cam_std_pitch_deg", "cam_std_roll_deg",
+          "cam_std_height_m")
 
 
 def format_value(metric: str, value: float) -> str:
-    """Table cell: 3 decimals for ratios, 2 for the temporal rates, 1 for mm, degrees and percentages."""
+    """Table cell: 3 decimals for ratios (and metres, m/s), 2 for the temporal rates (and the camera's std in
+    degrees and metres), 1 for mm, degrees, pixels and percentages; "inf" for a std the fit left undetermined."""
     if value is None or not math.isfinite(value):
-        return "–"
+        return "inf" if metric in CAMERA_STD_METRICS and value == math.inf else "–"
     if metric in _RATIOS:
         return f"{value:.3f}"
-    return f"{value:.2f}" if metric in ("accel_err", "jitter", "foot_sliding", "rte") else f"{value:.1f}"
+    return f"{value:.2f}" if metric in _RATES else f"{value:.1f}"
 
 
 def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
@@ -166,6 +193,7 @@ def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
                    for r in results if r.frames_pred_only or r.frames_gt_only]
     if frames_note:
         lines += ["", "Unpaired frames (counted as false positives / misses unless a note says otherwise):", *frames_note]
+    lines += tool_world_markdown([(r.pred, r.tool_world) for r in results])
     notes = [f"- `{r.pred}` ({r.protocol}): {note}" for r in results for note in r.notes]
     notes += [f"- `{r.pred}`: statures (`stature_err`) {source_words(r.stature_from)}" for r in results
               if r.stature_from is not None and "stature_err" in r.metrics]
@@ -194,3 +222,69 @@ def _protocol_field(results: Sequence[EvalResult]) -> str | list[str]:
 def report_paths(out_dir: str | Path) -> tuple[Path, Path]:
     """The two files ``write_reports`` writes: metrics.json and metrics.md in ``out_dir``."""
     return Path(out_dir) / "metrics.json", Path(out_dir) / "metrics.md"
+
+
+# ---- without ground truth ------------------------------------------------------------------------
+
+
+def ground_free_rows(results: Sequence[GroundFreeResult]) -> list[str]:
+    """Measures with a value in at least one row, headline first, then the camera's recorded std."""
+    cols = [m for m in GROUND_FREE_METRICS if any(math.isfinite(r.metrics.get(m, math.nan)) for r in results)]
+    return cols + [m for m in CAMERA_STD_METRICS if any(m in r.camera for r in results)]
+
+
+def _flags_text(flags: dict[str, int] | None) -> str:
+    """people.csv's flag counts in a cell: 'flight 2, sitting 1', 'none', or '–' without a people.csv."""
+    if flags is None:
+        return "–"
+    return ", ".join(f"{flag} {n}" for flag, n in sorted(flags.items())) or "none"
+
+
+def markdown_ground_free(results: Sequence[GroundFreeResult]) -> str:
+    """metrics.md without ground truth: one row per sequence, the change of each against the first, the
+    statures per track, the notes."""
+    cols = ground_free_rows(results)
+    labels = [metric_label(next((r for r in results if c in r.metrics), results[0]), c) for c in cols]
+    lines = ["# rotavat eval without ground truth", "",
+             "Each sequence measured in the world of its scene camera (docs/metrics.md, \"Without ground truth\", "
+             "defines every measure); lower is better but for `stature`; `cam_std_*` are the camera's own "
+             "uncertainty as its calibration recorded it.", "",
+             "| sequence | frames | people-frames | tracks | scene camera | people.csv flags | " + " | ".join(labels) + " |",
+             "|---" * (6 + len(cols)) + "|"]
+    for r in results:
+        camera = f"`{r.scene_camera.get('file', '')}` ({r.scene_camera.get('from', '')})"
+        lines.append(f"| `{r.pred}` | {r.frames} | {r.people_pred} | {r.tracks} | {camera} | {_flags_text(r.flags)} | "
+                     + " | ".join(format_value(c, metric_value(r, c)) for c in cols) + " |")
+    if len(results) > 1:
+        lines += ["", f"Relative change against `{results[0].pred}`:", "",
+                  "| sequence | " + " | ".join(labels) + " |", "|---" * (1 + len(cols)) + "|"]
+        for r in results[1:]:
+            cells = []
+            for c in cols:
+                b, v = metric_value(results[0], c), metric_value(r, c)
+                cells.append("–" if not (math.isfinite(b) and math.isfinite(v)) or b == 0 else f"{100.0 * (v - b) / abs(b):+.1f}%")
+            lines.append(f"| `{r.pred}` | " + " | ".join(cells) + " |")
+    tracks = [(r, t) for r in results for t in r.statures]
+    if tracks:
+        lines += ["", "Statures per track (foot point to crown; spread: half the interquartile range over its frames):", "",
+                  "| sequence | track | frames | median m | spread mm |", "|---|---|---|---|---|"]
+        lines += [f"| `{r.pred}` | {t['id']} | {t['pairs']} | {format_value('stature', t['median_m'])} | "
+                  f"{format_value('feet_height', 1000.0 * t['spread_m'])} |" for r, t in tracks]
+    lines += tool_world_markdown([(r.pred, r.tool_world) for r in results])
+    notes = [f"- `{r.pred}`: {note}" for r in results for note in r.notes]
+    notes += [f"- `{r.pred}`: statures scaled by its camera: {source_words(r.stature_from)}" for r in results
+              if r.stature_from is not None]
+    if notes:
+        lines += ["", "Notes:", *notes]
+    return "\n".join(lines) + "\n"
+
+
+def write_ground_free_reports(out_dir: str | Path, results: Sequence[GroundFreeResult], options: dict) -> tuple[Path, Path]:
+    """Write metrics.json and metrics.md of eval without ground truth atomically into ``out_dir`` (metrics.json as
+    :func:`write_reports` writes it, ``gt`` null and ``metric_names`` the ground-free measures)."""
+    json_path, md_path = report_paths(out_dir)
+    payload = {"written_by": WRITTEN_BY, "gt": None, "options": options, "protocol": GROUND_FREE,
+               "metric_names": [*GROUND_FREE_METRICS, *CAMERA_STD_METRICS], "predictions": [r.as_dict() for r in results]}
+    atomic_write_text(json_path, json.dumps(to_plain(payload), indent=2) + "\n")
+    atomic_write_text(md_path, f"<!-- written by {WRITTEN_BY} -->\n" + markdown_ground_free(results))
+    return json_path, md_path

@@ -10,7 +10,8 @@ and a gravity-aligned world frame give the same numbers).
 Window metrics, one value per window of consecutive track frames (metres per frame^k; the
 protocols scale them, :mod:`.protocols`):
 
-- :func:`accel_errors`: ``mean_j |(p[t] - 2p[t+1] + p[t+2]) - (g[t] - 2g[t+1] + g[t+2])|`` (T-2,),
+- :func:`accel_errors`: ``mean_j |(p[t] - 2p[t+1] + p[t+2]) - (g[t] - 2g[t+1] + g[t+2])|`` (T-2,)
+  (:func:`second_differences` of each side),
   as ``compute_error_accel`` (zju3dv/GVHMR @cb702cd, ``hmr4d/utils/eval/eval_utils.py``; the
   same formula as VIBE/WHAM);
 - :func:`jitter`: ``mean_j |p[t+3] - 3p[t+2] + 3p[t+1] - p[t]|`` of the prediction alone (T-3,),
@@ -40,7 +41,7 @@ import numpy as np
 from ._common import _pair
 from ._kernels import _similarity
 
-__all__ = ["WINDOWS", "CHUNK_FRAMES", "hips_relative", "accel_errors", "jitter", "foot_sliding", "first_frames_aligned_errors",
+__all__ = ["WINDOWS", "CHUNK_FRAMES", "hips_relative", "second_differences", "accel_errors", "jitter", "foot_sliding", "first_frames_aligned_errors",
            "chunk_aligned_errors", "rte", "TrackSeries"]
 
 # Frames per window of each window metric (accel: 3, jitter: 4, foot sliding: 2).
@@ -57,12 +58,21 @@ def _track(points: np.ndarray, name: str) -> np.ndarray:
     return arr
 
 
+def second_differences(points: np.ndarray) -> np.ndarray:
+    """``p[t] - 2 p[t+1] + p[t+2]`` along the first axis (frames), metres/frame^2: (T, ...) -> (max(T-2, 0), ...).
+
+    The acceleration of every point at frame ``t+1`` times the squared frame interval; float64.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    return p[:-2] - 2.0 * p[1:-1] + p[2:]
+
+
 def accel_errors(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Acceleration error per window, metres/frame^2: (T, N, 3) x2 -> (max(T-2, 0),)."""
     p, g = _pair(pred, gt, "track")
     if p.shape[0] < 3:
         return np.zeros(0)
-    acc = (p[:-2] - 2.0 * p[1:-1] + p[2:]) - (g[:-2] - 2.0 * g[1:-1] + g[2:])
+    acc = second_differences(p) - second_differences(g)
     return np.linalg.norm(acc, axis=-1).mean(axis=-1)
 
 

@@ -14,14 +14,17 @@ One concern per module, each built on the ones before it (no module imports one 
 - ``refusal``: ``Refused`` and :func:`unpickling_errors`, which turns it (and every way
   broken bytes fail) into a one-line error naming the file;
 - ``checks``: sizes checked before allocating (arrays, the ``Budget`` of one pickle);
-  ``expansion``: the items shared references add when converted;
+  ``expansion``: the items shared references add when converted; ``dtypes``: a pickled dtype's
+  state rebuilt by numpy's constructor, never handed to numpy as it stands;
 - ``allowed``: the allow-list and its checked builders; ``streams``: files within
   ``max_file_mb``, streams read a chunk at a time, compressed streams inflated as they are read;
 - ``core``: the restricted unpickler (allow-list, budget, joblib's array placeholders);
 - ``torch_tensors``: torch's tensor globals as inert numpy builders; ``torch_files``: the
   unpickler with them (``TensorUnpickler``) and ``torch.save`` archives and legacy streams;
 - ``pickles``: plain and joblib pickles (any compression); ``npy``, ``npz``: numpy files, object
-  arrays through ``pickles``; ``dispatch``: :func:`load_file`, a torch file or a pickle.
+  arrays through ``pickles``; ``dispatch``: :func:`load_file`, a torch file or a pickle;
+- ``model_files``: the official SMPL-family ``.pkl`` model files, their chumpy arrays and scipy
+  sparse matrices rebuilt as numpy arrays from their state (:func:`load_model_pickle`).
 
 Sizes are checked before anything is allocated, against :mod:`rotavat_cli.limits` (the config's
 ``limits:`` section): files and decompressed streams (``max_file_mb``), every array a header or a
@@ -43,6 +46,7 @@ from ..lazy import public_names
 # Each public name and the module that defines it (imported on first use: rotavat_cli/lazy.py).
 _PUBLIC = {
     ".dispatch": ("load_file",),
+    ".model_files": ("load_model_pickle", "loads_model"),
     ".npy": ("load_npy", "load_npy_bytes"),
     ".npz": ("NpzArchive", "load_npz", "open_npz"),
     ".pickles": ("loads",),

@@ -20,10 +20,10 @@ from typing import Any
 import numpy as np
 
 from .checks import check_array, check_shape
-from .refusal import Refused
+from .refusal import Refused, shown
 
-__all__ = ["ALLOWED", "JoblibArrayWrapper", "codecs_encode", "frombuffer", "numpy_multiarray", "reconstruct",
-           "reconstructor", "scalar"]
+__all__ = ["ALLOWED", "JoblibArrayWrapper", "StandIn", "codecs_encode", "dtype", "frombuffer", "numpy_multiarray",
+           "reconstruct", "reconstructor", "scalar"]
 
 
 def numpy_multiarray() -> Any:
@@ -35,7 +35,7 @@ def numpy_multiarray() -> Any:
 def reconstruct(subtype: Any, shape: Any, typecode: Any) -> np.ndarray:
     """``numpy.core.multiarray._reconstruct`` for plain ndarrays only (no subclasses)."""
     if subtype is not np.ndarray:
-        raise Refused(f"array subclass {getattr(subtype, '__name__', subtype)!r} is not allowed")
+        raise Refused(f"array subclass {shown(subtype)} is not allowed")
     if not isinstance(shape, tuple) or not all(isinstance(s, int) for s in shape):
         raise Refused("malformed ndarray reconstruction arguments")
     if not isinstance(typecode, (bytes, str)):
@@ -47,6 +47,17 @@ def reconstruct(subtype: Any, shape: Any, typecode: Any) -> np.ndarray:
             raise Refused("malformed ndarray reconstruction arguments") from None
         check_array(dtype, check_shape(shape, "ndarray"))
     return numpy_multiarray()._reconstruct(np.ndarray, shape, typecode)
+
+
+def dtype(obj: Any, align: Any = False, copy: Any = True) -> np.dtype:
+    """``numpy.dtype(typestr, align, copy)`` as numpy pickles a dtype: from a type string only, and always
+    a new dtype (``copy`` is ignored): ``BUILD`` then gives it a state (checked: ``dtypes``), which must
+    never reach one of numpy's shared builtin dtypes."""
+    if isinstance(obj, bytes):
+        obj = obj.decode("latin1")
+    if not isinstance(obj, str) or not isinstance(align, int) or not isinstance(copy, int):
+        raise Refused("malformed dtype (numpy pickles a dtype from its type string)")
+    return np.dtype(obj, align=bool(align), copy=True)
 
 
 def scalar(dtype: Any, data: Any = None) -> Any:
@@ -87,10 +98,24 @@ def codecs_encode(text: Any, encoding: str = "utf-8", errors: str = "strict") ->
 _CONTAINER_TYPES = (dict, list, tuple, set, frozenset, str, bytes, bytearray, int, float, complex, bool, OrderedDict)
 
 
+class StandIn:
+    """Base of the inert stand-ins an unpickler may hand out for a class it allows by name (a model
+    file's chumpy arrays and scipy sparse matrices: ``model_files``): made empty (``NEWOBJ`` with no
+    arguments, or ``copyreg._reconstructor(cls, object, None)``), given no attributes, and replaced by
+    what the unpickler builds from their state at ``BUILD``."""
+
+    __slots__ = ()
+
+
 def reconstructor(cls: Any, base: Any, state: Any = None) -> Any:
-    """``copyreg._reconstructor`` (protocol 0/1 objects), for builtin container types only."""
+    """``copyreg._reconstructor`` (protocol 0/1 objects), for builtin container types and the inert
+    :class:`StandIn` classes only."""
+    if isinstance(cls, type) and issubclass(cls, StandIn):
+        if base is not object or state is not None:
+            raise Refused(f"malformed {cls.__name__} reconstruction")
+        return object.__new__(cls)
     if cls not in _CONTAINER_TYPES or base not in _CONTAINER_TYPES + (object,):
-        raise Refused(f"object of type {getattr(cls, '__name__', cls)!r} is not allowed")
+        raise Refused(f"object of type {shown(cls)} is not allowed")
     if base is object:
         return object.__new__(cls)
     return base.__new__(cls, state) if state is not None else base.__new__(cls)
@@ -143,7 +168,7 @@ def _allowed() -> dict[tuple[str, str], Any]:
         table[(f"{core}.multiarray", "scalar")] = scalar
         table[(f"{core}.numeric", "_frombuffer")] = frombuffer
     table[("numpy", "ndarray")] = np.ndarray
-    table[("numpy", "dtype")] = np.dtype
+    table[("numpy", "dtype")] = dtype
     table[("joblib.numpy_pickle", "NumpyArrayWrapper")] = JoblibArrayWrapper
     return table
 

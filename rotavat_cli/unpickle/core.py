@@ -26,6 +26,7 @@ import numpy as np
 
 from .allowed import ALLOWED, JoblibArrayWrapper, codecs_encode, frombuffer, reconstructor
 from .checks import TEXT, Budget, check_array, check_shape, invalid_text
+from .dtypes import checked_dtype_state
 from .refusal import Refused
 from .streams import CHUNK, fill, read_up_to
 
@@ -181,6 +182,8 @@ class RestrictedUnpickler(pickle._Unpickler):  # noqa: SLF001 -- pure-Python unp
             raise Refused(f"malformed pickle (BUILD on {getattr(inst, '__name__', 'a callable')})")
         if isinstance(inst, np.ndarray):
             self._check_array_state(state)
+        elif isinstance(inst, np.dtype):  # numpy trusts a dtype's state: give it the one numpy makes (dtypes.py)
+            self.stack[-1] = checked_dtype_state(inst, state)
         super().load_build()
         if isinstance(self.stack[-1], JoblibArrayWrapper):
             self.stack[-1] = self._read_joblib_array(self.stack[-1])

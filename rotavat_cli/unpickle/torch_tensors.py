@@ -41,7 +41,7 @@ import numpy as np
 from .. import limits as _limits
 from ..limits import human_bytes
 from .checks import Budget, check_array
-from .refusal import Refused
+from .refusal import Refused, shown
 
 __all__ = ["TORCH_GLOBALS", "BlobLoader", "Builder", "Storage", "StorageType", "TorchDtype", "check_storage_bytes",
            "non_negative_int", "resolve", "torch_global"]
@@ -121,7 +121,7 @@ class _Deferred:
 def non_negative_int(value: Any, what: str) -> int:
     """``value`` if it is a non-negative int (a tensor's or storage's size, offset, stride), else Refused."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise Refused(f"malformed tensor {what} {value!r}")
+        raise Refused(f"malformed tensor {what} {shown(value)}")
     return value
 
 
@@ -231,7 +231,7 @@ class Builder:
     def from_type(self, func: Any, new_type: Any, args: Any, state: Any = None) -> Any:
         """``torch._tensor._rebuild_from_type_v2``: only plain tensors and parameters, rebuilt by an allowed function."""
         if new_type not in (_TENSOR, _PARAMETER) or not isinstance(args, tuple):
-            raise Refused(f"tensor subclass {getattr(new_type, 'name', new_type)!r} is not allowed")
+            raise Refused(f"tensor subclass {shown(getattr(new_type, 'name', new_type))} is not allowed")
         if getattr(func, "__self__", None) is not self:
             raise Refused("malformed tensor (rebuilt by a function other than torch's)")
         return func(*args)

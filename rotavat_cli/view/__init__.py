@@ -16,8 +16,8 @@ from ..lazy import public_names
 _PUBLIC = {
     ".scene": (
         "GRID_MARGIN_M", "MAX_GRID_LINES", "camera_label", "eye_world", "grid_lines_world", "grid_step_m", "grid_ticks_world",
-        "ground_extent_m", "label_anchors_world", "plane_quad_world", "track_strips", "uncertainty_cameras",
-        "world_points_f32"
+        "ground_extent_m", "label_anchors_world", "plane_quad_world", "tilted_square_world", "track_strips",
+        "uncertainty_cameras", "world_points_f32"
     ),
     ".recording": ("ViewOptions", "ViewSummary", "record_sequences", "view_steps"),
     ".writer": ("RERUN_INSTALL", "SERIES", "WORLD", "RecordingWriter", "blueprint", "require_rerun"),

@@ -14,6 +14,9 @@ own camera.yaml, else the ground truth's; it passes the camera gate first
   vertices without faces, joints only), its label its id (and its flag, from align's people.csv);
   ``world/<row>/tracks/<id>``: its path on the ground; ``world/<row>/ground``: the row's own ground when its
   camera.yaml is not the scene camera (the ground truth's true ground);
+  ``world/<row>/their_world/{paths,up,ground}/<id>``: a row with a tool's own world (WHAM's, GVHMR's
+  ``tool_world_*`` keys): the track's pelvis path in that world put in ours by the heading fit of
+  :mod:`rotavat_cli.metrics.tool_world`, its up as an arrow and its ground as a faint square, tilted by the angle;
 - ``plots/<series>/<row>/<id>``: foot height (m), lean (deg), stature (m) of each track over time and, with a
   ground truth, the W-MPJPE (mm) of each ground-truth person.
 
@@ -46,6 +49,7 @@ from ..config import default_config, packaged_default
 from ..errors import InputError, RotavatError, input_errors
 from ..measure import scale_source
 from ..metrics.evaluate import EvalOptions, evaluate
+from ..metrics.tool_world import angles_deg, heading_fit, pelvis_cam, their_up_cam
 from ..option_rules import Rule, check_fields
 from ..outputs import RRD_APPLICATION_ID
 from ..render.rows import (IMAGE_MEDIA_TYPES, frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels,
@@ -56,14 +60,17 @@ from ..render.views import RowFrame
 from ..sequence import Sequence, read_camera_yaml
 from ..unpickle.streams import read_bytes
 from ..version import __version__
-from .scene import (camera_label, eye_world, ground_extent_m, label_anchors_world, plane_quad_world, track_strips,
-                    uncertainty_cameras, world_points_f32)
+from .scene import (camera_label, eye_world, ground_extent_m, label_anchors_world, plane_quad_world, tilted_square_world,
+                    track_strips, uncertainty_cameras, world_points_f32)
 from .writer import SERIES, W_MPJPE_SERIES, WORLD, RecordingWriter, blueprint, require_rerun
 
 __all__ = ["ViewOptions", "ViewSummary", "record_sequences", "view_steps"]
 
 UNCERTAINTY_ALPHA = 6  # of 255: the grounds at ±1 std of the camera's height and pitch
 OWN_GROUND_ALPHA = 70  # of 255: a row's own (true) ground
+THEIR_GROUND_ALPHA = 40  # of 255: a tool's own ground (its up), under each of its tracks
+THEIR_GROUND_HALF_M = 1.0  # that square's half side
+THEIR_UP_M = 1.0  # the length of a tool's up arrow
 _AHEAD = 2  # frames prepared ahead, one thread each (the machine's two cores, or more, are kept busy)
 
 
@@ -187,6 +194,7 @@ class _RowState:
     static_done: set[int] = field(default_factory=set)  # person ids whose static parts (faces, colour) are logged
     series: dict[str, dict[int, list[tuple[int, float]]]] = field(default_factory=dict)  # key -> id -> (frame, value)
     footprints: dict[int, list[tuple[int, float, float]]] = field(default_factory=dict)  # id -> (frame, x, z) on the ground
+    their: dict[int, list[tuple[int, np.ndarray]]] = field(default_factory=dict)  # id -> (frame, (3, 3): ours, theirs, up)
     people: int = 0
 
     def add(self, key: str, pid: int, index: int, value: float) -> None:
@@ -268,6 +276,7 @@ class _Ready:
     texts: list[str]  # (P,) each label: the id, and a flagged person's flag
     flagged: np.ndarray  # (P,) bool: align flagged the person (people.csv)
     track: tuple[dict[str, np.ndarray], np.ndarray] | None  # the frame's track values {key: (P,)}, mid-soles (P, 3) world
+    their: np.ndarray | None = None  # (P, 3, 3) a tool's world: our pelvis (world), their pelvis (theirs), their up (world)
 
 
 def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera,
@@ -314,7 +323,23 @@ def _prepare(state: _RowState, name: str, camera: Camera, opts: ViewOptions) -> 
     got = frame_track_values(seq, frame, camera)
     track = None if got is None else (got[0], camera.world_from_cam(got[1]))
     return _Ready(row, points_world, normals, person_colors(row.person_ids, opts.style.palette).reshape(P, 3),
-                  label_anchors_world(points_world), texts, np.array([bool(f) for f in flags], dtype=bool).reshape(P), track)
+                  label_anchors_world(points_world), texts, np.array([bool(f) for f in flags], dtype=bool).reshape(P), track,
+                  _their_world(seq, frame.data, camera) if P else None)
+
+
+def _their_world(seq: Sequence, data: dict, camera: Camera) -> np.ndarray | None:
+    """(P, 3, 3) a frame's people in a tool's own world (``tool_*`` keys), or None without one: each person's pelvis
+    in the scene's world (NaN without one), in the tool's world (NaN without ``tool_world_pelvis``), and the tool's
+    up in the scene's world (its camera-frame up, :func:`their_up_cam`, turned by the scene camera)."""
+    if data.get("tool_cam_global_orient") is None or data.get("tool_world_global_orient") is None:
+        return None
+    up_axis = ((seq.meta or {}).get("tool_world") or {}).get("up_axis", (0.0, 1.0, 0.0))
+    up_world = their_up_cam(data["tool_cam_global_orient"], data["tool_world_global_orient"], up_axis) @ camera.R_cam_from_world
+    P = len(up_world)
+    pelvis = pelvis_cam(data)
+    ours = np.full((P, 3), np.nan) if pelvis is None else camera.world_from_cam(pelvis)
+    theirs = np.asarray(data.get("tool_world_pelvis", np.full((P, 3), np.nan)), dtype=np.float64)
+    return np.stack([ours, theirs, up_world], axis=1)
 
 
 def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready | None, name: str, index: int,
@@ -326,6 +351,9 @@ def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready |
         people = _draw_people(writer, state, ready)
         if ready.track is not None:
             _keep_track_values(state, ready.row.person_ids, *ready.track, index)
+        if ready.their is not None:
+            for pid, their in zip(ready.row.person_ids.tolist(), ready.their):
+                state.their.setdefault(int(pid), []).append((index, their))
         for pid, value in w_mpjpe.get(name, {}).items():
             state.add(W_MPJPE_SERIES[0], pid, index, value)
     elif state.shown:
@@ -383,12 +411,41 @@ def _record_statics(writer: RecordingWriter, states: list[_RowState], camera: Ca
             path = np.array([[x, 0.0, z] for _, x, z in steps])
             writer.track(f"{WORLD}/{state.path}/tracks/{pid}", track_strips(np.array([s[0] for s in steps]), path),
                          tuple(colors[pid]))
+        _record_their_world(writer, state, style)
         statures = _stature_note(state.seq)
         for key, per_id in state.series.items():
             for pid, points in per_id.items():
                 note = f" ({statures})" if key == "stature_m" and statures else ""
                 writer.series(f"plots/{key}/{state.path}/{pid}", f"{state.label} {pid}{note}", tuple(colors[pid]),
                               points, fps)
+
+
+def _record_their_world(writer: RecordingWriter, state: _RowState, style: RenderStyle) -> None:
+    """A row's tool world, per track (docs/render.md): its pelvis path moved into ours by the heading fit (a rotation
+    about the vertical and a translation, no scale: :func:`rotavat_cli.metrics.tool_world.heading_fit`) against the
+    row's own pelvis path, in the track's colour paled; its ground as a faint square on ours below the track's
+    median pelvis, tilted by its up (the mean over the track); that up as an arrow from the square's +X edge,
+    labelled with its angle to ours."""
+    up_axis = ((state.seq.meta or {}).get("tool_world") or {}).get("up_axis", (0.0, 1.0, 0.0))
+    for pid, steps in state.their.items():
+        index = np.array([i for i, _ in steps])
+        ours, theirs, up = np.stack([v for _, v in steps]).transpose(1, 0, 2)  # (3, N, 3)
+        color = tuple(0.5 + 0.5 * np.asarray(person_colors(np.array([pid]), style.palette)).reshape(3))
+        base = f"{WORLD}/{state.path}/their_world"
+        paired = np.isfinite(ours).all(axis=1) & np.isfinite(theirs).all(axis=1)
+        if paired.any():
+            R, t = heading_fit(theirs[paired], ours[paired], None, up_axis)
+            writer.track(f"{base}/paths/{pid}", track_strips(index[paired], theirs[paired] @ R[0].T + t[0]), color)
+        placed = np.isfinite(ours).all(axis=1)
+        mean_up = up.mean(axis=0)
+        if not placed.any() or not np.isfinite(mean_up).all() or not np.linalg.norm(mean_up):
+            continue
+        mean_up /= np.linalg.norm(mean_up)
+        square = tilted_square_world(np.median(ours[placed], axis=0) * [1.0, 0.0, 1.0], mean_up, THEIR_GROUND_HALF_M)
+        angle = float(angles_deg(mean_up, np.array([0.0, 1.0, 0.0])))
+        writer.plane(f"{base}/ground/{pid}", square, color, THEIR_GROUND_ALPHA)
+        writer.arrow(f"{base}/up/{pid}", square[1:3].mean(axis=0), THEIR_UP_M * mean_up, color,  # beside the body
+                     f"{pid}: their up, {angle:.1f}° from ours")
 
 
 def _stature_note(seq: Sequence) -> str:

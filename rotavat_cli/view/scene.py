@@ -23,7 +23,7 @@ from ..camera import Camera
 
 __all__ = ["GRID_MARGIN_M", "MAX_GRID_LINES", "ground_extent_m", "grid_step_m", "grid_lines_world", "grid_ticks_world",
            "plane_quad_world", "uncertainty_cameras", "camera_label", "track_strips", "eye_world", "world_points_f32",
-           "label_anchors_world"]
+           "label_anchors_world", "tilted_square_world"]
 
 GRID_MARGIN_M = 2.0  # the grid reaches this far beyond the people and the camera
 MAX_GRID_LINES = 60  # per axis: a wider scene gets 2, 5, 10 ... m between lines
@@ -186,6 +186,24 @@ def track_strips(frame_index: np.ndarray, points: np.ndarray, max_gap: int = 1) 
     index, p = index[ok], p[ok]
     cuts = np.flatnonzero(np.diff(index) > max_gap) + 1
     return [piece for piece in np.split(p, cuts) if len(piece) >= 2]
+
+
+def tilted_square_world(centre: np.ndarray, normal: np.ndarray, half_m: float) -> np.ndarray:
+    """(4, 3) corners of a square of side ``2 half_m`` centred on ``centre`` (3,) in the plane of ``normal`` (3,),
+    its sides along the plane's slopes across and along world Z (a level normal, +Y, gives a square on the
+    ground with sides along X and Z): a tool's ground, tilted by its up.
+
+    >>> tilted_square_world(np.array([1.0, 0.0, -5.0]), np.array([0.0, 1.0, 0.0]), 1.0).tolist()
+    [[0.0, 0.0, -6.0], [2.0, 0.0, -6.0], [2.0, 0.0, -4.0], [0.0, 0.0, -4.0]]
+    """
+    n = np.asarray(normal, dtype=np.float64)
+    n = n / np.linalg.norm(n)
+    across = np.cross(n, [0.0, 0.0, 1.0])  # the in-plane direction across world Z (along X when level)
+    across /= np.linalg.norm(across)
+    along = np.cross(across, n)  # in the plane, toward +Z when level
+    c = np.asarray(centre, dtype=np.float64)
+    return np.array([c + half_m * (-across - along), c + half_m * (across - along), c + half_m * (across + along),
+                     c + half_m * (-across + along)])
 
 
 def eye_world(ground_xz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,7 @@ SERIES = tuple((key, title, unit) for key, title, unit, *_ in TRACK_SERIES) + (W
 FLAG_RGB = (0.85, 0.1, 0.1)  # a flagged person's label
 _LABEL_RADIUS_M = 0.03
 _TRACK_RADIUS_M = 0.015
+_ARROW_RADIUS_M = 0.02
 
 
 def require_rerun() -> Any:
@@ -126,6 +127,12 @@ class RecordingWriter:
         if strips:
             self.rec.log(path, self.rr.LineStrips3D([s.astype(np.float32) for s in strips], colors=[rgb8(color)],
                                                     radii=_TRACK_RADIUS_M), static=True)
+
+    def arrow(self, path: str, origin: np.ndarray, vector: np.ndarray, color: RGB, label: str) -> None:
+        """One labelled arrow (static): ``vector`` (3,) from ``origin`` (3,), world metres."""
+        self.rec.log(path, self.rr.Arrows3D(origins=[np.asarray(origin, dtype=np.float32)],
+                                            vectors=[np.asarray(vector, dtype=np.float32)], colors=[rgb8(color)],
+                                            radii=_ARROW_RADIUS_M, labels=[label], show_labels=True), static=True)
 
     def series(self, path: str, name: str, color: RGB, points: list[tuple[int, float]], fps: float | None) -> None:
         """One time series at once (its style static, its values as columns on the frame timeline)."""
