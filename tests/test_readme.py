@@ -22,7 +22,7 @@ def walkthrough_commands() -> list[list[str]]:
 def test_readme_walkthrough_runs(tmp_path, runner, monkeypatch):
     monkeypatch.chdir(tmp_path)
     commands = walkthrough_commands()
-    assert [c[0] for c in commands] == ["synth", "info", "calibrate", "align", "eval", "render", "export", "view"]
+    assert [c[0] for c in commands] == ["synth", "info", "calibrate", "align", "eval", "eval", "render", "export", "view"]
     try:
         import rerun  # noqa: F401  (the view line needs the extra rotavat[view]; CI installs it)
     except ImportError:
@@ -35,6 +35,7 @@ def test_readme_walkthrough_runs(tmp_path, runner, monkeypatch):
     assert (tmp_path / "scene" / "pred" / "camera.yaml").exists()
     assert (tmp_path / "scene" / "pred_aligned" / "people.csv").exists()
     assert (tmp_path / "scene" / "eval" / "metrics.md").exists()
+    assert "Without ground truth" in (tmp_path / "scene" / "eval_no_gt" / "metrics.md").read_text()
     assert (tmp_path / "scene" / "scene.glb").exists()
     assert any((tmp_path / "scene" / "figure").glob("*.png"))
     assert (tmp_path / "scene" / "view.rrd").exists() == any(c[0] == "view" for c in commands)
