@@ -27,6 +27,7 @@ BENCHMARKS = {
     "bench_onedepth.py": ([], ["--quick"]),
     "bench_stature.py": ([], ["--quick"]),
     "bench_view.py": ([], ["--quick"]),
+    "bench_export.py": ([], ["--quick"]),
 }
 
 

@@ -35,6 +35,9 @@ echo "== 5. render the before/after figure (rows: prediction, aligned, ground tr
 "$rotavat" render "$scene/pred" "$out/pred_aligned" "$scene/gt" --camera "$out/camera.yaml" --ghost gt --frames 0 \
   --size 480 270 --out "$out/figure"
 
+echo "== 5b. every frame as one animated glTF scene (Blender: File > Import > glTF 2.0)"
+"$rotavat" export "$out/pred_aligned" --out "$out/scene.glb"
+
 echo "== 6. a 3D recording over time: the same rows in one world, the camera and its uncertainty (Rerun, rotavat[view])"
 if "$(dirname "$rotavat")/python" -c "import rerun" 2>/dev/null; then
   "$rotavat" view "$scene/pred" "$out/pred_aligned" --gt "$scene/gt" --camera "$out/camera.yaml" --out "$out/view.rrd"
@@ -50,6 +53,7 @@ echo "  camera.yaml          the estimated camera"
 echo "  pred_aligned/        aligned meshes (npz), camera.yaml, people.csv"
 echo "  eval/metrics.md      before/after metrics (also metrics.json)"
 echo "  eval_no_gt/metrics.md  before/after without ground truth: feet height, penetration, lean, sliding, stature"
+echo "  scene.glb            every frame as one animated glTF scene: people, ground, camera (open in Blender; docs/export.md)"
 echo "  figure/000000.png    front/side/top views: prediction, aligned, ground truth (errors in the row captions)"
 echo "$view_line"
 exit 0

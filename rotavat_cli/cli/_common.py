@@ -218,6 +218,7 @@ _SECTION_RULES = {
     "eval": ("metrics.evaluate", "EvalOptions.RULES"), "render": ("render.sequences", "FigureOptions.RULES"),
     "view": ("view.recording", "ViewOptions.RULES"), "synth": ("synth.scene", "SynthOptions.RULES"),
     "batch": ("batch.plan", "BatchOptions.RULES"), "limits": ("limits", "RULES"),
+    "export": ("exchange.options", "ExportOptions.RULES"),
 }
 
 

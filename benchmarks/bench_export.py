@@ -1,0 +1,248 @@
+"""Wall time of ``rotavat export SEQ`` (an animated .glb) against writing the same vertices as npz, and its memory
+against length.
+
+Usage: python benchmarks/bench_export.py [--frames 300] [--people 20] [--repeats 2] [--quick] [--workdir DIR] [--keep]
+
+Writes one ``rotavat synth`` scene (``--frames`` frames x ``--people`` bodies of 6,591 vertices / 13,178
+triangles; ``gt/`` with camera.yaml, about 85 kB per person-frame) in a temporary folder, reads it once so
+every run starts from the page cache, then times in the same run (interleaved, best of ``--repeats``):
+
+- read: ``open_sequence(gt).read_frame(name)`` for every frame (the input floor);
+- npz, the baseline: the same reading, the world transform the export applies
+  (:func:`rotavat_cli.exchange.frames.world_points_f32`, float32) and the same vertex bytes written with
+  ``np.savez`` (uncompressed), one file per frame;
+- ``export_animated`` (what ``rotavat export SEQ --out X.glb`` runs): both passes, per-frame meshes;
+- the whole command ``rotavat export GT --out X.glb --quiet`` in a fresh process, once.
+
+Memory: peak RSS of a fresh process exporting a sequence of the first tenth of the frames (links to them)
+against one exporting all of them (the child's own ``VmHWM`` from /proc/self/status, else ``ru_maxrss`` of
+``resource.getrusage``: on Linux ``ru_maxrss`` keeps the forking parent's RSS across exec).
+
+Targets (issue 32): export / npz < 3x, and the whole sequence's peak RSS <= 1.25x the tenth's + 50 MB (flat:
+frames are streamed, two passes). Exit status 1 when one is missed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from rotavat_cli.exchange.animated import export_animated  # noqa: E402
+from rotavat_cli.exchange.frames import world_points_f32  # noqa: E402
+from rotavat_cli.sequence import open_sequence  # noqa: E402
+from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402
+
+TARGET_RATIO = 3.0  # export / npz
+TARGET_RSS_RATIO, RSS_SLACK_MB = 1.25, 50.0  # whole sequence vs its first tenth
+KB_PER_PERSON_FRAME = 500  # disk: synth pred + gt (~170) + the largest output at once (~80) + npz (~80), doubled
+
+
+def cpu_seconds() -> float:
+    """User + system CPU time of this process (every thread) and its finished children."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def size_bytes(path: Path) -> int:
+    """Bytes of a file, or of every file under a folder."""
+    return path.stat().st_size if path.is_file() else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+
+
+def timed(step: Callable[[Path], None], out: Path) -> dict:
+    """Wall and CPU seconds of ``step(out)``, and the bytes it wrote there (then deleted: the disk is not filled)."""
+    start, cpu = time.perf_counter(), cpu_seconds()
+    step(out)
+    result = {"s": time.perf_counter() - start, "cpu": cpu_seconds() - cpu, "bytes": size_bytes(out) if out.exists() else 0}
+    if out.is_dir():
+        shutil.rmtree(out)
+    elif out.exists():
+        out.unlink()
+    return result
+
+
+def read_all(seq_dir: Path) -> None:
+    """Read every frame of the sequence (the input floor)."""
+    seq = open_sequence(seq_dir)
+    for name in seq.frame_names:
+        seq.read_frame(name)
+
+
+def write_npz(seq_dir: Path, out: Path) -> None:
+    """Read every frame, move its people's vertices to the world (float32) and np.savez them, one file per frame."""
+    seq = open_sequence(seq_dir)
+    out.mkdir(parents=True)
+    for name in seq.frame_names:
+        np.savez(out / f"{name}.npz", vertices=world_points_f32(seq.camera, seq.read_frame(name).data["vertices"]))
+
+
+def rotavat_argv() -> list[str]:
+    """How to start rotavat: the console script beside this interpreter, else the same entry point."""
+    script = Path(sys.executable).with_name("rotavat")
+    return [str(script)] if script.exists() else [sys.executable, "-c", "from rotavat_cli.cli import main; main()"]
+
+
+def run_cli(seq_dir: Path, out: Path) -> None:
+    """The whole ``rotavat export`` command in a fresh process; SystemExit when it fails."""
+    argv = [*rotavat_argv(), "export", str(seq_dir), "--out", str(out), "--quiet"]
+    proc = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+
+
+_CHILD = """
+import resource, sys
+sys.path.insert(0, {root!r})
+from pathlib import Path
+from rotavat_cli.exchange.animated import export_animated
+from rotavat_cli.sequence import open_sequence
+
+def peak_kb():
+    # this process's own high-water mark: ru_maxrss also keeps the forking parent's RSS across exec
+    try:
+        with open("/proc/self/status") as f:
+            return int(next(line.split()[1] for line in f if line.startswith("VmHWM:")))
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+start = peak_kb()
+summary = export_animated(open_sequence({seq!r}), Path({out!r}))
+print(summary["frames"], summary["bytes"], start, peak_kb())
+"""
+
+
+def first_frames(seq_dir: Path, n_frames: int, out: Path) -> Path:
+    """A sequence of the first ``n_frames`` frames of ``seq_dir``: links to its frames, copies of its YAML files."""
+    out.mkdir(parents=True, exist_ok=True)
+    for name in ("meta.yaml", "camera.yaml"):
+        shutil.copy(seq_dir / name, out / name)
+    for frame in sorted(seq_dir.glob("*.npz"))[:n_frames]:
+        (out / frame.name).symlink_to(frame)
+    return out
+
+
+def peak_rss_mb(seq_dir: Path, out: Path) -> tuple[int, int, float, float]:
+    """(frames exported, bytes written, peak RSS after the imports, peak RSS at the end) in MB of a fresh process."""
+    code = _CHILD.format(root=str(ROOT), seq=str(seq_dir), out=str(out))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"peak RSS child failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+    out.unlink(missing_ok=True)
+    n, written, start_kb, peak_kb = proc.stdout.split()[-4:]
+    return int(n), int(written), int(start_kb) / 1024.0, int(peak_kb) / 1024.0
+
+
+def check_disk(work: Path, frames: int, people: int) -> None:
+    """Say how much disk is free against what the run needs; SystemExit when it is short."""
+    need = frames * people * KB_PER_PERSON_FRAME * 1e3 + 200e6
+    free = shutil.disk_usage(work).free
+    print(f"free disk at {work}: {free / 1e9:.1f} GB (the run needs about {need / 1e9:.1f} GB)")
+    if free < need:
+        raise SystemExit(f"not enough free disk at {work}: {free / 1e9:.1f} GB free, about {need / 1e9:.1f} GB needed "
+                         "(use --workdir elsewhere or fewer --frames)")
+
+
+def row(name: str, r: dict, floor: dict | None) -> str:
+    """One table row: wall s, MB, MB/s, CPU s and the ratio to the npz baseline."""
+    mb = r["bytes"] / 1e6
+    rate = f"{mb / r['s']:.0f}" if mb else "-"
+    ratio = f"{r['s'] / floor['s']:.2f}x" if floor else "-"
+    seconds = f"{r['s']:.2f}" + (f" ({', '.join(f'{s:.2f}' for s in r['all'])})" if len(r.get("all", [])) > 1 else "")
+    return f"| {name} | {seconds} | {mb:.0f} | {rate} | {r['cpu']:.2f} | {ratio} |"
+
+
+def parse_args() -> argparse.Namespace:
+    """Command-line options; ``--quick`` only changes the defaults of the others."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="60 frames x 20 people, 1 repeat")
+    parser.add_argument("--frames", type=int, default=None, help="frames of the scene (default 300, quick 60)")
+    parser.add_argument("--people", type=int, default=20)
+    parser.add_argument("--repeats", type=int, default=None, help="best of this many runs of each step (default 2, quick 1)")
+    parser.add_argument("--workdir", type=Path, default=None, help="default: a new temporary folder, deleted at the end")
+    parser.add_argument("--keep", action="store_true", help="keep the work folder")
+    args = parser.parse_args()
+    args.frames = args.frames or (60 if args.quick else 300)
+    args.repeats = max(1, args.repeats or (1 if args.quick else 2))
+    return args
+
+
+def main() -> int:
+    """Run the benchmark, print its tables; 0 when every target is met, else 1."""
+    args = parse_args()
+    work = Path(args.workdir or tempfile.mkdtemp(prefix="rotavat-bench-export-"))
+    work.mkdir(parents=True, exist_ok=True)
+    try:
+        check_disk(work, args.frames, args.people)
+        scene = work / "scene"
+        t0 = time.perf_counter()
+        write_synth_scene(scene, SynthOptions(seed=0, frames=args.frames, people=args.people, image_size=(1280, 720)))
+        gt = scene / "gt"
+        shutil.rmtree(scene / "pred")  # not used: the ground truth has the camera
+        print(f"wrote {args.frames} frames x {args.people} people ({size_bytes(gt) / 1e6:.0f} MB gt) in "
+              f"{time.perf_counter() - t0:.0f} s")
+        read_all(gt)  # warm the page cache
+        steps = {
+            "read": lambda out: read_all(gt),
+            "npz": lambda out: write_npz(gt, out),
+            "export": lambda out: export_animated(open_sequence(gt), out),
+        }
+        runs: dict[str, list[dict]] = {key: [] for key in steps}
+        for i in range(args.repeats):  # interleaved: a drifting machine touches every step alike
+            for key, step in steps.items():
+                runs[key].append(timed(step, work / (f"{key}_{i}.glb" if key == "export" else f"{key}_{i}")))
+        best = {key: {**min(rs, key=lambda r: r["s"]), "all": [r["s"] for r in rs]} for key, rs in runs.items()}
+        cli = timed(lambda out: run_cli(gt, out), work / "cli.glb")
+        npz = best["npz"]
+        print()
+        print(f"{args.frames} frames x {args.people} people (SMPL-sized meshes), best of {args.repeats}"
+              f"{' (every run in brackets)' if args.repeats > 1 else ''}; ratios against the npz baseline\n")
+        print("| step | wall s | MB written | MB/s | CPU s | vs npz |")
+        print("|---|---|---|---|---|---|")
+        print(row("read every frame (input floor)", best["read"], npz))
+        print(row("**npz baseline**: read + world (float32) + np.savez", npz, npz))
+        print(row("**export_animated** (two passes, per-frame meshes)", best["export"], npz))
+        print(row("`rotavat export ... --quiet` (fresh process, once)", cli, npz))
+
+        small = first_frames(gt, max(1, args.frames // 10), work / "tenth")
+        n_small, bytes_small, base_small, rss_small = peak_rss_mb(small, work / "rss_small.glb")
+        n_full, bytes_full, base_full, rss_full = peak_rss_mb(gt, work / "rss_full.glb")
+        per_100 = (rss_full - rss_small) / (n_full - n_small) * 100 if n_full > n_small else float("nan")
+        print(f"\npeak RSS (fresh process): {rss_small:.0f} MB exporting {n_small} frames ({bytes_small / 1e6:.0f} MB "
+              f"written), {rss_full:.0f} MB exporting {n_full} frames ({bytes_full / 1e6:.0f} MB written) "
+              f"({per_100:+.1f} MB per 100 frames); after the imports: {base_small:.0f} / {base_full:.0f} MB")
+
+        ratio = best["export"]["s"] / npz["s"]
+        limit = TARGET_RSS_RATIO * rss_small + RSS_SLACK_MB
+        checks = [(f"export / npz < {TARGET_RATIO:.0f}x", f"{ratio:.2f}x", ratio < TARGET_RATIO),
+                  (f"peak RSS {n_full} frames <= {TARGET_RSS_RATIO}x {n_small} frames + {RSS_SLACK_MB:.0f} MB "
+                   f"({limit:.0f} MB)", f"{rss_full:.0f} MB ({rss_full / rss_small:.2f}x)", rss_full <= limit)]
+        print("\n| target | measured | result |")
+        print("|---|---|---|")
+        for name, value, ok in checks:
+            print(f"| {name} | {value} | {'PASS' if ok else 'MISS'} |")
+        ok_all = all(ok for _, _, ok in checks)
+        print(f"\n{'all targets met' if ok_all else 'some targets MISSED'}")
+        print(json.dumps({"frames": args.frames, "people": args.people, "repeats": args.repeats,
+                          **{k: round(v["s"], 3) for k, v in best.items()}, "cli": round(cli["s"], 3),
+                          "glb_mb": round(best["export"]["bytes"] / 1e6, 1),
+                          "rss_mb": [round(rss_small, 1), round(rss_full, 1)]}))
+        return 0 if ok_all else 1
+    finally:
+        if not args.keep:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
