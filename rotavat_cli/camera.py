@@ -64,6 +64,7 @@ _EPS = 1e-12  # denominators below this are treated as "ray parallel to the plan
 MAX_IMAGE_SIDE_PX = 100_000
 MAX_FOCAL_PX = 1e7
 MAX_HEIGHT_M = 1e5
+SAME_CAMERA_TOL = 1e-9  # Camera.matches: float noise (YAML round trips, matrices re-derived: ~1e-16) is far below it
 
 
 def up_vector_cam(pitch_rad: np.ndarray | float, roll_rad: np.ndarray | float = 0.0) -> np.ndarray:
@@ -294,6 +295,23 @@ class Camera:
     def vertical_fov_rad(self) -> float:
         """Full vertical field of view."""
         return 2.0 * math.atan(self.image_size[1] / (2.0 * self.focal_px))
+
+    def matches(self, other: object, tol: float = SAME_CAMERA_TOL) -> bool:
+        """True when ``other`` is this camera up to float noise: the same image size, and focal, principal point
+        and height within ``tol`` relative, pitch and roll within ``tol`` rad. Two cameras equal but for the
+        last bits (one read back from YAML, one re-derived through its matrices) are one camera; ``==`` says
+        they differ.
+
+        >>> a = Camera((640, 480), 500.0, None, 0.3, 0.01, 3.0)
+        >>> a.matches(Camera((640, 480), 500.0 * (1 + 1e-16), None, 0.3 + 1e-16, 0.01, 3.0)), a.matches(a.replace(height_m=3.001))
+        (True, False)
+        """
+        if not isinstance(other, Camera) or tuple(self.image_size) != tuple(other.image_size):
+            return False
+        relative = [(self.focal_px, other.focal_px), (self.height_m, other.height_m),
+                    *zip(self.principal_point, other.principal_point)]
+        return all(math.isclose(a, b, rel_tol=tol, abs_tol=tol) for a, b in relative) and all(
+            abs(a - b) <= tol for a, b in ((self.pitch_rad, other.pitch_rad), (self.roll_rad, other.roll_rad)))
 
     # ---- geometry -------------------------------------------------------------------------
     def project(self, points_cam: np.ndarray) -> np.ndarray:

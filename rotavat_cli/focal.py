@@ -104,8 +104,10 @@ FOCAL_RULES: dict[str, FocalRule] = {rule.name: rule for rule in (
     FocalRule("pymafx", "5000 px whatever the image size (principal point at the image centre)", "PyMAF-X", _pymafx),
     FocalRule("slahmr", "(W + H) / 2 (its default intrinsics when none are given)", "SLAHMR", _half_sum),
     FocalRule("glamr", "1000 px whatever the image size (principal point at the image centre)", "GLAMR", _glamr),
-    FocalRule("tram", "max(W, H) (its est_calib default: a static camera, or when its SLAM focal search keeps it)", "TRAM",
-              lambda width, height: float(max(width, height))),
+    FocalRule("tram", "max(W, H) (its est_calib default: a static camera, or when its SLAM focal search keeps it)",
+              "TRAM, PromptHMR", lambda width, height: float(max(width, height))),
+    FocalRule("comotion", "2 max(W, H) (get_default_K; principal point at the image centre)", "CoMotion",
+              lambda width, height: 2.0 * max(width, height)),
 )}
 
 

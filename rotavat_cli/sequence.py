@@ -558,7 +558,11 @@ class Sequence:
     def require_static_frame(self, frame: Frame, image_size: tuple[int, int] | None = None) -> None:
         """InputError when ``frame`` was seen by another camera than ``image_size`` (default the
         sequence's): a frame stating another image size (photos of different sizes imported as one
-        sequence) cannot share a static camera with the others."""
+        sequence) cannot share a static camera with the others; nor can the frames of a tool's file that
+        holds several videos (:meth:`several_videos`), whatever their sizes."""
+        videos = self.several_videos()
+        if videos is not None:
+            raise InputError(f"{self.label}: {videos}")
         expected = self.image_size if image_size is None else tuple(image_size)
         size = frame.intrinsics.image_size
         if size is not None and expected is not None and tuple(size) != tuple(expected):
@@ -566,6 +570,23 @@ class Sequence:
                              f"{expected[0]}x{expected[1]}: these frames are not one static camera's (e.g. photos of "
                              f"different sizes); calibrate and align each image size as a sequence of its own"
                              f"{self._split_hint(frame)}")
+
+    def several_videos(self) -> str | None:
+        """What to do with the frames of several videos imported from one tool's file (meta.yaml's
+        ``import.videos``, e.g. a HybrIK ``res.pk`` of demo runs sharing an output folder), or None: several
+        cameras, each imported as a sequence of its own with ``rotavat import ... --video NAME``."""
+        block = self.meta.get("import") if isinstance(self.meta, Mapping) else None
+        videos = block.get("videos") if isinstance(block, Mapping) else None
+        src, fmt = (block.get("source_path"), block.get("format")) if isinstance(block, Mapping) else (None, None)
+        if not isinstance(videos, Mapping) or len(videos) < 2 or not src:
+            return None
+        listed = "; ".join(f"{name or '(no video name)'}: {what}" for name, what in videos.items())
+        commands = [shlex.join(["rotavat", "import", *(["--from", str(fmt)] if fmt else []), str(src),
+                                f"{Path(str(src)).stem}_{name}", "--video", str(name)]) for name in videos]
+        shown = "; ".join(commands[:3]) + (f"; and likewise --video NAME for {', '.join(map(str, list(videos)[3:]))}"
+                                           if len(commands) > 3 else "")
+        return (f"its frames come from {len(videos)} videos of one file ({listed}), {len(videos)} cameras: calibrate "
+                f"and align need one; import each video as a sequence of its own: {shown}")
 
     def _split_hint(self, frame: Frame) -> str:
         """A command that makes ``frame`` a sequence of its own (a sequence directory's frame), or ''."""

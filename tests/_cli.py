@@ -37,3 +37,13 @@ def invoke(runner: CliRunner, *args, **kwargs):
     """``rotavat ARGS`` in-process (exceptions propagate unless ``catch_exceptions=True``); the click Result."""
     kwargs.setdefault("catch_exceptions", False)
     return runner.invoke(app, [str(a) for a in args], **kwargs)
+
+
+def error_text(result) -> str:
+    """A refused run's message (exit 2, no traceback, its first line an ``error:``): its lines joined by spaces
+    (a long one-line message may be folded by the terminal's width)."""
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = [line for line in result.output.strip().splitlines() if line.strip()]
+    assert lines[0].startswith("error:")
+    return " ".join(lines)

@@ -22,7 +22,9 @@ def test_the_sample_scene_numbers_the_readme_quotes(tmp_path):
                              camera_fit=calib.fit_dict())
     before, after = (evaluate(s, gt).metrics for s in (pred, open_sequence(tmp_path / "aligned")))
     quoted = (f"W-MPJPE\n{before['w_mpjpe']:,.0f} → {after['w_mpjpe']:,.0f} mm, PA-MPJPE "
-              f"{before['pa_mpjpe']:.1f} → {after['pa_mpjpe']:.1f} mm")
+              f"{before['pa_mpjpe']:.1f} → {after['pa_mpjpe']:.1f} mm, group PA-MPJPE (one similarity for all the "
+              f"people of a frame) {before['group_pa_mpjpe']:,.0f} → {after['group_pa_mpjpe']:,.0f} mm, depth order "
+              f"of the people (PCRD) {before['pcrd']:.2f} → {after['pcrd']:.2f}")
     assert quoted.replace("\n", " ") in " ".join(README.split()), quoted
     drift = f"{summary.median_drift_px:.0f} px for the median person, {summary.max_drift_px:.0f} px for the farthest-moved"
     assert drift in " ".join(README.split()), drift

@@ -159,7 +159,7 @@ def test_paper_point_on_synth(tmp_path, runner):
     assert after["w_mpjpe"] < 0.2 * before["w_mpjpe"]
     assert after["foot_height"] < 5.0 < before["foot_height"]
     md = (tmp_path / "metrics.md").read_text()
-    assert "Relative change" in md and "`" + str(s / "al") + "`" in md
+    assert "## Headline\n\n| metric | `pred` | `al` | change |" in md and "`" + str(s / "al") + "`" in md
 
 
 def test_frame_ranges_merge_into_the_whole_result(tmp_path):

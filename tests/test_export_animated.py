@@ -542,8 +542,8 @@ def joints_only(synth_scene, tmp_path_factory) -> Path:
     (["params", "--format", "amass", "--out", "walk.npz"], "give --out a folder name (e.g. walk)"),
     (["params", "--format", "fbx"], "--format must be one of glb, bvh, amass"),
     (["params", "--out", "walk.bvh"], "--out must end in .glb"),
-    (["params", "--fps", "0"], "--fps must be > 0, got 0.0"),
-    (["params", "--euler", "YXZ"], "--euler must be one of ZXY, XYZ, got 'YXZ'"),
+    (["params", "--fps", "0"], "--fps: must be > 0, got 0.0"),
+    (["params", "--euler", "YXZ"], "--euler: must be one of ZXY, XYZ, got 'YXZ'"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(runner, param_scene, joints_only, neutral_model, smplx_on_smpl_path, tmp_path,
                                           monkeypatch, args, message):
@@ -586,3 +586,24 @@ def test_blender_imports_the_animated_scene(param_scene, neutral_model, tmp_path
         assert found["armatures"] == 3
     # the last keyframe: frame 4 at 10 fps is 0.4 s, Blender frame 9.6 at its default 24 fps (from frame 0)
     assert found["frame_end"] == pytest.approx(4 / FPS * 24, abs=1e-3)
+
+
+def test_a_tool_file_without_a_camera_names_commands_that_run(tmp_path, runner, scene, model_path, monkeypatch):
+    """`export FILE --from cliff` with no camera: the message's calibrate and export commands repeat --from and
+    its flags, and both run as written (they used to say `rotavat calibrate FILE`, which refuses a tool's file)."""
+    import re
+    import shlex
+
+    import _format_fixtures as F
+
+    src = F.write_cliff(tmp_path / "demo_cliff_hr48.npz", scene, (F.W, F.H))
+    monkeypatch.chdir(tmp_path)
+    flags = ["--from", "cliff", "--image-size", F.W, F.H, "--smpl-model", model_path]
+    first = invoke(runner, "export", src, *flags, catch_exceptions=True)
+    assert first.exit_code == 2 and "no camera for the exported world" in first.stderr
+    commands = re.findall(r"`(rotavat [^`]+)`", first.stderr)
+    assert [shlex.split(c)[1] for c in commands] == ["calibrate", "export"]
+    for command in commands:
+        result = invoke(runner, *shlex.split(command)[1:], "--quiet", catch_exceptions=True)
+        assert result.exit_code == 0, (command, result.stderr)
+    assert (tmp_path / "demo_cliff_hr48_scene.glb").is_file()

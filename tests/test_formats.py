@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import _format_fixtures as F
+import _fixtures_comotion_prompthmr as CP
 import _fixtures_torch as T
 import _fixtures_wham_hybrik as WH
 import _fixtures_pymafx_trace as PT
@@ -82,6 +83,10 @@ def _write(fmt: str, folder: Path, scene, model, camera) -> Path:
         return SG.write_slahmr(folder / "slahmr_run", scene, model)
     if fmt == "glamr":
         return SG.write_glamr(folder / "glamr_out" / "grecon" / "demo_seed1.pkl", scene)
+    if fmt == "comotion":  # demo.py -i demo.mp4 -o comotion_out: <output-dir>/<input>.pt
+        return CP.write_comotion(folder / "comotion_out" / "demo.pt", scene)
+    if fmt == "prompthmr":  # scripts/demo_video.py --static_camera: results/<video>/results.pkl
+        return CP.write_prompthmr(folder / "results" / "demo", scene, camera, (W, H))
     raise AssertionError(fmt)
 
 
@@ -120,18 +125,23 @@ def _expected(fmt: str, camera):
         return (W + H) / 2, (W / 2, H / 2), (W, H)
     if fmt == "glamr":  # GLAMR's HybrIK: 1000 px at the image centre
         return 1000.0, (W / 2, H / 2), (W, H)
+    if fmt == "comotion":  # get_default_K: 2 max(W, H) at the image centre
+        return 2.0 * side, (W / 2, H / 2), (W, H)
+    if fmt == "prompthmr":  # est_calib (--static_camera): max(W, H) at the centre of its frames
+        return float(side), (W / 2, H / 2), (W, H)
     raise AssertionError(fmt)
 
 
 def _model_for(fmt: str, model_path: Path, smplx_path: Path) -> Path:
-    """The model file a format's parameters need: GVHMR's are SMPL-X (the synthetic SMPL-X on the same mesh)."""
-    return smplx_path if fmt == "gvhmr" else model_path
+    """The model file a format's parameters need: GVHMR's and PromptHMR's are SMPL-X (the synthetic SMPL-X on the
+    same mesh)."""
+    return smplx_path if fmt in ("gvhmr", "prompthmr") else model_path
 
 
 def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
     """``fmt``'s files of ``scene`` imported with the model file ``model_path`` (GVHMR's: SMPL-X)."""
     src = _write(fmt, tmp_path, scene, model, camera)
-    if fmt in ("cliff", "multihmr", "wham"):
+    if fmt in ("cliff", "multihmr", "wham", "comotion"):
         kw.setdefault("image_size", (W, H))
     out = tmp_path / "out"
     summary = import_sequence(src, out, fmt, smpl_model=model_path, **kw)
@@ -139,7 +149,7 @@ def _import(fmt, tmp_path, scene, model, camera, model_path, **kw):
 
 
 ALL = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam", "pymafx", "trace", "slahmr", "glamr", "gvhmr", "tram",
-       "wham", "hybrik"]
+       "wham", "hybrik", "comotion", "prompthmr"]
 
 
 def test_available_formats():
@@ -161,7 +171,7 @@ def test_known_person_comes_out_in_the_camera_frame(fmt, tmp_path, scene, model,
     assert seq.meta.get("focal_rule") == {"cliff": "cliff", "bev": "bev", "romp": "romp", "4dhumans": "4dhumans",
                                           "pymafx": "pymafx", "trace": "trace", "slahmr": "slahmr",
                                           "gvhmr": "cliff", "tram": "tram", "wham": "cliff",
-                                          "glamr": "glamr"}.get(fmt)
+                                          "glamr": "glamr", "comotion": "comotion", "prompthmr": "tram"}.get(fmt)
     assert intr.image_size == size
     assert intr.focal_px == (None if focal is None else pytest.approx(focal, rel=1e-9))
     assert intr.principal_point == pytest.approx(pp, abs=1e-9)
@@ -483,7 +493,7 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
     src = _write(fmt, tmp_path, scene, model, camera)
     if fmt in ("bev", "romp"):
         F.evil_npz(sorted(src.glob("*.npz"))[0], marker)
-    elif fmt in ("4dhumans", "pymafx", "wham", "hybrik"):
+    elif fmt in ("4dhumans", "pymafx", "wham", "hybrik", "prompthmr"):
         src.write_bytes(F.evil_pickle(marker))
     elif fmt == "trace":  # npz: the 'outputs' object member pickles a code-executing object
         obj = np.empty((), dtype=object)
@@ -509,6 +519,8 @@ def _hostile(fmt: str, tmp_path: Path, marker: Path, scene, model, camera) -> Pa
     elif fmt == "gvhmr":  # torch archive: a code-running global in data.pkl
         src.write_bytes(T.torch_zip_bytes({"smpl_params_incam": T.Call(T.Global("os", "system"), (f"touch {marker}",))},
                                           name="hmr4d_results"))
+    elif fmt == "comotion":  # torch archive: a code-running global where the parameters are
+        src.write_bytes(T.torch_zip_bytes({"pose": T.Call(T.Global("os", "system"), (f"touch {marker}",))}, name="demo"))
     elif fmt == "tram":  # np.save of a dict: a code-running global beside the tensors
         T.np_save_tensors(src / "hps" / "hps_track_0.npy",
                           {"pred_rotmat": T.Call(T.Global("os", "system"), (f"touch {marker}",))})
@@ -667,7 +679,7 @@ def imported_runs(tmp_path_factory, model, camera, model_path, smplx_on_smpl_pat
 def _imported_run(fmt: str, root: Path, model, camera, model_path: Path, runner) -> ImportedRun:
     (root / "in").mkdir()
     src = _write(fmt, root / "in", _as_the_tool_places_it(fmt, _from_scene(model, camera), camera), model, camera)
-    size = ["--image-size", W, H] if fmt in ("cliff", "multihmr", "wham") else []
+    size = ["--image-size", W, H] if fmt in ("cliff", "multihmr", "wham", "comotion") else []
     imported, cam_yaml, aligned = root / "imported", root / "cam_imported.yaml", root / "al_imported"
     import_sequence(src, imported, fmt, smpl_model=model_path, image_size=(W, H) if size else None)
     with pytest.MonkeyPatch.context() as monkeypatch:

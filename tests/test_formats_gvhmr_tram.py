@@ -13,7 +13,7 @@ import _fixtures_torch as T
 import _format_fixtures as F
 import numpy as np
 import pytest
-from _cli import invoke
+from _cli import error_text, invoke
 
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence, imported_sequence
@@ -29,14 +29,6 @@ REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"
 def track(scene):
     """GVHMR's one person per frame: three placements of the scene's people."""
     return [scene[0][0], scene[1][0], scene[0][1]]
-
-
-def _one_line_error(result) -> str:
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    lines = [line for line in result.output.strip().splitlines() if line.strip()]
-    assert lines[0].startswith("error:")
-    return " ".join(lines)
 
 
 # ---- GVHMR ---------------------------------------------------------------------------------------
@@ -101,7 +93,7 @@ def test_gvhmr_hostile_archive_exits_2_without_running_code(tmp_path, smplx_on_s
     results["net_outputs"] = T.Call(T.Global("os", "system"), (f"touch {marker}",))
     src = tmp_path / "hmr4d_results.pt"
     src.write_bytes(T.torch_zip_bytes(results, name="hmr4d_results"))
-    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", smplx_on_smpl_path))
+    text = error_text(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", smplx_on_smpl_path))
     assert "torch archive: refused to unpickle global 'os.system'" in text
     assert not marker.exists() and not (tmp_path / "out").exists()
 
@@ -115,7 +107,7 @@ def test_gvhmr_broken_archive_exits_2_with_one_line(tmp_path, smplx_on_smpl_path
         src.write_bytes(np.random.default_rng(1).bytes(300))
     else:
         src.write_bytes(T.torch_zip_bytes(T.gvhmr_results(track, (W, H)), name="hmr4d_results", drop=("data/3",)))
-    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", smplx_on_smpl_path))
+    text = error_text(invoke(runner, "import", src, tmp_path / "out", "--from", "gvhmr", "--smpl-model", smplx_on_smpl_path))
     assert str(src) in text
     if damage != "garbage":
         assert "torch archive" in text
@@ -201,7 +193,7 @@ def test_tram_hostile_track_exits_2_without_running_code(tmp_path, model_path, s
     marker = tmp_path / "pwned"
     src = T.write_tram(tmp_path / "demo", scene, (W, H))
     T.np_save_tensors(src / "hps" / "hps_track_0.npy", {"pred_rotmat": T.Call(T.Global("os", "system"), (f"touch {marker}",))})
-    text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", model_path))
+    text = error_text(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", model_path))
     assert "hps_track_0.npy: refused to unpickle global 'os.system'" in text
     assert not marker.exists() and not (tmp_path / "out").exists()
 
@@ -215,5 +207,5 @@ def test_tram_broken_files_exit_2_with_one_line(tmp_path, model_path, scene, run
             F.truncate(file, 0.6)
         else:
             file.write_bytes(np.random.default_rng(1).bytes(300))
-        text = _one_line_error(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", model_path))
+        text = error_text(invoke(runner, "import", src, tmp_path / "out", "--from", "tram", "--smpl-model", model_path))
         assert file.name in text

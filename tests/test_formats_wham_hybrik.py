@@ -394,10 +394,11 @@ def test_hybrik_two_videos_import_as_one_sequence_each_frame_with_its_size(tmp_p
     (note,) = [w for w in summary["warnings"] if "videos" in w]
     assert note.startswith(f"{src}: holds 2 videos (IMG_6412: 4 frames, 384x640; dance: 3 frames, 1280x720; ")
     assert note.endswith(f"rotavat import {src} OUT --video NAME (IMG_6412, dance)")
+    videos_said = "its frames come from 2 videos of one file (IMG_6412: 4 frames, 384x640; dance: 3 frames, 1280x720)"
     text = _one_line_error(invoke(runner, "calibrate", tmp_path / "seq", "--out", tmp_path / "cam.yaml"))
-    assert "dance-000001.npz: image size 1280x720 differs from 384x640" in text
+    assert f"seq: {videos_said}" in text and "res.pk res_dance --video dance" in text and "mkdir" not in text
     text = _one_line_error(invoke(runner, "calibrate", src, "--from", "hybrik", "--out", tmp_path / "cam.yaml"))
-    assert "[res_walk/raw_images/dance-000001.png]: image size 1280x720 differs from 384x640" in text
+    assert f"res.pk: {videos_said}" in text and "res.pk res_dance --video dance" in text
 
 
 def test_hybrik_video_option_gives_each_video_a_sequence_that_calibrates(tmp_path, model, camera, runner):

@@ -220,28 +220,37 @@ def test_people_have_renders_colours_their_paths_lie_on_the_ground_and_the_video
         view_scene, recorded):
     from rotavat_cli.render import person_colors
     from rotavat_cli.render.style import RenderStyle, rgb8
+    from rotavat_cli.view.roles import row_tint, row_tones
 
     root, _ = view_scene
     _, data, _ = recorded
     palette = RenderStyle().palette
+    raw_tone = row_tones(["raw"])[0]
     for pid in (0, 1, 2):
-        static = next(row for f, row in data[f"/world/pred/people/{pid}/mesh"] if f is None)
-        rgba = static["Mesh3D:albedo_factor"][0]
-        assert [(rgba >> s) & 255 for s in (24, 16, 8)] == list(rgb8(tuple(person_colors(np.array([pid]), palette)[0])))
+        for row, tone in (("pred_aligned", ()), ("pred", raw_tone)):  # the aligned row in the palette's colours
+            static = next(row for f, row in data[f"/world/{row}/people/{pid}/mesh"] if f is None)
+            rgba = static["Mesh3D:albedo_factor"][0]
+            want = rgb8(tuple(row_tint(person_colors(np.array([pid]), palette), tone)[0]))
+            assert [(rgba >> s) & 255 for s in (24, 16, 8)] == list(want)
         path = next(row for f, row in data[f"/world/pred_aligned/tracks/{pid}"] if row.get("LineStrips3D:strips"))
         strip = np.array(path["LineStrips3D:strips"][0])
         assert strip.shape == (4, 3) and np.all(strip[:, 1] == 0.0)  # 4 frames, on the ground
     # the truth's feet are on its own ground, 0.3 m above the scene camera's
     heights = [row["Scalars:scalars"][0] for f, row in data["/plots/foot_height_m/gt/0"] if f is not None]
     assert len(heights) == 4 and all(abs(h - 0.3) < 0.03 for h in heights)
-    images = [row["EncodedImage:blob"] for f, row in data["/world/camera/image"] if row.get("EncodedImage:blob")]
-    assert len(images) == 4 and bytes(images[2][0]) == (root / "images" / f"{open_sequence(root / 'gt').frame_names[2]}.png").read_bytes()
+    images = [row for f, row in data["/world/camera/image/video"] if row.get("EncodedImage:blob")]
+    assert len(images) == 4  # 320 x 180, within view.image_max_px: the files as they are, on the 320 x 180 pinhole
+    assert bytes(images[2]["EncodedImage:blob"][0]) == (root / "images" / f"{open_sequence(root / 'gt').frame_names[2]}.png").read_bytes()
+    assert all(np.allclose(row["Transform3D:scale"], [[1.0, 1.0, 1.0]]) for row in images)
 
 
-def test_a_vertex_lands_at_its_world_position_in_metres(view_scene, recorded):
+def test_a_vertex_lands_at_its_world_position_in_metres(view_scene, tmp_path):
+    from rotavat_cli.view import ViewOptions, record_sequences
+
     root, scene_camera = view_scene
-    _, data, _ = recorded
     gt = open_sequence(root / "gt")
+    record_sequences([gt], tmp_path / "full.rrd", opts=ViewOptions(camera_path=root / "scene_camera.yaml", mesh_vertices=0))
+    data = _read(tmp_path / "full.rrd")  # every vertex, as the file has it
     frame = gt.read_frame(gt.frame_names[1])
     p = int(np.flatnonzero(frame.person_ids == 2)[0])
     expected = scene_camera.world_from_cam(frame.data["vertices"][p, 1234])
@@ -326,12 +335,18 @@ def test_view_without_a_camera_names_the_command_that_makes_one(view_scene, runn
 
 def test_a_missing_video_frame_leaves_no_file_half_written(view_scene, runner, tmp_path):
     root, _ = view_scene
+    from PIL import Image
+
     images = tmp_path / "images"
     images.mkdir()
-    (images / "000000.png").write_bytes(b"not checked here")
+    Image.new("RGB", (32, 18)).save(images / "000000.png")
     out = tmp_path / "v.rrd"
     result = invoke(runner, "view", root / "gt", "--image", images, "--out", out)
     assert result.exit_code == 2 and "no image named 000001" in result.output
+    assert list(tmp_path.iterdir()) == [images]
+    (images / "000000.png").write_bytes(b"not an image")  # refused, naming the file, as render does
+    result = invoke(runner, "view", root / "gt", "--image", images, "--frames", "0", "--out", out)
+    assert result.exit_code == 2 and result.stderr.strip() == f"error: {images / '000000.png'}: not a readable image (not a format Pillow reads)"
     assert list(tmp_path.iterdir()) == [images]
 
 
@@ -503,3 +518,22 @@ def test_an_implausible_camera_is_refused_unless_accepted(view_scene, runner, tm
     accepted = invoke(runner, "view", root / "pred", "--camera", bad, "--accept-camera", "--out", out, "--quiet")
     assert accepted.exit_code == 0 and out.is_file()
     assert "used anyway (--accept-camera)" in accepted.stderr
+
+
+def test_a_row_whose_camera_is_the_scene_camera_but_for_float_noise_gets_no_ground_of_its_own(view_scene, tmp_path):
+    """The truth's camera.yaml and the scene camera equal but for float noise (1e-12, kept through YAML): one camera,
+    so no note that its own camera gives another ground (it used to be said for cameras 1e-16 apart)."""
+    from rotavat_cli.view import ViewOptions, record_sequences
+
+    root, _ = view_scene
+    gt = open_sequence(root / "gt")
+    noisy = gt.camera.replace(focal_px=gt.camera.focal_px * (1 + 1e-12), pitch_rad=gt.camera.pitch_rad + 1e-12)
+    write_camera_yaml(tmp_path / "same.yaml", noisy)
+    summary = record_sequences([open_sequence(root / "pred_aligned")], tmp_path / "s.rrd", gt,
+                               ViewOptions(camera_path=tmp_path / "same.yaml"))
+    assert not [n for n in summary.notes if "gives its ground" in n]
+    other = gt.camera.replace(height_m=gt.camera.height_m + 0.3)
+    write_camera_yaml(tmp_path / "other.yaml", other)
+    summary = record_sequences([open_sequence(root / "pred_aligned")], tmp_path / "o.rrd", gt,
+                               ViewOptions(camera_path=tmp_path / "other.yaml"))
+    assert [n for n in summary.notes if n.startswith("gt: placed in the scene camera")]

@@ -55,7 +55,7 @@ from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NA
                      param_bounds, param_vector, to_internal)
 from .plausibility import implausible_findings
 from .refine import fit_with_rejection, refine_fit
-from .uncertainty import Systematics, covariances, fit_warnings, std_and_corr
+from .uncertainty import Systematics, covariances, fit_warnings, moved_by_data, std_and_corr
 
 __all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "fit_per_frame"]
 
@@ -450,6 +450,8 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         ("focal_px", "given", free[FOCAL]), ("pitch_deg", "given", free[PITCH] or method == "grid"),
         ("roll_deg", "0 (not estimated)", free[ROLL]),
         ("distortion", "none", free[DISTORTION] or not options.distortion)) if not free_}
+    focal_informed = "people" in by_slot.get(FOCAL, "").split("+")  # the people's information fixes the focal
+    by_slot = moved_by_data(by_slot, params, inl.priors, free)  # an estimate far from its prior: the people's too
     determined = {_SLOT_NAMES[slot]: label for slot, label in by_slot.items() if slot in _SLOT_NAMES}
     for slot, sd in held.items():  # held at the prior's median: its sd is the prior's
         name = _SLOT_NAMES[slot]
@@ -466,6 +468,9 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         std_stat = {**std_stat, "height_m": math.nan}
         fixed["height_m"] = "given"
         determined["person_height_m"] = determined.pop("height_m", "people")
+        determined["height_m"] = "given"
+    if fixed.get("pitch_deg") == "given":
+        determined["pitch_deg"] = "given"
     focal_prior = "none" if inp.priors is None or not (free[FOCAL] or FOCAL in held) else inp.priors.focal_kind
     ground = ground_findings(inp.feet, inp.heads, camera, stature,
                              inp.tracks if inp.tracks is not None else np.arange(len(inp.feet)), inlier_mask,
@@ -473,8 +478,7 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
     implausible = implausible_findings(camera, std, focal_estimated=bool(free[FOCAL] or FOCAL in held),
                                        height_estimated=not height_known,
                                        mean_stature_m=stature if height_known else None,
-                                       focal_from_people=bool(free[FOCAL]) and "people" in determined.get(
-                                           "focal_px", "").split("+"),
+                                       focal_from_people=bool(free[FOCAL]) and focal_informed,
                                        ground=ground)
     warns = extra + cov_warns + fit_warnings(camera, std, corr, int(mask_u.sum()), inp.n_usable, len(inp.feet),
                                              determined, inp.one_depth) + [g.message for g in ground

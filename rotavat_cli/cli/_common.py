@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import shlex
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -24,7 +25,8 @@ from ..limits import configure as configure_limits
 from ..option_rules import Rule
 from ..outputs import as_typed, beside, imported_output
 from ..plain import to_plain
-from ..sequence import Sequence, open_sequence
+from ..sequence import Sequence, is_sequence_dir, open_sequence
+from ._run import ARGV_KEY, JSON_PRINTED_KEY, current_context
 
 console = Console(stderr=True)  # diagnostics: progress, notes, warnings, errors
 results = Console()  # what a command produces for a human (tables, its summary): `rotavat info SEQ > f.txt` keeps it
@@ -124,10 +126,28 @@ def polish_help(command: Any, section: dict | None, rules: dict[str, Rule] | Non
         if shown in ("none", "False") or (shown == "True" and getattr(param, "is_flag", False)):
             shown = None  # unset means "not given" (its help says what then); a lone switch is off unless given
         span = next((spans[opt] for opt in param.opts if opt in spans), None)
+        span = _own_range(param, span)
         if span is not None and param.help is not None:
             param.help = f"{param.help} \\[{escape(span)}]"
         if shown is not None and param.help is not None:
             param.help = f"{param.help} \\[default: {escape(shown)}]"
+
+
+def _own_range(param: Any, span: str | None) -> str | None:
+    """The range --help shows for ``param``, once: ``span`` (its config rule's), else the option's own bounds
+    (``min=``/``max=``) written the same way (``>= 0``, ``0..1``); typer's second copy of it (``[x>=0]`` after
+    the default, ``<int range>`` as its type) is turned off."""
+    own = getattr(param, "_get_number_range_help_str", None)
+    if own is None or not own():
+        return span
+    if span is None:
+        low, high = getattr(param, "min", None), getattr(param, "max", None)
+        span = Rule(low=low, high=high, open_low=bool(getattr(param, "min_open", False))).span()
+    param._get_number_range_help_str = lambda: None  # per instance, as typer calls it
+    if param.metavar is None:
+        bare = getattr(param, "bare_type", None)
+        param.metavar = f"<{bare()}>" if bare is not None else None  # the type as other numbers show it, not "<int range>"
+    return span
 
 
 def polish_command_help(command: Any, section: str) -> None:
@@ -243,6 +263,7 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
     what converting found (the warnings ``rotavat import`` prints) is printed once, after the command.
     """
     if fmt is None:
+        check_sequence_path(path)
         seq = open_sequence(path, read_camera=read_camera)
         warn_ignored(seq)
         yield seq
@@ -256,6 +277,95 @@ def input_sequence(path: Path, fmt: str | None, image_size: tuple[int, int] | No
         yield seq
         for warning in seq.warnings:
             warn(str(warning))
+
+
+def check_sequence_path(path: Path) -> None:
+    """Nothing when ``path`` may be a sequence directory; else the one-line refusal that says what it is and
+    the command that reads it (:func:`not_a_sequence`). Commands call it on a SEQ read without ``--from``
+    before anything else looks at the path (``input_sequence`` does)."""
+    refusal = not_a_sequence(path)
+    if refusal is not None:
+        raise refusal
+
+
+def not_a_sequence(path: Path) -> InputError | None:
+    """The refusal of a file, or a folder of an HPS tool's files, given where a sequence directory is read,
+    naming what it is and the command that reads it (None for a sequence directory, a missing path, and a
+    folder of no frames and no tool's output: ``open_sequence`` names those).
+
+    An HPS tool's output (recognised by the sniffers ``rotavat import`` detects formats with:
+    :func:`rotavat_cli.formats.registry.detect_format`) is named with the two commands that read it: the
+    user's own command line with ``--from FMT`` (``--gt-from`` for eval's ``--gt``; calibrate also gets the
+    ``--out`` it needs then), when ``--from`` reads that argument, and ``rotavat import --from FMT SRC OUT``.
+    A contract frame (``000000.npz`` of a sequence) is named with its folder; any other file says what it is.
+    """
+    if not path.is_file() and (not path.is_dir() or is_sequence_dir(path)):
+        return None  # the readers' modules are imported only to name what is not a sequence
+    from ..formats.file_kinds import file_kind
+    from ..formats.registry import detect_format
+    from ..formats.tools import FORMATS, TOOL_NAMES
+
+    if path.is_dir():  # a folder of a tool's files (AGORA's, ...), not of frames
+        fmt = detect_format(path)
+        if fmt is None:
+            return None
+        read = _command_line(path, None, fmt)
+        convert = shlex.join(["rotavat", "import", "--from", fmt, str(path), str(imported_output(path, "_seq"))])
+        return InputError(f"{path}: a folder of {TOOL_NAMES[fmt]} output, not a sequence directory (a directory of "
+                          "frames); " + (f"read it as it is: {read}, or " if read else "")
+                          + f"convert it once into a sequence: {convert}")
+    fmt = detect_format(path)
+    if fmt is None:
+        folder = path.parent
+        if path.suffix == ".npz" and is_sequence_dir(folder):
+            again = _command_line(path, folder)
+            return InputError(f"{path}: a frame of a sequence, not a sequence directory: the sequence is its folder"
+                              + (f" ({again})" if again else f" ({folder})"))
+        kind = file_kind(path)  # a JSON file, an image, a video, ...
+        what = f"{kind}, not a sequence directory" if kind else "not a directory"
+        return InputError(f"{path}: {what} (a sequence is a directory of frames), nor an output rotavat recognises "
+                          f"of the HPS tools it reads ({', '.join(FORMATS)}: rotavat import --help)")
+    convert = shlex.join(["rotavat", "import", "--from", fmt, str(path), str(imported_output(path, ""))])
+    read = _command_line(path, None, fmt)
+    return InputError(f"{path}: a file, not a sequence directory (a directory of frames): it is {TOOL_NAMES[fmt]} "
+                      "output; " + (f"read it as it is: {read}, or " if read else "")
+                      + f"convert it once into a sequence: {convert}")
+
+
+# Commands whose --from reads only their first sequence argument (the other rows are sequence directories), and
+# those whose --from reads a folder of a tool's outputs, never one (batch: ROOT is a folder).
+_FROM_READS_FIRST = ("render", "view")
+_FROM_READS_FOLDERS = ("batch",)
+
+
+def _command_line(path: Path, replacement: Path | None, fmt: str | None = None) -> str | None:
+    """The running command's line as the user gave it, with ``path`` replaced by ``replacement`` or, with
+    ``fmt``, read with ``--from fmt`` (``--gt-from`` for eval's --gt); None outside a run, or when no such
+    flag of the command reads ``path`` alone."""
+    ctx = current_context()
+    argv = None if ctx is None else ctx.meta.get(ARGV_KEY)
+    if not argv:
+        return None
+    if replacement is not None:
+        return shlex.join(["rotavat", *(str(replacement) if Path(a) == path else a for a in argv)])
+    opts = {opt for param in ctx.command.params for opt in getattr(param, "opts", ())}
+    flag = None
+    for name, value in ctx.params.items():
+        values = list(value) if isinstance(value, (list, tuple)) else [value]
+        if not any(isinstance(v, Path) and v == path for v in values):
+            continue
+        if name == "gt":
+            flag = "--gt-from" if "--gt-from" in opts and ctx.params.get("gt_from") is None else None
+        elif "--from" in opts and ctx.params.get("from_") is None and (
+                len(values) == 1 or (ctx.info_name in _FROM_READS_FIRST and values[0] == path)):
+            flag = "--from"
+        break
+    if flag is None or ctx.info_name in _FROM_READS_FOLDERS:
+        return None
+    line = ["rotavat", *argv, flag, fmt]
+    if ctx.info_name == "calibrate" and ctx.params.get("out") is None:  # with --from, calibrate writes where told
+        line += ["--out", str(imported_output(path, "_camera.yaml"))]
+    return shlex.join(line)
 
 
 def default_output(src: Path, suffix: str, fmt: str | None) -> Path:
@@ -296,8 +406,11 @@ def progress_bar(description: str, total: int | None, enabled: bool) -> Iterator
 
 
 def print_json(data: Any) -> None:
-    """Write ``data`` as JSON to stdout."""
+    """Write ``data`` as JSON to stdout (the command's result: an error after it adds no JSON object of its own)."""
     typer.echo(json.dumps(to_plain(data), indent=2))
+    ctx = current_context()
+    if ctx is not None:
+        ctx.meta[JSON_PRINTED_KEY] = True
 
 
 def info(message: str, quiet: bool) -> None:

@@ -18,7 +18,7 @@ from ..errors import BatchFailedError, InputError
 from ..outputs import beside
 from ..parallel import cpu_count
 from ._common import (ConfigOpt, FocalMmOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, check_focal_flags,
-                      console, focal_flag_wins, print_json, progress_enabled, report, use_config)
+                      check_sequence_path, console, focal_flag_wins, print_json, progress_enabled, report, use_config)
 
 
 def batch(
@@ -50,6 +50,8 @@ def batch(
     failing sequence is reported with its reason and the others go on. Exit status: 0 all ok, 1 a
     sequence failed, 2 bad input or usage.
     """
+    if root.is_file():  # a tool's file or a sequence's frame as ROOT: what it is and the command that reads it
+        check_sequence_path(root)
     known = {"focal_px": focal, "focal_mm": focal_mm, "camera_height_m": camera_height, "pitch_deg": pitch}  # what the user knows of the cameras
     if camera is not None and any(v is not None for v in known.values()):
         raise InputError("--camera replaces the calibration: give it, or --focal/--focal-mm/--camera-height/--pitch, not both")

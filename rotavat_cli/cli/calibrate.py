@@ -23,7 +23,7 @@ from ..sequence import Sequence, write_camera_yaml
 from ..yaml_io import read_yaml
 from ..words import count
 from ._common import (ConfigOpt, FocalMmOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt,
-                      check_focal_flags, config_for, focal_flag_wins, info, input_sequence, print_json, report, warn)
+                      check_focal_flags, check_sequence_path, config_for, focal_flag_wins, info, input_sequence, print_json, report, warn)
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, focal_source: str | None = None,
@@ -89,6 +89,8 @@ def calibrate(
     if from_ and out is None:
         raise InputError("with --from, pass --out FILE for the camera.yaml (the input is not a contract sequence)")
     check_focal_flags(focal, focal_mm)
+    if from_ is None:
+        check_sequence_path(seq)  # a tool's file given as SEQ: what it is and how to read it, before SEQ/camera.yaml
     target = out or seq / "camera.yaml"
     check_output_file(target, [seq], force, inside_input_ok=("camera.yaml",) if from_ is None else ())
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False, quiet=quiet or as_json) as sequence:

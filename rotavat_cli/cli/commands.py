@@ -51,7 +51,8 @@ COMMANDS: tuple[CommandEntry, ...] = (
                  "(--frame), or each person's motion as BVH or AMASS (--format)."),
     CommandEntry("import", "import_", "import_", "",
                  "Convert HPS results (CLIFF, BEV/ROMP, 4D-Humans, Multi-HMR, SPEC, AGORA, BEDLAM, WHAM, GVHMR, TRAM, "
-                 "HybrIK, PyMAF-X, TRACE, SLAHMR, GLAMR) into the contract (OpenCV camera frame, metres)."),
+                 "HybrIK, PyMAF-X, TRACE, SLAHMR, GLAMR, CoMotion, PromptHMR) into the contract (OpenCV camera "
+                 "frame, metres)."),
     CommandEntry("batch", "batch", "batch", "batch",
                  "Run calibrate/align/eval/render on every sequence under ROOT; outputs mirror ROOT's tree, plus "
                  "batch_report.json/.md."),

@@ -7,21 +7,21 @@ write metrics.json and metrics.md of the same shape, print one table, and share 
 
 from __future__ import annotations
 
-import math
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import GateError, InputError
 from ..metrics.evaluate import PER_PERSON_SIGNATURE, EvalOptions, evaluate, parse_joints, write_per_person_csv
 from ..metrics.ground_free_eval import GROUND_FREE, OWN, measure_sequence, scene_cameras
 from ..metrics.tool_world import tool_world_line, tool_world_reports
-from ..metrics.report import (check_gate_metrics, check_gate_rows, check_gates, format_value, ground_free_rows,
-                              metric_label, metric_value, parse_gate, report_paths, report_rows, write_ground_free_reports,
-                              write_reports)
+from ..metrics.report import (change_text, check_gate_metrics, check_gate_rows, check_gates, column_labels,
+                              format_value, ground_free_sections, metric_label, metric_value, parse_gate, report_paths,
+                              report_sections, write_ground_free_reports, write_reports)
 from ..outputs import check_output_file
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
                       default_output, info, input_sequence, print_json, progress_bar, progress_enabled, report)
@@ -159,31 +159,36 @@ def _notes_once(results) -> dict[str, list[str]]:
 
 
 def _table(results) -> Table:
-    """Rich table: one row per metric, one column per prediction, plus the change of the last vs the first."""
+    """Rich table: one row per metric, headline first and the rest by theme (a section each, as metrics.md's
+    tables), one column per prediction, plus the change of each later one against the first."""
     protocols = ", ".join(sorted({r.protocol for r in results}))
     truth = results[0].protocol != GROUND_FREE
     title = (f"rotavat eval, protocol {protocols} (each metric: protocol, unit; camera: ° and %)" if truth else
              "rotavat eval without ground truth: each sequence in its scene camera's world (docs/metrics.md)")
     table = Table(title=title)
     table.add_column("metric")
-    for r in results:
-        table.add_column(Path(r.pred).name or r.pred, justify="right")
-    pad = [""] if len(results) > 1 else []
-    if len(results) > 1:
-        table.add_column("change", justify="right")
+    heads = column_labels(results)
+    for head in heads:
+        table.add_column(escape(head), justify="right")
+    changes = ["change"] if len(results) == 2 else [f"change {escape(h)}" for h in heads[1:]]
+    for change in changes:
+        table.add_column(change, justify="right")
+    pad = [""] * len(changes)
     if truth:
-        table.add_row("matched / gt", *(f"{r.matched}/{r.people_gt}" for r in results), *pad)
+        lead = [("matched / gt", [f"{r.matched}/{r.people_gt}" for r in results])]
     else:
-        table.add_row("people-frames / tracks", *(f"{r.people_pred}/{r.tracks}" for r in results), *pad)
-        table.add_row("scene camera", *(r.scene_camera.get("from", "") for r in results), *pad)
-    for metric in report_rows(results) if truth else ground_free_rows(results):
-        values = [metric_value(r, metric) for r in results]
-        change = []
-        if len(results) > 1:
-            first, last = values[0], values[-1]
-            change = [f"{100.0 * (last - first) / abs(first):+.0f}%" if math.isfinite(first) and math.isfinite(last) and first else ""]
-        label = metric_label(next((r for r in results if metric in r.metrics), results[0]), metric)
-        table.add_row(label, *(format_value(metric, v) for v in values), *change)
+        lead = [("people-frames / tracks", [f"{r.people_pred}/{r.tracks}" for r in results]),
+                ("scene camera", [r.scene_camera.get("from", "") for r in results])]
+    sections = report_sections(results) if truth else ground_free_sections(results)
+    for number, (name, metrics) in enumerate(sections):
+        table.add_row(f"[bold]{name}[/]", *[""] * len(heads), *pad)
+        for label, cells in lead if number == 0 else ():
+            table.add_row(label, *cells, *pad)
+        for i, metric in enumerate(metrics):
+            values = [metric_value(r, metric) for r in results]
+            label = metric_label(next((r for r in results if metric in r.metrics), results[0]), metric)
+            table.add_row(escape(label), *(format_value(metric, v) for v in values),
+                          *(change_text(values[0], v, 0) for v in values[1:]), end_section=i == len(metrics) - 1)
     if not truth and any(r.flags is not None for r in results):
         table.add_row("people.csv flags", *(", ".join(f"{k} {n}" for k, n in sorted(r.flags.items())) or "none"
                                             if r.flags is not None else "–" for r in results), *pad)

@@ -43,12 +43,7 @@ def export(
     from ..exchange.options import FORMATS, ExportOptions
     from ..render.style import RenderStyle
 
-    flags = {"fps": fps, "euler": euler}
-    for key, value in flags.items():  # a flag's bad value under the flag's name
-        problem = ExportOptions.RULES[key].problem(value)
-        if problem is not None:
-            raise InputError(f"--{key} {problem}")
-    merged = use_config(config, {"export": flags, "render": {}})
+    merged = use_config(config, {"export": {"fps": fps, "euler": euler}, "render": {}})  # checks flags and file
     with input_errors(config):  # a --config file's bad value
         options, palette = ExportOptions.from_config(merged["export"]), RenderStyle.from_config(merged["render"]).palette
     fmt = _format(format_, out, frame, FORMATS)
@@ -61,6 +56,12 @@ def export(
     else:
         check_output_dir(target, inputs, force)
     with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
+        if camera is None and sequence.camera is None:  # the remedy repeats --from's flags, so it runs as written
+            from ..alignment.camera_gate import reader_flags
+            from ..render.rows import no_camera
+
+            raise no_camera(sequence, "exported world", reader_flags(from_, image_size, smpl_model), (str(seq),),
+                            command="export")
         summary = _run(sequence, target, fmt, frame, camera, smpl_model, options, palette, quiet or as_json)
     for warning in summary.get("warnings", []):
         warn(warning)

@@ -1,4 +1,5 @@
-"""The ``rotavat`` group: builds a command only when it is used, and answers every failure in one line.
+"""The ``rotavat`` group: builds a command only when it is used, and answers every failure in one line
+(and, for a command given ``--json``, in one JSON object on stdout).
 
 Start-up is the price of every call, ``rotavat --help`` included, so the group imports nothing of the
 API: it lists the commands from :data:`rotavat_cli.cli.commands.COMMANDS` and imports a command's
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import json
 import sys
 import warnings
 from typing import Any
@@ -18,6 +20,7 @@ import typer
 from typer.core import TyperCommand, TyperGroup
 
 from ..errors import RotavatError
+from ._run import ARGV_KEY, COMMAND_KEY, JSON_KEY, JSON_PRINTED_KEY
 from .commands import COMMANDS, CommandEntry, command_entry
 
 __all__ = ["RotavatGroup", "error_line"]
@@ -36,6 +39,10 @@ class RotavatGroup(TyperGroup):
     environment's refusals that no check can rule out beforehand (a file system error, memory
     exhausted, a structure nested too deep) are input problems too: one line, exit 2. Usage errors
     (a missing option, a bad value) are one line naming the command, not click's help box.
+
+    With ``--json``, every one of these failures is also one JSON object on stdout (:func:`_json_error`),
+    unless the command already printed its JSON result there (``eval --fail-if``, ``batch``: the result
+    carries the failure), so stdout always parses as one JSON document.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -63,25 +70,29 @@ class RotavatGroup(TyperGroup):
         finally:
             self._listing = False
 
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        ctx.meta[ARGV_KEY] = list(args)
+        return super().parse_args(ctx, args)
+
     def invoke(self, ctx: Any) -> Any:
         try:
             with warnings.catch_warnings():  # numpy's overflow/invalid-value notes on hostile data: the
                 warnings.simplefilter("ignore", RuntimeWarning)  # checks after them say what is wrong, once
                 return super().invoke(ctx)
         except RotavatError as exc:
-            error_line(str(exc))
-            raise typer.Exit(exc.exit_code) from None
+            message, code, kind = str(exc), exc.exit_code, type(exc).__name__
         except OSError as exc:
             where = f"{exc.filename}: " if exc.filename else ""
-            error_line(f"{where}{exc.strerror or exc}")
-            raise typer.Exit(2) from None
+            message, code, kind = f"{where}{exc.strerror or exc}", 2, "OSError"
         except MemoryError:
-            error_line("out of memory: the input is larger than this machine can hold (see the limits section of "
-                       "configs/default.yaml)")
-            raise typer.Exit(2) from None
+            message, code, kind = ("out of memory: the input is larger than this machine can hold (see the limits "
+                                   "section of configs/default.yaml)", 2, "MemoryError")
         except RecursionError:
-            error_line("the input is nested too deeply to read")
-            raise typer.Exit(2) from None
+            message, code, kind = "the input is nested too deeply to read", 2, "RecursionError"
+        error_line(message)
+        if ctx.meta.get(JSON_KEY) and not ctx.meta.get(JSON_PRINTED_KEY):
+            _json_error(message, code, ctx.meta.get(COMMAND_KEY, "rotavat"), kind)
+        raise typer.Exit(code) from None
 
     def main(self, args: Any = None, prog_name: str | None = None, complete_var: str | None = None,
              standalone_mode: bool = True, **extra: Any) -> Any:
@@ -94,14 +105,45 @@ class RotavatGroup(TyperGroup):
             sys.exit(0)
         except _USAGE_ERROR as exc:
             name = exc.ctx.command_path if exc.ctx is not None else "rotavat"
-            error_line(f"{name}: {exc.format_message()} (see {name} --help)")
+            message = f"{name}: {exc.format_message()} (see {name} --help)"
+            error_line(message)
+            if _asked_for_json(exc.ctx, sys.argv[1:] if args is None else args):
+                _json_error(message, 2, name, "UsageError")
             sys.exit(2)
         except _CLICK_EXCEPTION as exc:
             error_line(exc.format_message())
+            if _asked_for_json(getattr(exc, "ctx", None), sys.argv[1:] if args is None else args):
+                _json_error(exc.format_message(), exc.exit_code, "rotavat", type(exc).__name__)
             sys.exit(exc.exit_code)
         except typer.Abort:
             sys.exit(1)
         sys.exit(code if isinstance(code, int) else 0)
+
+
+class _Command(TyperCommand):
+    """A rotavat command: notes in its context whether it was given --json (the group's error handler reads it)."""
+
+    def invoke(self, ctx: Any) -> Any:
+        ctx.meta[JSON_KEY] = bool(ctx.params.get("as_json"))
+        ctx.meta[COMMAND_KEY] = ctx.command_path
+        return super().invoke(ctx)
+
+
+def _asked_for_json(ctx: Any, args: Any) -> bool:
+    """True when a usage error hit a command that has --json and the command line gave it (before any ``--``)."""
+    command = getattr(ctx, "command", None)
+    if command is None or not any("--json" in getattr(p, "opts", ()) for p in command.params):
+        return False
+    args = [str(a) for a in (args or ())]
+    return "--json" in (args[:args.index("--")] if "--" in args else args)
+
+
+def _json_error(message: str, code: int, command: str, kind: str) -> None:
+    """The failure as one JSON object on stdout, for a run given --json: ``error`` (the one-line message, as on
+    stderr), ``exit`` (the status), ``command`` (``rotavat info``) and ``kind`` (what failed: ``InputError``,
+    ``DegenerateSceneError``, ``GateError``, ``UsageError``, ``OSError``, ...)."""
+    text = " ".join(str(message).split())
+    typer.echo(json.dumps({"error": text, "exit": code, "command": command, "kind": kind}, indent=2))
 
 
 def _build(entry: CommandEntry, ctx: Any) -> Any:
@@ -111,7 +153,7 @@ def _build(entry: CommandEntry, ctx: Any) -> Any:
     details = inspect.cleandoc(function.__doc__) if function.__doc__ else ""  # more than the summary
     app = typer.Typer(add_completion=False, rich_markup_mode="rich")
     app.command(entry.name, help=entry.summary + (f"\n\n{details}" if details else ""),
-                short_help=entry.summary)(function)
+                short_help=entry.summary, cls=_Command)(function)
     command = typer.main.get_command(app)
     from ._common import polish_command_help  # the CLI's shared plumbing: loaded with the first command built
 

@@ -9,21 +9,28 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from ..sequence import open_sequence, summarize_sequence
+from ..sequence import summarize_sequence
 from ..words import count
-from ._common import ConfigOpt, JsonOpt, QuietOpt, print_json, report, use_config, warn, warn_ignored
+from ._common import (ConfigOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, input_sequence, print_json,
+                      report, use_config, warn)
 
 
 def info(
-    seq: Annotated[Path, typer.Argument(help="Sequence directory (npz frames or folders of per-person OBJ).")],
+    seq: Annotated[Path, typer.Argument(help="Sequence directory (npz frames or folders of per-person OBJ); with --from the HPS tool's output.")],
+    from_: FromOpt = None,
+    image_size: ImageSizeOpt = None,
+    smpl_model: SmplModelOpt = None,
     config: ConfigOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     use_config(config)  # its limits
-    sequence = open_sequence(seq)
-    warn_ignored(sequence)
-    summary = summarize_sequence(sequence)
+    with input_sequence(seq, from_, image_size, smpl_model, quiet=quiet or as_json) as sequence:
+        summary = summarize_sequence(sequence)
+        videos = sequence.several_videos()  # one tool's file of several videos: how to import each
+        block = sequence.meta.get("import") if isinstance(sequence.meta.get("import"), dict) else {}
+        empty_why = block.get("empty_frames_why")  # what the importer knew of the empty frames
+    summary = {**summary, "empty_frames_why": empty_why}
     if as_json:
         print_json(summary)
         return
@@ -31,7 +38,8 @@ def info(
     ppf = summary["people_per_frame"]
     rows = [
         ("form", summary["form"]),
-        ("frames", f"{summary['frames']} ({summary['empty_frames']} empty)"),
+        ("frames", f"{summary['frames']} ({summary['empty_frames']} empty"
+                   + (f": {empty_why})" if summary["empty_frames"] and empty_why else ")")),
         ("people", f"{summary['people_total']} total; per frame min {ppf['min']}, median {ppf['median']:g}, max {ppf['max']}"),
         ("tracks", str(summary["tracks"]) if summary["tracks"] is not None else "no person_ids"),
         ("keys", ", ".join(summary["keys"])),
@@ -41,20 +49,55 @@ def info(
         ("principal point", _principal_point_cell(summary)),
         ("source", summary["source"] or "-"),
     ]
-    cam = summary["camera"]
-    rows.append(("camera.yaml", "none" if cam is None else
-                 f"f {cam['focal_px']:.1f} px, pitch {cam['pitch_deg']:.2f}°, roll {cam['roll_deg']:.2f}°, height {cam['height_m']:.2f} m"))
+    rows.append(("camera.yaml", _camera_cell(summary["camera"])))
     for key, value in rows:
         table.add_row(key, value)
     report(table, False)  # the command's result: --quiet silences its warnings only
-    for warning in sequence_warnings(summary):
+    for warning in sequence_warnings(summary, videos):
         warn(warning)
 
 
-def sequence_warnings(summary: dict) -> list[str]:
-    """What in a summarised sequence stops calibrate or align from giving a right answer, and why."""
+_CAMERA_CELLS = (("focal_px", "f", "{:.1f}", " px"), ("pitch_deg", "pitch", "{:.2f}", "°"), ("roll_deg", "roll", "{:.2f}", "°"),
+                 ("height_m", "height", "{:.2f}", " m"))
+
+
+def _camera_cell(cam: dict | None) -> str:
+    """camera.yaml's parameters, each with its std (or why it has none: given, ...) from the fit block, and a
+    mark when its calibration found it implausible (``fit.implausible``: align, render and batch refuse it)."""
+    if cam is None:
+        return "none"
+    fit = cam.get("fit") if isinstance(cam.get("fit"), dict) else {}
+    std = fit.get("std") if isinstance(fit.get("std"), dict) else {}
+    fixed = fit.get("fixed") if isinstance(fit.get("fixed"), dict) else {}
+    parts = []
+    for key, name, form, unit in _CAMERA_CELLS:
+        sd, value = std.get(key), form.format(cam[key])
+        if key in fixed:
+            parts.append(f"{name} {value}{unit} ({fixed[key]})")
+        elif isinstance(sd, (int, float)) and math.isfinite(sd):
+            parts.append(f"{name} {value} ± {form.format(sd)}{unit}")
+        elif isinstance(sd, (int, float)) and math.isinf(sd):
+            parts.append(f"{name} {value}{unit} (undetermined)")
+        else:
+            parts.append(f"{name} {value}{unit}")
+    implausible = fit.get("implausible") or []
+    mark = f"; [red]implausible[/] ({len(implausible)} findings: fit.implausible)" if implausible else ""
+    return ", ".join(parts) + mark
+
+
+def sequence_warnings(summary: dict, videos: str | None = None) -> list[str]:
+    """What in a summarised sequence stops calibrate or align from giving a right answer, and why (``videos``:
+    :meth:`rotavat_cli.sequence.Sequence.several_videos`, for a tool's file of several videos)."""
     warnings = []
-    if len(summary["image_sizes"]) > 1:
+    cam = summary["camera"]
+    implausible = ((cam or {}).get("fit") or {}).get("implausible") or []
+    if implausible:
+        warnings.append(f"{summary['path']}: its camera.yaml was found implausible by its calibration: "
+                        f"{'; '.join(map(str, implausible))} (fit.implausible): align, render and batch refuse it "
+                        "without --accept-camera")
+    if videos is not None:
+        warnings.append(f"{summary['path']}: {videos}")
+    elif len(summary["image_sizes"]) > 1:
         sizes = ", ".join("x".join(map(str, size)) for size in summary["image_sizes"])
         warnings.append(f"{summary['path']}: frames of {len(summary['image_sizes'])} image sizes ({sizes}) are not one "
                         "static camera's: calibrate and align refuse them; split them into one sequence per camera")

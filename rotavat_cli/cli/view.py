@@ -33,6 +33,8 @@ def view(
     image: Annotated[Path | None, typer.Option(help="Folder of video frames (matched by frame name), shown under the camera.", file_okay=False, exists=True)] = None,
     frames: Annotated[str | None, typer.Option(help="Frame indices, comma-separated (e.g. 0,10,-1); default every frame.")] = None,
     every: Annotated[int | None, typer.Option(help="Record every N-th frame instead.")] = None,
+    frame_all: Annotated[bool, typer.Option("--frame-all", help="Start the 3D view framed on every row; default on the aligned rows, the truth and the camera (a raw prediction far off stays drawn, outside).")] = False,
+    full_detail: Annotated[bool, typer.Option("--full-detail", help="Store every mesh vertex and the video frames as their files (view.mesh_vertices 0, view.image_max_px 0): about 6x the bytes of SMPL meshes.")] = False,
     spawn: Annotated[bool, typer.Option("--spawn", help="Open the recording in the Rerun viewer once written (needs a display).")] = False,
     accept_camera: Annotated[bool, typer.Option("--accept-camera", help="Use the scene camera even if its calibration found it implausible; a warning names the findings.")] = False,
     force: ForceOpt = False,
@@ -43,7 +45,8 @@ def view(
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    section = config_for(config, "view", frames=frames, every=every)
+    section = config_for(config, "view", frames=frames, every=every, frame_all=frame_all or None,
+                         mesh_vertices=0 if full_detail else None, image_max_px=0 if full_detail else None)
     with input_errors():
         options = ViewOptions.from_config(section, config_for(config, "render"), camera, image)
     options = dataclasses.replace(options, accept_camera=accept_camera,

@@ -29,7 +29,7 @@ Modules, from the converting down:
   :func:`other_format` (the tools' sniffers asked);
 - the per-tool readers: :mod:`.cliff`, :mod:`.bev` (and ROMP), :mod:`.fourdhumans`, :mod:`.multihmr`, :mod:`.spec`,
   :mod:`.agora`, :mod:`.bedlam`, :mod:`.wham`, :mod:`.gvhmr`, :mod:`.tram`, :mod:`.hybrik`, :mod:`.pymafx`,
-  :mod:`.slahmr`, :mod:`.glamr`, :mod:`.trace`;
+  :mod:`.slahmr`, :mod:`.glamr`, :mod:`.trace`, :mod:`.comotion`, :mod:`.prompthmr`;
 - what the readers share: :mod:`.imported` (:class:`ImportOptions`, :class:`ImportedSequence`, its frame notes
   and conclusion, the warning for people not placed in the camera), :mod:`.frames` (``people_frame``: the
   contract frame of one image), :mod:`.meta` (``meta.yaml`` content), :mod:`.frame_names` (frame names from

@@ -25,7 +25,7 @@ __all__ = ["import_sequence", "imported_sequence"]
 def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: tuple[int, int] | None = None,
                     smpl_model: str | Path | BodyModel | None = None, fov_deg: float | None = None,
                     video: str | None = None, progress: Callable[[], None] | None = None,
-                    overwrite: bool = False) -> dict:
+                    overwrite: bool = False, model_kind: str | None = None) -> dict:
     """Convert ``src`` (format ``fmt``) into a contract sequence directory ``out``.
 
     Frames are written to a staging directory beside ``out`` and swapped in whole only when every
@@ -38,13 +38,15 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
     when the meshes do not fit the people's own 2D evidence or the image (a wrong or mismatched
     ``--smpl-model``, a wrong ``--image-size``).
 
-    Returns a summary: out, format, frames, people, empty_frames, image_size, focal_px,
+    Returns a summary: out, format, frames, people, empty_frames, empty_why (why they are empty, when the reader
+    says: ``import.empty_frames_why``), image_size, focal_px,
     has_vertices, joints_layout, camera_yaml, warnings, model_fit (the check's numbers).
     """
     src, out = Path(src), Path(out)
     check_output_dir(out, [src], overwrite)
     with reading_errors(src, fmt):
-        imported = read_format(src, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov_deg, video=video)
+        imported = read_format(src, fmt, image_size=image_size, smpl_model=smpl_model, fov_deg=fov_deg, video=video,
+                               model_kind=model_kind)
     with staged_directory(out, "import") as staging:
         frames = people = empty = 0
         has_vertices = False
@@ -75,6 +77,7 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
         "frames": frames,
         "people": people,
         "empty_frames": empty,
+        "empty_why": info.get("empty_frames_why"),  # what the reader knows of them (4D-Humans: no detection)
         "image_size": meta.get("image_size"),
         "focal_px": meta.get("focal_length"),
         "has_vertices": has_vertices,

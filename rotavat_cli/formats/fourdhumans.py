@@ -20,6 +20,9 @@ PHALP: ``HMR2_4dhuman``).
 - 2D: ``2d_joints * S - (left, top)`` are original-image pixels.
 - Meshes: parameters only; vertices need ``--smpl-model`` (SMPL). Without it, joints are the
   file's 44 joints (OpenPose-25 + 19 extra, pelvis = index 8).
+- Empty frames say why (meta.yaml ``import.empty_frames_why``, the import's summary line): PHALP
+  detected no one there, or only carried tracks on (``tracked_time`` > 0 for each: their last state
+  repeated, not a detection, so not imported).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from .content import as_array, get
 from .frame_names import frame_names
 from .frames import people_frame
 from .image_size import padded_square
-from .imported import FrameNotes, ImportedSequence, ImportOptions
+from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces, no_model_warning
 from .smpl import lbs, smpl_param_arrays
@@ -133,6 +136,8 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         key = order[index]
         source = f"{src} [{key}]"
         p = people(data[key], source)
+        if not len(p["person_ids"]):  # why nobody: only tracks carried on without a detection, or no track at all
+            notes.facts["empty"] = "carried" if len(data[key].get("tid") or ()) else "none"
         verts = p["vertices"]
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=p["joints"],
                             keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
@@ -151,7 +156,24 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         "conventions": f"camera frame = OpenCV, metres; vertices = SMPL(smpl) + camera; focal = 5000 * S / 256 "
                        f"(S = {side}); only detections with tracked_time == 0",
     })
-    return ImportedSequence(tuple(names), build, meta, warnings)
+    def conclude(notes: list[FrameNotes]) -> Conclusion:
+        why = _empty_frames_why([(name, n.facts.get("empty")) for name, n in zip(names, notes)])
+        return Conclusion({"empty_frames_why": why} if why else {})
+
+    return ImportedSequence(tuple(names), build, meta, warnings, conclude=conclude)
+
+
+def _empty_frames_why(reasons: list[tuple[str, str | None]]) -> str | None:
+    """Why frames are empty, from each frame's (name, reason: 'carried', 'none' or None for a frame with people):
+    '2 with only tracks PHALP carried on, no detection (tracked_time > 0: not imported; first 000003)'."""
+    parts = []
+    for reason, words in (("carried", "with only tracks PHALP carried on, no detection (tracked_time > 0: their "
+                                      "last state repeated, not imported"),
+                          ("none", "where PHALP found no one (no track")):
+        found = [name for name, why in reasons if why == reason]
+        if found:
+            parts.append(f"{len(found)} {words}; first {found[0]})")
+    return "; ".join(parts) or None
 
 
 READERS = {"4dhumans": read_fourdhumans}

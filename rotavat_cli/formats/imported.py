@@ -21,13 +21,15 @@ __all__ = ["Conclusion", "FrameNotes", "ImportOptions", "ImportedSequence", "con
 # ---- what a reader takes and returns -------------------------------------------------------
 @dataclass(frozen=True)
 class ImportOptions:
-    """What the user told us: image size (W, H) px, a posable body model, a field of view (deg), and
-    which video to read of a file that holds several (HybrIK's ``res.pk``)."""
+    """What the user told us: image size (W, H) px, a posable body model, a field of view (deg),
+    which video to read of a file that holds several (HybrIK's ``res.pk``), and which body model's
+    predictions to read of a folder that mixes them (AGORA's: ``smpl`` or ``smplx``)."""
 
     image_size: tuple[int, int] | None = None
     body_model: BodyModel | None = None
     fov_deg: float | None = None
     video: str | None = None
+    model_kind: str | None = None
 
 
 @dataclass

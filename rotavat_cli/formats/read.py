@@ -20,9 +20,10 @@ __all__ = ["read_format", "reading_errors"]
 
 def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None = None,
                 smpl_model: str | Path | BodyModel | None = None, fov_deg: float | None = None,
-                video: str | None = None) -> ImportedSequence:
+                video: str | None = None, model_kind: str | None = None) -> ImportedSequence:
     """Open ``src`` with the reader of ``fmt`` (frames are read lazily); ``video``: only that video of a
-    file holding several (HybrIK's ``res.pk``: the image names' prefix)."""
+    file holding several (HybrIK's ``res.pk``: the image names' prefix); ``model_kind``: only the predictions
+    of that body model (``smpl``, ``smplx``) of a folder that mixes them (AGORA's)."""
     src = Path(src)
     if fmt not in READERS:
         raise InputError(f"unknown format '{fmt}' (known: {', '.join(available_formats())})")
@@ -34,6 +35,11 @@ def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None
     if video is not None and fmt not in _VIDEO_FORMATS:
         raise InputError(f"--video selects one video of a file that holds several ({', '.join(_VIDEO_FORMATS)}); "
                          f"{tool_name(fmt)} output holds one")
+    if model_kind is not None and fmt not in _MODEL_KIND_FORMATS:
+        raise InputError(f"--model-kind selects one body model's predictions of a folder that mixes them "
+                         f"({', '.join(_MODEL_KIND_FORMATS)}); {tool_name(fmt)} output holds one")
+    if model_kind is not None and model_kind not in MODEL_KINDS:
+        raise InputError(f"--model-kind must be one of {', '.join(MODEL_KINDS)}, got {model_kind!r}")
     if image_size is not None:
         if len(image_size) != 2 or any(int(v) != v or v <= 0 for v in image_size):
             raise InputError(f"--image-size must be two positive integers W H, got {image_size!r}")
@@ -41,7 +47,7 @@ def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None
     if fov_deg is not None and not 0 < fov_deg < 180:
         raise InputError(f"--fov must be in (0, 180) degrees, got {fov_deg}")
     model = smpl_model if isinstance(smpl_model, BodyModel) or smpl_model is None else load_body_model(smpl_model)
-    imported = READERS[fmt](src, ImportOptions(image_size, model, fov_deg, video))
+    imported = READERS[fmt](src, ImportOptions(image_size, model, fov_deg, video, model_kind))
     if fov_deg is not None and fmt not in _FOV_FORMATS:
         imported.warnings.append(f"--fov is ignored for {fmt} (its focal length is fixed by the method)")
     return imported
@@ -49,6 +55,8 @@ def read_format(src: str | Path, fmt: str, *, image_size: tuple[int, int] | None
 
 _FOV_FORMATS = ("multihmr",)  # formats whose field of view is a user setting of the method
 _VIDEO_FORMATS = ("hybrik",)  # formats whose one file can hold several videos (--video picks one)
+_MODEL_KIND_FORMATS = ("agora",)  # formats whose folder can mix body models' predictions (--model-kind picks one)
+MODEL_KINDS = ("smpl", "smplx")  # what --model-kind takes
 # What malformed content raises in numpy and the readers (a unicode array holding invalid code points
 # raises SystemError when read as text).
 _READ_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError, MemoryError, SystemError,

@@ -14,13 +14,15 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from . import agora, bedlam, bev, cliff, fourdhumans, glamr, gvhmr, hybrik, multihmr, pymafx, slahmr, spec, tram, trace, wham
+from . import (agora, bedlam, bev, cliff, comotion, fourdhumans, glamr, gvhmr, hybrik, multihmr, prompthmr, pymafx,
+               slahmr, spec, tram, trace, wham)
 from .imported import ImportedSequence, ImportOptions
 from .tools import FORMATS
 
 __all__ = ["READERS", "available_formats", "detect_format", "other_format"]
 
-_MODULES = (cliff, bev, fourdhumans, multihmr, spec, agora, bedlam, wham, gvhmr, tram, hybrik, pymafx, slahmr, glamr, trace)
+_MODULES = (cliff, bev, fourdhumans, multihmr, spec, agora, bedlam, wham, gvhmr, tram, hybrik, pymafx, slahmr, glamr, trace,
+            comotion, prompthmr)
 READERS: dict[str, Callable[[Path, ImportOptions], ImportedSequence]] = {}
 for _module in _MODULES:
     READERS.update(_module.READERS)

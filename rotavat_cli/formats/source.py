@@ -8,7 +8,7 @@ memory stays that of the loaded source however many frames are read. Frames come
 meta.yaml content), so a command gives the same results either way.
 
 In a worker process the source is its :class:`ImportRecipe` (source path, format, image size,
-body-model file, field of view, video): unpickling looks the recipe up in a per-process cache and reads
+body-model file, field of view, video, body-model kind): unpickling looks the recipe up in a per-process cache and reads
 the source once per process on a miss (a forked worker inherits its parent's entry). What building
 frames finds (warnings, facts such as SPEC's ground heights) travels back with
 :meth:`ImporterSource.frame_notes` / :meth:`ImporterSource.add_frame_notes`, so the warnings reach
@@ -51,18 +51,19 @@ class ImportRecipe:
     smpl_model: str | None = None
     fov_deg: float | None = None
     video: str | None = None
+    model_kind: str | None = None
 
     @classmethod
     def of(cls, src: str | Path, fmt: str, image_size: tuple[int, int] | None = None,
            smpl_model: str | Path | BodyModel | None = None, fov_deg: float | None = None,
-           video: str | None = None) -> "ImportRecipe":
+           video: str | None = None, model_kind: str | None = None) -> "ImportRecipe":
         """The recipe of these import options (as ``read_format`` takes them)."""
         if isinstance(smpl_model, BodyModel):
             model = f"object:{smpl_model.name}:{id(smpl_model)}"
         else:
             model = None if smpl_model is None else str(smpl_model)
         size = None if image_size is None else tuple(image_size)
-        return cls(str(src), fmt, size, model, None if fov_deg is None else float(fov_deg), video)
+        return cls(str(src), fmt, size, model, None if fov_deg is None else float(fov_deg), video, model_kind)
 
     def read(self) -> ImportedSequence:
         """Open the source with its reader (what it loads is kept; frames are built on demand)."""
@@ -71,7 +72,7 @@ class ImportRecipe:
                                        "pass the model file's path instead")
         with read_errors(self):
             return read_format(self.src, self.fmt, image_size=self.image_size, smpl_model=self.smpl_model,
-                               fov_deg=self.fov_deg, video=self.video)
+                               fov_deg=self.fov_deg, video=self.video, model_kind=self.model_kind)
 
 
 def read_errors(recipe: ImportRecipe) -> Any:
@@ -238,7 +239,7 @@ class ImporterSource:
 def open_imported(src: str | Path, fmt: str, *, read_camera: bool = True, **options: Any) -> Sequence:
     """``src`` (format ``fmt``) as a Sequence whose frames are converted when read; nothing is written.
 
-    ``options``: ``image_size``, ``smpl_model``, ``fov_deg``, ``video`` as for ``read_format``. With
+    ``options``: ``image_size``, ``smpl_model``, ``fov_deg``, ``video``, ``model_kind`` as for ``read_format``. With
     ``read_camera`` a camera the format carries (SPEC's) is included: working it out needs every
     frame once (each built and dropped). The reader stays in this process's cache until
     :func:`forget` (``imported_sequence`` does it when its block ends).

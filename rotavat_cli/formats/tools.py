@@ -17,7 +17,8 @@ __all__ = ["FORMATS", "TOOL_NAMES", "tool_name"]
 # --from name -> the tool's own name
 TOOL_NAMES = {"cliff": "CLIFF", "bev": "BEV", "romp": "ROMP", "4dhumans": "4D-Humans", "multihmr": "Multi-HMR",
               "spec": "SPEC", "agora": "AGORA", "bedlam": "BEDLAM", "wham": "WHAM", "gvhmr": "GVHMR", "tram": "TRAM",
-              "hybrik": "HybrIK", "pymafx": "PyMAF-X", "slahmr": "SLAHMR", "glamr": "GLAMR", "trace": "TRACE"}
+              "hybrik": "HybrIK", "pymafx": "PyMAF-X", "slahmr": "SLAHMR", "glamr": "GLAMR", "trace": "TRACE",
+              "comotion": "CoMotion", "prompthmr": "PromptHMR"}
 FORMATS = tuple(sorted(TOOL_NAMES))  # what --from takes, sorted (as messages list them)
 
 

@@ -25,8 +25,9 @@ Modules: :mod:`.points` (the single-metric functions, float64), :mod:`.fused`
 jitter, foot sliding, GVHMR's chunked W-/WA-MPJPE and RTE of tracks), :mod:`.ground_free` (the
 measures without ground truth: feet height, penetration, sliding on contact, lean, stature,
 acceleration) and :mod:`.ground_free_eval` (a sequence measured in its scene camera), :mod:`.person_metrics` (the
-registry of per-person metrics ``evaluate`` scores), :mod:`.protocols` (each benchmark's root, joint
-set, matching, units and rounding: ``evaluate(..., protocol=...)``).
+registry of per-person metrics ``evaluate`` scores), :mod:`.multi_person` (a frame's matched people
+together: group PA-MPJPE, BEV's PCRD), :mod:`.protocols` (each benchmark's root, joint set, matching,
+units and rounding: ``evaluate(..., protocol=...)``).
 """
 
 from ..lazy import public_names
@@ -46,6 +47,10 @@ _PUBLIC = {
         "stature_summary"
     ),
     ".ground_free_eval": ("GroundFreeResult", "SceneCamera", "measure_sequence", "scene_cameras"),
+    ".multi_person": (
+        "DEPTH_EQUAL_M", "depth_order_shares", "group_pa_errors_mm", "group_pairs", "mean_over_groups", "pcrd",
+        "pooled_over_pairs"
+    ),
     ".scene": (
         "camera_errors", "detection_scores", "lean_deg", "normalize_by_f1", "root_err_mm", "stature_err_mm",
         "stature_m"

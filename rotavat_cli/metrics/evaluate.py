@@ -15,7 +15,10 @@ frame by frame. Metric names (all mm unless stated):
 - camera errors (``cam_focal_pct``, ``cam_pitch_deg``, ``cam_roll_deg``, ``cam_height_pct``)
   when both directories have a camera.yaml;
 - temporal metrics of tracks (a ground-truth person id's matched frames in order): ``accel_err``,
-  ``jitter``, ``foot_sliding`` (:mod:`.temporal`).
+  ``jitter``, ``foot_sliding`` (:mod:`.temporal`);
+- a frame's matched people together (:mod:`.multi_person`): ``group_pa_mpjpe`` (one similarity for
+  all of them, averaged over frames) and ``pcrd`` (share of pairs whose depth order is right, a share
+  of 1, higher is better).
 
 Those are the ``paper`` protocol's. ``EvalOptions(protocol=...)`` picks another benchmark's
 definitions, root, joint set, matching and rounding (:mod:`.protocols`): ``spec``, ``agora``,
@@ -227,7 +230,7 @@ def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: 
         pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
     else:
         pv = gv = None
-    return MatchedPairs(pj, gj, pv, gv, pr, gr)
+    return MatchedPairs(pj, gj, pv, gv, pr, gr, frames=np.zeros(len(pi), np.int64))
 
 
 def _pair_metrics(pairs: MatchedPairs, n_pairs: int, pred_cam: Camera | None, gt_cam: Camera | None,

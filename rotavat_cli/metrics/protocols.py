@@ -10,7 +10,8 @@ approximated.
 - ``paper`` (default): the seed paper's definitions, as rotavat always reported them (SMPL joint 0
   as the root, every joint or ``--joints``, unaligned W-metrics), plus temporal metrics of tracks
   in frame units (mm/frame^k; acceleration error and jitter of unaligned camera-frame joints, foot
-  sliding of the SMPL ankle and foot joints), averaged per track, then over tracks.
+  sliding of the SMPL ankle and foot joints), averaged per track, then over tracks, and the
+  multi-person ``group_pa_mpjpe`` (per frame) and ``pcrd`` (per pair of people; :mod:`.multi_person`).
 - ``spec``: mkocabas/SPEC @308fd4a, ``spec/utils/compute_error.py``, ``compute_error`` and
   ``eval_j_24`` (the 24-joint SPEC-SYN/SPEC-MTP protocol): root SMPL joint 0; ``mpjpe`` in the
   camera frame, ``w_mpjpe`` in each side's gravity-aligned frame (needs both camera.yaml),
@@ -47,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..landmarks import SMPL_JOINT_NAMES
-from .person_metrics import PERSON_METRICS
+from .person_metrics import PERSON_METRIC_POOLS, PERSON_METRICS
 from .scene import detection_scores, normalize_by_f1
 from .temporal import WINDOWS, TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte
 
@@ -121,7 +122,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
     Protocol("paper", "the seed paper's definitions (docs/metrics.md)", "pelvis", None, None,
              None, ("accel_err", "jitter", "foot_sliding"),
              {"lean_deg": "deg", "accel_err": "mm/frame^2", "jitter": "mm/frame^3", "foot_sliding": "mm/frame",
-              "nmje": _MM, "nmve": _MM}, default_unit=_MM, detection="rotavat"),
+              "nmje": _MM, "nmve": _MM, "pcrd": ""}, default_unit=_MM, detection="rotavat"),
     Protocol("spec", "mkocabas/SPEC@308fd4a spec/utils/compute_error.py compute_error, eval_j_24", "pelvis", 24, None,
              {"mpjpe": "mpjpe", "pa_mpjpe": "pa_mpjpe", "w_mpjpe": "w_mpjpe_spec"}, (),
              {"mpjpe": _MM, "pa_mpjpe": _MM, "w_mpjpe": _MM},
@@ -227,16 +228,25 @@ def aggregate(proto: Protocol, columns: Mapping[str, list], counts: Mapping[str,
               skipped: Mapping[str, str] | None = None) -> tuple[dict[str, float], list[str]]:
     """The protocol's reported metrics from per-pair columns, match counts and tracks, and notes.
 
-    columns: per-pair values under their report names; counts: matched, missed, false_positives;
-    tracks: the accumulated tracks or None (no track ids); fps: frames per second (GVHMR's units);
-    skipped: metrics this data cannot give (beyond the protocol's own), with why.
+    columns: per-pair values under their report names, and ``frame`` (each pair's frame name: the
+    metrics of a frame's group pool by it, :data:`~.person_metrics.PERSON_METRIC_POOLS`); counts:
+    matched, missed, false_positives; tracks: the accumulated tracks or None (no track ids); fps:
+    frames per second (GVHMR's units); skipped: metrics this data cannot give (beyond the protocol's
+    own), with why.
     """
-    out = {name: _mean(np.asarray(columns[name], dtype=np.float64)) for name in proto.pair_metrics}
+    out, empty = {}, {}
+    for name, source in proto.pair_metrics.items():
+        values = np.asarray(columns[name], dtype=np.float64)
+        pool, no_value = PERSON_METRIC_POOLS.get(source, (None, ""))
+        out[name] = _mean(values) if pool is None else pool(values, np.asarray(columns["frame"]))
+        if pool is not None and len(values) and math.isnan(out[name]):
+            empty.setdefault(no_value, []).append(name)
     skipped = {**proto.skipped, **(skipped or {})}
     reasons: dict[str, list[str]] = {}
     for name, why in skipped.items():
         reasons.setdefault(why, []).append(name)
     notes = [f"{', '.join(names)}: skipped: {why}" for why, names in reasons.items()]
+    notes += [f"{', '.join(names)}: no value: {why}" for why, names in empty.items()]
     out.update(detection(proto, out, counts))
     if proto.track_metrics:
         track_values, track_notes = _track_metrics(proto, tracks, fps, skipped)

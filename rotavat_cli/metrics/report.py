@@ -22,20 +22,39 @@ from .person_metrics import PERSON_METRICS
 from .protocols import PROTOCOLS
 from .tool_world import tool_world_markdown
 
-__all__ = ["REPORT_COLUMNS", "GATE_METRICS", "Gate", "parse_gate", "check_gate_rows", "check_gate_metrics",
-           "check_gates", "report_rows", "format_value", "metric_label", "metric_value", "markdown_report",
-           "write_reports", "ground_free_rows", "markdown_ground_free", "write_ground_free_reports"]
+__all__ = ["REPORT_GROUPS", "REPORT_COLUMNS", "GROUND_FREE_GROUPS", "HIGHER_IS_BETTER", "GATE_METRICS", "Gate",
+           "parse_gate", "check_gate_rows", "check_gate_metrics", "check_gates", "report_sections", "report_rows",
+           "format_value", "change_text", "column_labels", "metric_label", "metric_value", "markdown_report",
+           "write_reports", "ground_free_sections", "ground_free_rows", "markdown_ground_free",
+           "write_ground_free_reports"]
 
-# Columns of the summary table, in order (camera columns appear when present; each protocol fills its own).
-REPORT_COLUMNS = ("mpjpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe", "pve", "pa_pve", "w_pve", "w_mpjpe_spec", "w_pve_spec",
-                  "root_err", "foot_height", "lean_deg", "stature_err", "rte", "accel_err", "jitter", "foot_sliding",
-                  "precision", "recall", "f1", "nmje", "nmve")
+# The report's tables (metrics.md, the terminal): the headline numbers first, then the rest by theme; a
+# metric no row has is left out, the camera errors come last (metrics.json keeps every metric).
+REPORT_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("Headline", ("w_mpjpe", "w_pve", "mpjpe", "pa_mpjpe", "group_pa_mpjpe", "pve", "pa_pve", "f1")),
+    ("World and ground", ("wa_mpjpe", "rte", "root_err", "pcrd", "w_mpjpe_spec", "w_pve_spec", "foot_height",
+                          "lean_deg", "stature_err")),
+    ("Detection", ("precision", "recall", "nmje", "nmve")),
+    ("Temporal", ("accel_err", "jitter", "foot_sliding")),
+)
+REPORT_COLUMNS = tuple(name for _, names in REPORT_GROUPS for name in names)  # every metric a protocol reports
+_CAMERA_GROUP = "Camera"
 _COUNT_METRICS = ("matched", "missed", "false_positives")
 _CAMERA_METRICS = ("cam_focal_pct", "cam_pitch_deg", "cam_roll_deg", "cam_height_pct")
+# The same without ground truth (every measure of ground_free_eval.GROUND_FREE_METRICS, then the camera's std).
+GROUND_FREE_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("Headline", ("feet_height", "penetration_pct", "lean", "sliding", "stature_spread")),
+    ("Ground and posture", ("floating_pct", "feet_height_median", "penetration_depth", "lean_p90")),
+    ("Motion and stature", ("accel", "stature", "stature_sd")),
+    ("Camera uncertainty", CAMERA_STD_METRICS),
+)
+# Shares of 1 where more is better (every other metric and measure is better lower, but stature).
+HIGHER_IS_BETTER = frozenset(("precision", "recall", "f1", "pcrd"))
 _GROUND_FREE_GATES = frozenset((*GROUND_FREE_METRICS, *CAMERA_STD_METRICS))  # what eval without --gt reports
 # A measure without ground truth -> the metric of the same idea against it (named in a refused gate's message).
 _COUNTERPARTS = {"feet_height": "foot_height", "lean": "lean_deg", "sliding": "foot_sliding", "accel": "accel_err"}
-GATE_METRICS = frozenset((*REPORT_COLUMNS, *_COUNT_METRICS, *_CAMERA_METRICS, *_GROUND_FREE_GATES))  # what --fail-if may name
+GATE_METRICS = frozenset((*REPORT_COLUMNS, *PERSON_METRICS, *_COUNT_METRICS, *_CAMERA_METRICS,
+                          *_GROUND_FREE_GATES))  # what --fail-if may name
 _OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt, ">": operator.gt}
 _GATE = re.compile(r"^\s*(?:(?P<row>[^:]+):)?\s*(?P<metric>[A-Za-z_0-9]+)\s*(?P<op><=|>=|==|!=|<|>)\s*(?P<value>[-+0-9.eE]+)\s*$")
 
@@ -139,15 +158,42 @@ def check_gates(results: Sequence[EvalResult], gates: Sequence[Gate]) -> list[st
     return reasons
 
 
-def report_rows(results: Sequence[EvalResult]) -> list[str]:
-    """Metric columns that have a value in at least one row (the protocol's; a metric NaN everywhere is
-    left out: the notes say why)."""
-    cols = [c for c in REPORT_COLUMNS if any(math.isfinite(r.metrics.get(c, math.nan)) for r in results)]
+def _sections(groups: Sequence[tuple[str, Sequence[str]]], has_value) -> list[tuple[str, list[str]]]:
+    """The groups' metrics that ``has_value``, each group with one (empty groups left out)."""
+    sections = [(title, [m for m in names if has_value(m)]) for title, names in groups]
+    return [(title, names) for title, names in sections if names]
+
+
+def report_sections(results: Sequence[EvalResult]) -> list[tuple[str, list[str]]]:
+    """The report's tables, headline first: (title, metrics that have a value in at least one row); a metric
+    NaN everywhere is left out (the notes say why), one of no group goes to "More", the camera errors (when
+    present) come last."""
+    more = tuple(dict.fromkeys(m for r in results for m in r.metrics if m not in REPORT_COLUMNS))
+    sections = _sections([*REPORT_GROUPS, ("More", more)],
+                         lambda m: any(math.isfinite(r.metrics.get(m, math.nan)) for r in results))
     cams = sorted({k for r in results for k in r.camera if not k.endswith("_signed")})
-    return cols + cams
+    return sections + ([(_CAMERA_GROUP, cams)] if cams else [])
 
 
-_RATIOS = ("precision", "recall", "f1", "stature", "sliding")  # stature m, sliding m/s: to the mm
+def report_rows(results: Sequence[EvalResult]) -> list[str]:
+    """Every metric of :func:`report_sections`, in order."""
+    return [m for _, names in report_sections(results) for m in names]
+
+
+def column_labels(results: Sequence) -> list[str]:
+    """How the tables name each row's prediction: its folder name, or its path when two folder names clash."""
+    names = [Path(r.pred).name or r.pred for r in results]
+    return names if len(set(names)) == len(names) else [str(r.pred) for r in results]
+
+
+def change_text(base: float, value: float, digits: int = 1) -> str:
+    """The relative change of ``value`` against ``base`` ('+12.3%'), '' when either is missing or base is 0."""
+    if not (math.isfinite(base) and math.isfinite(value)) or base == 0:
+        return ""
+    return f"{100.0 * (value - base) / abs(base):+.{digits}f}%"
+
+
+_RATIOS = ("precision", "recall", "f1", "pcrd", "stature", "sliding")  # stature m, sliding m/s: to the mm
 _RATES = ("accel_err", "jitter", "foot_sliding", "rte", "accel", "cam_std_pitch_deg", "cam_std_roll_deg",
           "cam_std_height_m")
 
@@ -162,44 +208,67 @@ def format_value(metric: str, value: float) -> str:
     return f"{value:.2f}" if metric in _RATES else f"{value:.1f}"
 
 
+def _metric_tables(results: Sequence, sections: Sequence[tuple[str, Sequence[str]]],
+                   lead: Sequence[tuple[str, list[str]]] = ()) -> list[str]:
+    """metrics.md's tables, one per section: one row per metric, one column per prediction, then the relative
+    change of each later prediction against the first; ``lead``: (label, cells) rows heading the first table."""
+    heads = column_labels(results)
+    changes = ["change"] if len(results) == 2 else [f"change `{h}`" for h in heads[1:]]
+    lines = []
+    for number, (title, metrics) in enumerate(sections):
+        lines += ["", f"## {title}", "", "| metric | " + " | ".join(f"`{h}`" for h in heads) + "".join(
+            f" | {c}" for c in changes) + " |", "|---" * (1 + len(heads) + len(changes)) + "|"]
+        for label, cells in lead if number == 0 else ():
+            lines.append(f"| {label} | " + " | ".join(cells) + " |" * (len(changes) + 1))
+        for metric in metrics:
+            values = [metric_value(r, metric) for r in results]
+            label = metric_label(next((r for r in results if metric in r.metrics), results[0]), metric)
+            cells = [format_value(metric, v) for v in values] + [change_text(values[0], v) or "–" for v in values[1:]]
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _reading_guide(results: Sequence, what: str, better: str) -> str:
+    """The sentence under a report's first table: which way is better, where the rest is, what 'change' is."""
+    change = (f" `change`: the relative change of each later {what} against `{column_labels(results)[0]}`."
+              if len(results) > 1 else "")
+    return f"The headline numbers first, the rest below by theme (metrics.json has all of them); {better}.{change}"
+
+
 def markdown_report(results: Sequence[EvalResult], gt: str) -> str:
-    """metrics.md: one row per prediction, then the change of each row against the first."""
-    cols = report_rows(results)
+    """metrics.md: the predictions and their match counts, then the metric tables (headline first: one row
+    per metric, one column per prediction, the change against the first), unpaired frames, the tools'
+    own worlds, the notes."""
     protocols = sorted({r.protocol for r in results})
     lines = [f"# rotavat eval against `{gt}`", ""]
     for name in protocols:
         lines.append(f"Protocol `{name}`: {PROTOCOLS[name].source}.")
-    lines += ["", "Lower is better; each column names its protocol and unit (docs/metrics.md defines them: "
-              "`w_mpjpe` is a different quantity under each protocol).", ""]
-    labels = [metric_label(next((r for r in results if c in r.metrics), results[0]), c) for c in cols]
-    lines.append("| prediction | frames | matched | missed | FP | " + " | ".join(labels) + " |")
-    lines.append("|---" * (5 + len(cols)) + "|")
-    for r in results:
-        vals = [metric_value(r, c) for c in cols]
-        lines.append(f"| `{r.pred}` | {r.frames} | {r.matched} | {r.missed} | {r.false_positives} | "
-                     + " | ".join(format_value(c, v) for c, v in zip(cols, vals)) + " |")
-    if len(results) > 1:
-        lines += ["", f"Relative change against `{results[0].pred}`:", ""]
-        lines.append("| prediction | " + " | ".join(labels) + " |")
-        lines.append("|---" * (1 + len(cols)) + "|")
-        base = results[0]
-        for r in results[1:]:
-            cells = []
-            for c in cols:
-                b, v = metric_value(base, c), metric_value(r, c)
-                cells.append("–" if not (math.isfinite(b) and math.isfinite(v)) or b == 0 else f"{100.0 * (v - b) / abs(b):+.1f}%")
-            lines.append(f"| `{r.pred}` | " + " | ".join(cells) + " |")
+    lines += ["", "| prediction | frames | matched | missed | FP |", "|---|---|---|---|---|"]
+    lines += [f"| `{r.pred}` | {r.frames} | {r.matched} | {r.missed} | {r.false_positives} |" for r in results]
+    higher = ", ".join(f"`{m}`" for m in sorted(HIGHER_IS_BETTER))
+    lines += ["", _reading_guide(results, "prediction", f"lower is better, but for {higher} (shares of 1: "
+                                 "higher is better)") + " Each metric names its protocol and unit "
+              "(docs/metrics.md defines them: `w_mpjpe` is a different quantity under each protocol)."]
+    lines += _metric_tables(results, report_sections(results),
+                            [("matched / gt", [f"{r.matched}/{r.people_gt}" for r in results])])
     frames_note = [f"- `{r.pred}`: {r.frames_pred_only} frames only in the prediction, {r.frames_gt_only} only in the ground truth"
                    for r in results if r.frames_pred_only or r.frames_gt_only]
     if frames_note:
-        lines += ["", "Unpaired frames (counted as false positives / misses unless a note says otherwise):", *frames_note]
-    lines += tool_world_markdown([(r.pred, r.tool_world) for r in results])
+        lines += ["", "## Unpaired frames", "", "Counted as false positives / misses unless a note says otherwise:",
+                  "", *frames_note]
+    lines += _tool_world_section(results)
     notes = [f"- `{r.pred}` ({r.protocol}): {note}" for r in results for note in r.notes]
     notes += [f"- `{r.pred}`: statures (`stature_err`) {source_words(r.stature_from)}" for r in results
               if r.stature_from is not None and "stature_err" in r.metrics]
     if notes:
-        lines += ["", "Notes:", *notes]
+        lines += ["", "## Notes", "", *notes]
     return "\n".join(lines) + "\n"
+
+
+def _tool_world_section(results: Sequence) -> list[str]:
+    """The tools' own worlds (:func:`~.tool_world.tool_world_markdown`) under their heading; [] without one."""
+    lines = tool_world_markdown([(r.pred, r.tool_world) for r in results])
+    return ["", "## Their world and ours", *lines] if lines else []
 
 
 def write_reports(out_dir: str | Path, results: Sequence[EvalResult], gt: str, options: dict) -> tuple[Path, Path]:
@@ -227,10 +296,18 @@ def report_paths(out_dir: str | Path) -> tuple[Path, Path]:
 # ---- without ground truth ------------------------------------------------------------------------
 
 
+def ground_free_sections(results: Sequence[GroundFreeResult]) -> list[tuple[str, list[str]]]:
+    """The tables without ground truth, headline first: (title, measures with a value in at least one row);
+    the camera's recorded std where a row has it; a measure of no group goes to "More"."""
+    grouped = {m for _, names in GROUND_FREE_GROUPS for m in names}
+    groups = [*GROUND_FREE_GROUPS, ("More", tuple(m for m in GROUND_FREE_METRICS if m not in grouped))]
+    return _sections(groups, lambda m: any(math.isfinite(r.metrics.get(m, math.nan)) for r in results)
+                     if m not in CAMERA_STD_METRICS else any(m in r.camera for r in results))
+
+
 def ground_free_rows(results: Sequence[GroundFreeResult]) -> list[str]:
-    """Measures with a value in at least one row, headline first, then the camera's recorded std."""
-    cols = [m for m in GROUND_FREE_METRICS if any(math.isfinite(r.metrics.get(m, math.nan)) for r in results)]
-    return cols + [m for m in CAMERA_STD_METRICS if any(m in r.camera for r in results)]
+    """Every measure of :func:`ground_free_sections`, in order."""
+    return [m for _, names in ground_free_sections(results) for m in names]
 
 
 def _flags_text(flags: dict[str, int] | None) -> str:
@@ -241,41 +318,30 @@ def _flags_text(flags: dict[str, int] | None) -> str:
 
 
 def markdown_ground_free(results: Sequence[GroundFreeResult]) -> str:
-    """metrics.md without ground truth: one row per sequence, the change of each against the first, the
-    statures per track, the notes."""
-    cols = ground_free_rows(results)
-    labels = [metric_label(next((r for r in results if c in r.metrics), results[0]), c) for c in cols]
+    """metrics.md without ground truth: the sequences and their scene cameras, the measure tables (headline
+    first: one row per measure, one column per sequence, the change against the first), the statures per
+    track, the tools' own worlds, the notes."""
     lines = ["# rotavat eval without ground truth", "",
              "Each sequence measured in the world of its scene camera (docs/metrics.md, \"Without ground truth\", "
-             "defines every measure); lower is better but for `stature`; `cam_std_*` are the camera's own "
-             "uncertainty as its calibration recorded it.", "",
-             "| sequence | frames | people-frames | tracks | scene camera | people.csv flags | " + " | ".join(labels) + " |",
-             "|---" * (6 + len(cols)) + "|"]
+             "defines every measure); `cam_std_*` are the camera's own uncertainty as its calibration recorded it.", "",
+             "| sequence | frames | people-frames | tracks | scene camera | people.csv flags |", "|---" * 6 + "|"]
     for r in results:
         camera = f"`{r.scene_camera.get('file', '')}` ({r.scene_camera.get('from', '')})"
-        lines.append(f"| `{r.pred}` | {r.frames} | {r.people_pred} | {r.tracks} | {camera} | {_flags_text(r.flags)} | "
-                     + " | ".join(format_value(c, metric_value(r, c)) for c in cols) + " |")
-    if len(results) > 1:
-        lines += ["", f"Relative change against `{results[0].pred}`:", "",
-                  "| sequence | " + " | ".join(labels) + " |", "|---" * (1 + len(cols)) + "|"]
-        for r in results[1:]:
-            cells = []
-            for c in cols:
-                b, v = metric_value(results[0], c), metric_value(r, c)
-                cells.append("–" if not (math.isfinite(b) and math.isfinite(v)) or b == 0 else f"{100.0 * (v - b) / abs(b):+.1f}%")
-            lines.append(f"| `{r.pred}` | " + " | ".join(cells) + " |")
+        lines.append(f"| `{r.pred}` | {r.frames} | {r.people_pred} | {r.tracks} | {camera} | {_flags_text(r.flags)} |")
+    lines += ["", _reading_guide(results, "sequence", "lower is better, but for `stature` (the people's own)")]
+    lines += _metric_tables(results, ground_free_sections(results))
     tracks = [(r, t) for r in results for t in r.statures]
     if tracks:
-        lines += ["", "Statures per track (foot point to crown; spread: half the interquartile range over its frames):", "",
-                  "| sequence | track | frames | median m | spread mm |", "|---|---|---|---|---|"]
+        lines += ["", "## Statures per track", "", "Foot point to crown; spread: half the interquartile range over "
+                  "its frames.", "", "| sequence | track | frames | median m | spread mm |", "|---|---|---|---|---|"]
         lines += [f"| `{r.pred}` | {t['id']} | {t['pairs']} | {format_value('stature', t['median_m'])} | "
                   f"{format_value('feet_height', 1000.0 * t['spread_m'])} |" for r, t in tracks]
-    lines += tool_world_markdown([(r.pred, r.tool_world) for r in results])
+    lines += _tool_world_section(results)
     notes = [f"- `{r.pred}`: {note}" for r in results for note in r.notes]
     notes += [f"- `{r.pred}`: statures scaled by its camera: {source_words(r.stature_from)}" for r in results
               if r.stature_from is not None]
     if notes:
-        lines += ["", "Notes:", *notes]
+        lines += ["", "## Notes", "", *notes]
     return "\n".join(lines) + "\n"
 
 

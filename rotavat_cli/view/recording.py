@@ -9,9 +9,11 @@ own camera.yaml, else the ground truth's; it passes the camera gate first
 - ``world``: the view coordinates (right-handed, Y up); ``world/ground``: the grid and its metre ticks;
   ``world/ground/uncertainty/<height|pitch>_<minus|plus>_1sd``: the ground as it would be one standard deviation
   away (camera.yaml's ``fit.std``); ``world/camera``: the camera's pose and label, ``world/camera/image`` its
-  pinhole (intrinsics) and the video frames (``--image``);
+  pinhole (intrinsics), ``world/camera/image/video`` the video frames (``--image``; :func:`.detail.video_frame`);
 - ``world/<row>/people/<id>/{mesh,points,skeleton,joints,label}``: one person, by what the row has (a mesh,
-  vertices without faces, joints only), its label its id (and its flag, from align's people.csv);
+  reduced to about ``view.mesh_vertices`` vertices by :func:`.detail.reduce_mesh`; vertices without faces; joints
+  only), in its colour tinted by the row's role (:mod:`.roles`), its label its id (and its flag, from align's
+  people.csv);
   ``world/<row>/tracks/<id>``: its path on the ground; ``world/<row>/ground``: the row's own ground when its
   camera.yaml is not the scene camera (the ground truth's true ground);
   ``world/<row>/their_world/{paths,up,ground}/<id>``: a row with a tool's own world (WHAM's, GVHMR's
@@ -21,7 +23,8 @@ own camera.yaml, else the ground truth's; it passes the camera gate first
   ground truth, the W-MPJPE (mm) of each ground-truth person.
 
 Timelines: ``frame`` (the index in the sorted frame names of all rows) and ``time`` (seconds, when the first
-row's meta.yaml gives an ``fps``). Memory stays flat in the number of frames: one frame of every row is held
+row's meta.yaml gives an ``fps``). The viewer's 3D view starts framed on the aligned rows, the truth and the camera
+(:func:`.roles.framed_rows`; every row with ``view.frame_all``). Memory stays flat in the number of frames: one frame of every row is held
 at a time, and only the tracks' small per-frame numbers are kept for the end.
 """
 
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import math
 import os
 import time
@@ -52,7 +56,7 @@ from ..metrics.evaluate import EvalOptions, evaluate
 from ..metrics.tool_world import angles_deg, heading_fit, pelvis_cam, their_up_cam
 from ..option_rules import Rule, check_fields
 from ..outputs import RRD_APPLICATION_ID
-from ..render.rows import (IMAGE_MEDIA_TYPES, frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels,
+from ..render.rows import (frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels,
                            select_frames)
 from ..render.style import RenderStyle, person_colors, vertex_normals
 from ..render.tracks import frame_track_values
@@ -60,8 +64,10 @@ from ..render.views import RowFrame
 from ..sequence import Sequence, read_camera_yaml
 from ..unpickle.streams import read_bytes
 from ..version import __version__
-from .scene import (camera_label, eye_world, ground_extent_m, label_anchors_world, plane_quad_world, tilted_square_world,
-                    track_strips, uncertainty_cameras, world_points_f32)
+from .detail import MeshReduction, reduce_mesh, thin_points, video_frame
+from .roles import RowTone, framed_rows, row_role, row_tint, row_tones
+from .scene import (GRID_MARGIN_M, camera_label, eye_world, ground_extent_m, label_anchors_world, plane_quad_world,
+                    tilted_square_world, track_strips, uncertainty_cameras, world_points_f32)
 from .writer import SERIES, W_MPJPE_SERIES, WORLD, RecordingWriter, blueprint, require_rerun
 
 __all__ = ["ViewOptions", "ViewSummary", "record_sequences", "view_steps"]
@@ -90,23 +96,34 @@ class ViewOptions:
     every: int | None = packaged_default(_packaged_options, "every")
     image_plane_m: float = packaged_default(_packaged_options, "image_plane_m")
     normals: bool = packaged_default(_packaged_options, "normals")
+    frame_all: bool = packaged_default(_packaged_options, "frame_all")  # the 3D view framed on every row (--frame-all)
+    mesh_vertices: int = packaged_default(_packaged_options, "mesh_vertices")  # meshes reduced to about this many; 0 = all
+    image_max_px: int = packaged_default(_packaged_options, "image_max_px")  # video frames scaled down to it; 0 = the files
     style: RenderStyle = packaged_default(_packaged_options, "style")
     camera_path: Path | None = None  # not a config key: --camera
     image_dir: Path | None = None  # not a config key: --image
     accept_camera: bool = False  # not a config key: --accept-camera
     reader_flags: tuple[str, ...] = ()  # not a config key: how rows read with --from were read (the gate's advice)
 
-    RULES: ClassVar[dict[str, Rule]] = {"every": Rule(low=1), "image_plane_m": Rule(low=0.01, high=1000, unit="m")}
+    RULES: ClassVar[dict[str, Rule]] = {"every": Rule(low=1), "image_plane_m": Rule(low=0.01, high=1000, unit="m"),
+                                        "mesh_vertices": Rule(low=0), "image_max_px": Rule(low=0)}
 
     def __post_init__(self) -> None:
         check_fields(self, self.RULES)
+        for name in ("mesh_vertices", "image_max_px"):  # counts: 1000.0 is 1000, 2.5 is refused
+            value = getattr(self, name)
+            if isinstance(value, bool) or not float(value).is_integer():
+                raise ValueError(f"{name} must be a whole number, got {value!r}")
+            object.__setattr__(self, name, int(value))
 
     @classmethod
     def from_config(cls, view: dict, render: dict, camera_path: Path | None = None,
                     image_dir: Path | None = None) -> "ViewOptions":
         """Options from merged ``view`` and ``render`` config sections; ValueError naming a bad option."""
-        return cls(None if view["frames"] is None else str(view["frames"]), view["every"], float(view["image_plane_m"]),
-                   bool(view["normals"]), RenderStyle.from_config(render), camera_path, image_dir)
+        return cls(frames=None if view["frames"] is None else str(view["frames"]), every=view["every"],
+                   image_plane_m=float(view["image_plane_m"]), normals=bool(view["normals"]), frame_all=bool(view["frame_all"]),
+                   mesh_vertices=view["mesh_vertices"], image_max_px=view["image_max_px"],
+                   style=RenderStyle.from_config(render), camera_path=camera_path, image_dir=image_dir)
 
 
 @dataclass
@@ -122,6 +139,7 @@ class ViewSummary:
     bytes: int
     seconds: float
     entities: list[str] = field(default_factory=list)  # the entity tree's top (world/<row>, plots/<series>)
+    framed: list[str] = field(default_factory=list)  # the rows the 3D view starts framed on (roles.py)
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
@@ -190,12 +208,26 @@ class _RowState:
     path: str  # its entity name
     flags: dict | None
     own_ground: Camera | None  # the row's own camera when it is not the scene camera (its ground is drawn)
+    role: str  # aligned | truth | raw (roles.py)
+    framed: bool  # the 3D view starts framed on it
+    tone: RowTone  # how its people's colours are tinted
+    box: np.ndarray | None = None  # (2, 3) world box (lo, hi) of everything of it drawn so far, None before anything
     shown: set[int] = field(default_factory=set)  # person ids drawn in the previous frame
     static_done: set[int] = field(default_factory=set)  # person ids whose static parts (faces, colour) are logged
     series: dict[str, dict[int, list[tuple[int, float]]]] = field(default_factory=dict)  # key -> id -> (frame, value)
     footprints: dict[int, list[tuple[int, float, float]]] = field(default_factory=dict)  # id -> (frame, x, z) on the ground
     their: dict[int, list[tuple[int, np.ndarray]]] = field(default_factory=dict)  # id -> (frame, (3, 3): ours, theirs, up)
     people: int = 0
+
+    def colors(self, person_ids: np.ndarray, style: RenderStyle) -> np.ndarray:
+        """(P,) ids -> (P, 3) RGB in [0, 1]: the palette's colours in the row's tone."""
+        ids = np.asarray(person_ids, dtype=np.int64)
+        return row_tint(person_colors(ids, style.palette).reshape(len(ids), 3), self.tone)
+
+    def grow(self, box: np.ndarray | None) -> None:
+        """Widen the row's box by a frame's (2, 3) box (None: nothing drawn)."""
+        if box is not None:
+            self.box = box if self.box is None else np.stack([np.minimum(self.box[0], box[0]), np.maximum(self.box[1], box[1])])
 
     def add(self, key: str, pid: int, index: int, value: float) -> None:
         """One value of a track's series (non-finite values are left out)."""
@@ -224,8 +256,10 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
     timeline = _timeline(rows)
     chosen = _chosen_frames(timeline, opts)
     fps = next((float(s.meta["fps"]) for s in rows if (s.meta or {}).get("fps")), None)
+    roles = [row_role(s.meta, truth=gt is not None and i == len(rows) - 1) for i, s in enumerate(rows)]
     states = [_RowState(s, lab, label_stem(lab), people_flags(s, warnings),
-                        s.camera if s.camera is not None and s.camera != camera else None) for s, lab in zip(rows, labels)]
+                        s.camera if s.camera is not None and not s.camera.matches(camera) else None, role, framed, tone)
+              for s, lab, role, framed, tone in zip(rows, labels, roles, framed_rows(roles, opts.frame_all), row_tones(roles))]
     w_mpjpe = {i: _w_mpjpe_series(s, gt, warnings) for i, s in enumerate(seqs)} if gt is not None else {}
     notes = [f"{state.label}: placed in the scene camera ({camera_source}), as eval compares it; its own camera "
              f"({state.seq.camera_label}) gives its ground, drawn at {WORLD}/{state.path}/ground"
@@ -242,18 +276,21 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
             writer = RecordingWriter(rr, rec, opts.style)
             writer.scene(camera, label, opts.image_plane_m)
             names = [timeline[k] for k in chosen]
+            meshes = _Meshes(opts)
             for index, name, (image, ready) in zip(chosen, names, _prepared_frames(names, states, camera, opts)):
                 writer.set_frame(index, fps)
                 if image is not None:
-                    writer.image(*image)
+                    writer.image(*image, camera.image_size)
                 for i, (state, row) in enumerate(zip(states, ready)):
-                    _record_row_frame(writer, state, row, name, index, w_mpjpe.get(i, {}))
+                    _record_row_frame(writer, state, row, name, index, w_mpjpe.get(i, {}), meshes)
                 if progress:
                     progress()
             rec.reset_time()
-            ground_xz = _footprints_xz(states)
-            _record_statics(writer, states, camera, fit.get("std"), ground_xz, fps, opts.style)
-            rec.send_blueprint(blueprint(rr, gt is not None, eye_world(ground_xz)))
+            box = _framed_box(states, camera)
+            grid = ground_extent_m(box)  # (lo, hi): (x, z) of the grid under it
+            _record_statics(writer, states, camera, fit.get("std"), grid, fps, opts.style)
+            rec.send_blueprint(blueprint(rr, gt is not None, eye_world(_framed_points(states, camera, grid))))
+            notes += _outside_notes(states, box)
             rec.flush()
         finally:
             rec.disconnect()
@@ -261,7 +298,8 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
     entities = [f"{WORLD}/{s.path}" for s in states] + [f"plots/{k}" for k, *_ in SERIES if gt is not None or
                                                          k != W_MPJPE_SERIES[0]]
     return ViewSummary(str(out), labels, labels[-1] if gt is not None else None, len(chosen),
-                       sum(s.people for s in states), label, os.path.getsize(out), seconds, entities, warnings, notes)
+                       sum(s.people for s in states), label, os.path.getsize(out), seconds, entities,
+                       [s.label for s in states if s.framed], warnings, notes)
 
 
 @dataclass
@@ -269,31 +307,33 @@ class _Ready:
     """One row's frame made ready to log (on the worker thread): its people in world metres, float32."""
 
     row: RowFrame
-    points_world: np.ndarray  # (P, N, 3): what each person is drawn from (vertices, else joints)
-    normals: np.ndarray | None  # (P, V, 3) unit vertex normals of meshes, or None
+    points_world: np.ndarray  # (P, N, 3): what each person is drawn from (vertices, a point cloud thinned, else joints)
+    normals: np.ndarray | None  # (P, V, 3) unit vertex normals of meshes drawn with every vertex, or None
     colors: np.ndarray  # (P, 3) RGB in [0, 1]
     anchors: np.ndarray  # (P, 3) where each label goes (NaN: nowhere)
     texts: list[str]  # (P,) each label: the id, and a flagged person's flag
     flagged: np.ndarray  # (P,) bool: align flagged the person (people.csv)
     track: tuple[dict[str, np.ndarray], np.ndarray] | None  # the frame's track values {key: (P,)}, mid-soles (P, 3) world
+    box: np.ndarray | None  # (2, 3) world box (lo, hi) of the finite points drawn, None when there are none
     their: np.ndarray | None = None  # (P, 3, 3) a tool's world: our pelvis (world), their pelvis (theirs), their up (world)
 
 
-def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera,
-                     opts: ViewOptions) -> Iterator[tuple[tuple[bytes, str] | None, list[_Ready | None]]]:
-    """Per frame name, in order: its video frame (``--image``: the file's bytes, within ``limits.max_file_mb``,
-    and its media type) and each row's :class:`_Ready` (None where the row has no such frame).
+def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera, opts: ViewOptions
+                     ) -> Iterator[tuple[tuple[bytes, str, tuple[int, int]] | None, list[_Ready | None]]]:
+    """Per frame name, in order: its video frame (``--image``: the file, within ``limits.max_file_mb``, as
+    :func:`.detail.video_frame` stores it: bytes, media type, (W, H) px) and each row's :class:`_Ready` (None
+    where the row has no such frame).
 
     The next :data:`_AHEAD` frames are prepared on as many threads while the caller logs the current one
     (reading, placing and the normals are numpy work that releases the GIL, and overlaps Rerun's encoding): at
     most ``_AHEAD + 1`` frames are held at a time, whatever the sequence's length. A row read with ``--from``
     keeps its reader's state as it builds frames, so with one such row the frames are prepared one at a
     time (still ahead of the logging, on one thread)."""
-    def prepare(name: str) -> tuple[tuple[bytes, str] | None, list[_Ready | None]]:
+    def prepare(name: str) -> tuple[tuple[bytes, str, tuple[int, int]] | None, list[_Ready | None]]:
         image = None
         if opts.image_dir is not None:
             path = frame_image_path(opts.image_dir, name)
-            image = read_bytes(path), IMAGE_MEDIA_TYPES[path.suffix.lower()]
+            image = video_frame(read_bytes(path), path, opts.image_max_px)
         return image, [_prepare(state, name, camera, opts) for state in states]
 
     ahead = _AHEAD if all(state.seq.origin is None for state in states) else 1
@@ -317,14 +357,57 @@ def _prepare(state: _RowState, name: str, camera: Camera, opts: ViewOptions) -> 
     P = len(row.person_ids)
     drawn = row.verts_cam if row.kind in ("mesh", "points") else row.joints_cam if row.kind == "skeleton" else None
     points_world = world_points_f32(camera, drawn) if P and drawn is not None else np.zeros((P, 0, 3), np.float32)
-    normals = vertex_normals(points_world, row.faces) if opts.normals and row.kind == "mesh" and P else None
+    anchors = label_anchors_world(points_world)
+    every_vertex = not _reduced(row.kind, points_world.shape[1], opts)  # else the logging thread reduces it (_Meshes)
+    normals = vertex_normals(points_world, row.faces) if opts.normals and row.kind == "mesh" and P and every_vertex else None
+    if row.kind == "points":
+        points_world = thin_points(points_world, opts.mesh_vertices)
     flags = row.flags or ("",) * P
     texts = [f"{pid} {flag}" if flag else str(pid) for pid, flag in zip(row.person_ids, flags)]
     got = frame_track_values(seq, frame, camera)
     track = None if got is None else (got[0], camera.world_from_cam(got[1]))
-    return _Ready(row, points_world, normals, person_colors(row.person_ids, opts.style.palette).reshape(P, 3),
-                  label_anchors_world(points_world), texts, np.array([bool(f) for f in flags], dtype=bool).reshape(P), track,
+    return _Ready(row, points_world, normals, state.colors(row.person_ids, opts.style), anchors, texts,
+                  np.array([bool(f) for f in flags], dtype=bool).reshape(P), track, _finite_box(points_world),
                   _their_world(seq, frame.data, camera) if P else None)
+
+
+def _reduced(kind: str, vertices: int, opts: ViewOptions) -> bool:
+    """Whether a mesh of ``vertices`` is drawn reduced (``view.mesh_vertices``)."""
+    return kind == "mesh" and 0 < opts.mesh_vertices < vertices
+
+
+def _finite_box(points: np.ndarray) -> np.ndarray | None:
+    """(2, 3) lo, hi of the finite rows of (..., 3) points; None when there are none."""
+    p = np.asarray(points).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)]
+    return np.stack([p.min(axis=0), p.max(axis=0)]).astype(np.float64) if len(p) else None
+
+
+class _Meshes:
+    """The mesh reductions of one recording (:func:`.detail.reduce_mesh`), one per list of faces, each found on the
+    largest body of the first row frame drawn with it (a collapsed or empty body would reduce to a point). Used on
+    the logging thread only, in frame order: the same inputs give the same reductions."""
+
+    def __init__(self, opts: ViewOptions) -> None:
+        self.opts = opts
+        self._found: dict[tuple[int, bytes], MeshReduction] = {}
+
+    def drawn(self, ready: _Ready) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """A row frame's people as drawn: (P, N, 3) points, (P, N, 3) normals or None, (F, 3) faces or None (the
+        row's own)."""
+        row, points = ready.row, ready.points_world
+        if not len(row.person_ids) or not _reduced(row.kind, points.shape[1], self.opts):
+            return points, ready.normals, None
+        faces = np.ascontiguousarray(row.faces)
+        key = (points.shape[1], hashlib.sha1(faces.tobytes()).digest() + str(faces.shape).encode())
+        if key not in self._found:
+            ok = np.isfinite(points).all(axis=2, keepdims=True)  # (P, V, 1)
+            spans = np.where(ok, points, -np.inf).max(axis=1) - np.where(ok, points, np.inf).min(axis=1)  # (P, 3)
+            size = np.where(ok.any(axis=(1, 2)), spans.max(axis=1), 0.0)  # each body's largest side
+            self._found[key] = reduce_mesh(points[int(np.argmax(size))], faces, self.opts.mesh_vertices)
+        reduction = self._found[key]
+        small = reduction.apply(points)
+        return small, vertex_normals(small, reduction.faces) if self.opts.normals else None, reduction.faces
 
 
 def _their_world(seq: Sequence, data: dict, camera: Camera) -> np.ndarray | None:
@@ -343,12 +426,14 @@ def _their_world(seq: Sequence, data: dict, camera: Camera) -> np.ndarray | None
 
 
 def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready | None, name: str, index: int,
-                      w_mpjpe: dict[str, dict[int, float]]) -> None:
+                      w_mpjpe: dict[str, dict[int, float]], meshes: _Meshes) -> None:
     """One row in frame ``name`` (``ready``: :func:`_prepare`'s, None when the row has no such frame): its people
-    drawn and labelled, their track values kept, the people gone since the previous frame cleared."""
+    drawn (meshes reduced by ``meshes``) and labelled, their track values kept, the people gone since the previous
+    frame cleared."""
     people: set[int] = set()
     if ready is not None:
-        people = _draw_people(writer, state, ready)
+        people = _draw_people(writer, state, ready, meshes)
+        state.grow(ready.box)
         if ready.track is not None:
             _keep_track_values(state, ready.row.person_ids, *ready.track, index)
         if ready.their is not None:
@@ -364,12 +449,13 @@ def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready |
     state.people += len(people)
 
 
-def _draw_people(writer: RecordingWriter, state: _RowState, ready: _Ready) -> set[int]:
+def _draw_people(writer: RecordingWriter, state: _RowState, ready: _Ready, meshes: _Meshes) -> set[int]:
     """A row frame's people and their labels (a flagged person's in red); returns their ids."""
     row = ready.row
+    points, normals, faces = meshes.drawn(ready)
     for p, pid in enumerate(int(v) for v in row.person_ids):
-        writer.person(f"{WORLD}/{state.path}/people/{pid}", row, ready.points_world[p],
-                      None if ready.normals is None else ready.normals[p], tuple(ready.colors[p]), pid not in state.static_done)
+        writer.person(f"{WORLD}/{state.path}/people/{pid}", row, points[p], None if normals is None else normals[p],
+                      tuple(ready.colors[p]), pid not in state.static_done, faces)
         state.static_done.add(pid)
     placed = np.isfinite(ready.anchors).all(axis=1)
     writer.labels(f"{WORLD}/{state.path}/labels", ready.anchors[placed], [t for t, ok in zip(ready.texts, placed) if ok],
@@ -388,14 +474,13 @@ def _keep_track_values(state: _RowState, person_ids: np.ndarray, values: dict[st
 
 
 def _record_statics(writer: RecordingWriter, states: list[_RowState], camera: Camera, std: dict | None,
-                    ground_xz: np.ndarray, fps: float | None, style: RenderStyle) -> None:
-    """What is known once every frame is seen: the ground grid over everyone (``ground_xz``: (N, 2) every track's
-    positions) and the camera, the grounds one std away (``std``: the camera's ``fit.std``), the rows' own
-    grounds, the tracks' paths on the ground, the time series."""
-    on_ground = np.stack([ground_xz[:, 0], np.zeros(len(ground_xz)), ground_xz[:, 1]], axis=1)
-    lo, hi = ground_extent_m(np.vstack([on_ground, camera.center_world]))
+                    grid: tuple[np.ndarray, np.ndarray], fps: float | None, style: RenderStyle) -> None:
+    """What is known once every frame is seen: the ground grid over ``grid`` ((lo, hi), each (x, z): under what the
+    view starts framed on, :func:`_framed_box`), the grounds one std away (``std``: the camera's ``fit.std``) where
+    the framed rows' people are, the rows' own grounds, the tracks' paths on the ground, the time series."""
+    lo, hi = grid
     writer.ground(lo, hi)
-    near_lo, near_hi = ground_extent_m(_bulk(ground_xz))  # the ±1 std grounds: where the people are
+    near_lo, near_hi = ground_extent_m(_bulk(_footprints_xz([s for s in states if s.framed])))  # the ±1 std grounds
     for name, other in uncertainty_cameras(camera, std).items():
         corners = plane_quad_world(other, camera, near_lo, near_hi)
         if corners is not None:
@@ -406,7 +491,7 @@ def _record_statics(writer: RecordingWriter, states: list[_RowState], camera: Ca
             if corners is not None:
                 writer.plane(f"{WORLD}/{state.path}/ground", corners, style.ground, OWN_GROUND_ALPHA)
         ids = sorted(set(state.footprints) | {pid for series in state.series.values() for pid in series})
-        colors = dict(zip(ids, person_colors(np.asarray(ids, dtype=np.int64), style.palette))) if ids else {}
+        colors = dict(zip(ids, state.colors(np.asarray(ids, dtype=np.int64), style)))
         for pid, steps in state.footprints.items():
             path = np.array([[x, 0.0, z] for _, x, z in steps])
             writer.track(f"{WORLD}/{state.path}/tracks/{pid}", track_strips(np.array([s[0] for s in steps]), path),
@@ -430,7 +515,7 @@ def _record_their_world(writer: RecordingWriter, state: _RowState, style: Render
     for pid, steps in state.their.items():
         index = np.array([i for i, _ in steps])
         ours, theirs, up = np.stack([v for _, v in steps]).transpose(1, 0, 2)  # (3, N, 3)
-        color = tuple(0.5 + 0.5 * np.asarray(person_colors(np.array([pid]), style.palette)).reshape(3))
+        color = tuple(0.5 + 0.5 * state.colors(np.array([pid]), style)[0])
         base = f"{WORLD}/{state.path}/their_world"
         paired = np.isfinite(ours).all(axis=1) & np.isfinite(theirs).all(axis=1)
         if paired.any():
@@ -458,8 +543,43 @@ def _stature_note(seq: Sequence) -> str:
 
 
 def _footprints_xz(states: list[_RowState]) -> np.ndarray:
-    """(N, 2) every track's ground positions (x, z) in every row."""
+    """(N, 2) every track's ground positions (x, z) in every row of ``states``."""
     return np.array([(x, z) for s in states for steps in s.footprints.values() for _, x, z in steps]).reshape(-1, 2)
+
+
+_EMPTY_BOX = np.array([[-5.0, 0.0, -10.0], [5.0, 2.0, 0.0]])  # framed when no framed row draws anything: ahead of the camera
+
+
+def _framed_box(states: list[_RowState], camera: Camera) -> np.ndarray:
+    """(2, 3) world box (lo, hi) the 3D view starts framed on (:func:`.roles.framed_rows`): everything the framed
+    rows drew, and the camera centre."""
+    boxes = [s.box for s in states if s.framed and s.box is not None] or [_EMPTY_BOX]
+    points = np.vstack([*boxes, camera.center_world[None]])
+    return np.stack([points.min(axis=0), points.max(axis=0)])
+
+
+def _framed_points(states: list[_RowState], camera: Camera, grid: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(N, 3) what the eye frames (:func:`.scene.eye_world`): the corners of each framed row's box, the camera centre,
+    the grid's corners (its tick labels are along its edges)."""
+    (x0, z0), (x1, z1) = grid
+    corners = [np.array([[x, y, z] for x in b[:, 0] for y in b[:, 1] for z in b[:, 2]])
+               for b in (s.box for s in states if s.framed and s.box is not None)]
+    return np.vstack([*corners, camera.center_world[None], [[x0, 0.0, z0], [x0, 0.0, z1], [x1, 0.0, z0], [x1, 0.0, z1]]])
+
+
+def _outside_notes(states: list[_RowState], box: np.ndarray) -> list[str]:
+    """A note for each row the 3D view does not start framed on whose people reach beyond ``box`` (+ the grid's
+    margin): how far, and the flag that frames it."""
+    notes = []
+    framed = ", ".join(s.label for s in states if s.framed)
+    for s in states:
+        if s.framed or s.box is None:
+            continue
+        beyond = np.maximum(np.maximum(box[0] - s.box[0], s.box[1] - box[1]), 0.0)  # (3,) how far past each side
+        if beyond.max() > GRID_MARGIN_M:
+            notes.append(f"{s.label} ({s.role}): drawn up to {np.linalg.norm(beyond):.0f} m beyond the 3D view's first "
+                         f"framing ({framed} and the camera); --frame-all frames every row")
+    return notes
 
 
 def _bulk(xz: np.ndarray) -> np.ndarray:

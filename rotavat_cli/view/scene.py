@@ -22,8 +22,8 @@ import numpy as np
 from ..camera import Camera
 
 __all__ = ["GRID_MARGIN_M", "MAX_GRID_LINES", "ground_extent_m", "grid_step_m", "grid_lines_world", "grid_ticks_world",
-           "plane_quad_world", "uncertainty_cameras", "camera_label", "track_strips", "eye_world", "world_points_f32",
-           "label_anchors_world", "tilted_square_world"]
+           "plane_quad_world", "uncertainty_cameras", "camera_label", "track_strips", "EYE_FOV_Y_DEG", "eye_world",
+           "world_points_f32", "label_anchors_world", "tilted_square_world"]
 
 GRID_MARGIN_M = 2.0  # the grid reaches this far beyond the people and the camera
 MAX_GRID_LINES = 60  # per axis: a wider scene gets 2, 5, 10 ... m between lines
@@ -206,25 +206,41 @@ def tilted_square_world(centre: np.ndarray, normal: np.ndarray, half_m: float) -
                      c + half_m * (-across + along)])
 
 
-def eye_world(ground_xz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where the viewer's eye starts: (position, look target), world metres. It looks at the middle of the
-    people's (N, 2) ground positions (x, z; the median: a far outlier does not move it), 0.9 m up, from
-    their right (the camera's x), a little above and toward the camera, as far as the bulk of the people spreads (10th to 90th
-    percentile) plus 4 m, between 6 and 40 m: floating, sunk and leaning bodies show from there.
+EYE_FOV_Y_DEG = 55.0  # the Rerun viewer's vertical field of view (its default eye)
+_EYE_ASPECT = 1.4  # the 3D panel's width over height, at least (3/4 of a 16:9 window, under the timeline)
+_EYE_FROM = np.array([0.9, 0.4, 0.35]) / np.linalg.norm([0.9, 0.4, 0.35])  # from the target toward the eye
+_EYE_MARGIN = 1.1  # the framed points fill the view but for this much room
+_EYE_STEPS = 4  # rounds of fitting the distance and centring the target (perspective makes them depend on each other)
 
-    >>> position, target = eye_world(np.array([[0.0, -8.0], [1.0, -9.0], [-1.0, -7.0]]))
-    >>> target.tolist(), bool(position[1] > target[1]) and bool(position[2] > target[2])
-    ([0.0, 0.9, -8.0], True)
+
+def eye_world(points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the viewer's eye starts: (position, look target), world metres, framing the (N, 3) points (NaN rows
+    ignored; none: 10 m ahead of the camera). It looks at them from the right (the camera's x), a little above and
+    toward the camera, as close as lets every point fit the viewer's field of view (:data:`EYE_FOV_Y_DEG`; 10 %
+    room), its target where they show centred: floating, sunk and leaning bodies show from there.
+
+    >>> box = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (0.0, 1.8) for z in (-9.0, -7.0)])
+    >>> position, target = eye_world(box)
+    >>> target.round(2).tolist(), bool(position[1] > target[1]) and bool(position[2] > target[2]), round(float(np.linalg.norm(position - target)), 2)
+    ([0.19, 0.58, -8.12], True, 3.13)
     """
-    p = np.asarray(ground_xz, dtype=np.float64).reshape(-1, 2)
+    p = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
     p = p[np.isfinite(p).all(axis=1)]
     if not len(p):
-        p = np.array([[0.0, -5.0]])
-    middle = np.median(p, axis=0)
-    spread = float(np.max(np.percentile(p, 90, axis=0) - np.percentile(p, 10, axis=0)))
-    d = min(max(spread + 4.0, 6.0), 40.0)
-    target = np.array([middle[0], 0.9, middle[1]])
-    return target + d * np.array([0.9, 0.4, 0.35]), target
+        p = np.array([[-5.0, 0.0, -10.0], [5.0, 2.0, 0.0]])
+    right = np.cross(-_EYE_FROM, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -_EYE_FROM)
+    tan_v = math.tan(math.radians(EYE_FOV_Y_DEG) / 2)
+    half = np.array([_EYE_ASPECT * tan_v, tan_v])  # the view's half width and height at unit depth
+    target = 0.5 * (p.min(axis=0) + p.max(axis=0))
+    for _ in range(_EYE_STEPS):  # the eye as close as fits, then the target moved to the middle of what it sees
+        rel = p - target
+        toward, across = rel @ _EYE_FROM, np.stack([rel @ right, rel @ up], axis=1)  # (N,), (N, 2)
+        distance = max(_EYE_MARGIN * float(np.max(toward + np.max(np.abs(across) / half, axis=1))), 1.0)
+        seen = across / (distance - toward)[:, None]  # (N, 2) on the view at unit depth
+        target = target + distance * (0.5 * (seen.min(axis=0) + seen.max(axis=0))) @ np.stack([right, up])
+    return target + distance * _EYE_FROM, target
 
 
 def world_points_f32(camera: Camera, points_cam: np.ndarray) -> np.ndarray:

@@ -66,19 +66,24 @@ class RecordingWriter:
                                                          image_plane_distance=image_plane_m,
                                                          color=rgb8(self.style.camera)), static=True)
 
-    def image(self, contents: bytes, media_type: str) -> None:
-        """This frame's video frame under the camera: an image file's bytes (``image/png``, ``image/jpeg`` ...),
-        never decoded here."""
-        self.rec.log(f"{WORLD}/camera/image", self.rr.EncodedImage(contents=contents, media_type=media_type))
+    def image(self, contents: bytes, media_type: str, size_px: tuple[int, int], image_size: tuple[int, int]) -> None:
+        """This frame's video frame on the camera's image plane: an encoded image (``image/png``, ``image/jpeg`` ...)
+        of ``size_px`` (W, H), stretched to the camera's ``image_size`` (a frame scaled down, or stored at
+        another size, fills the pinhole all the same)."""
+        scale = [image_size[0] / size_px[0], image_size[1] / size_px[1], 1.0]
+        self.rec.log(f"{WORLD}/camera/image/video", self.rr.Transform3D(scale=scale),
+                     self.rr.EncodedImage(contents=contents, media_type=media_type))
 
     def person(self, base: str, row: RowFrame, points_world: np.ndarray, normals: np.ndarray | None, color: RGB,
-               first: bool) -> None:
-        """One person of a row: mesh (with its (V, 3) ``normals``, or None), point cloud or skeleton by the row's kind."""
+               first: bool, faces: np.ndarray | None = None) -> None:
+        """One person of a row: mesh (with its (V, 3) ``normals``, or None; on ``faces``, by default the row's own),
+        point cloud or skeleton by the row's kind."""
         rr, rec, rgb = self.rr, self.rec, rgb8(color)
         kind = row.kind
         if kind == "mesh":
             if first:  # the faces and colour of a track do not change: logged once, for every frame
-                rec.log(f"{base}/mesh", rr.Mesh3D.from_fields(triangle_indices=np.asarray(row.faces, dtype=np.uint32),
+                triangles = np.asarray(row.faces if faces is None else faces, dtype=np.uint32)
+                rec.log(f"{base}/mesh", rr.Mesh3D.from_fields(triangle_indices=triangles,
                                                               albedo_factor=rgb), static=True)
             rec.log(f"{base}/mesh", rr.Mesh3D.from_fields(vertex_positions=np.asarray(points_world, dtype=np.float32),
                                                           vertex_normals=normals))

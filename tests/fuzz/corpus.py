@@ -54,6 +54,7 @@ if str(TESTS_DIR) not in sys.path:
 import _body_models as B  # noqa: E402
 import _fixtures_pymafx_trace as PT  # noqa: E402
 import _fixtures_slahmr_glamr as SG  # noqa: E402
+import _fixtures_comotion_prompthmr as CP  # noqa: E402
 import _fixtures_torch as T  # noqa: E402
 import _fixtures_wham_hybrik as WH  # noqa: E402
 import _format_fixtures as F  # noqa: E402
@@ -69,7 +70,7 @@ W, H = 640, 480
 MARKER = "PWNED"  # a payload that runs creates <case folder>/PWNED...
 MAX_RSS_MB = 700.0  # rule 4: clean runs take 120-250 MB (numpy, scipy, numba); see harness.baseline
 FORMATS = ["cliff", "bev", "romp", "4dhumans", "multihmr", "spec", "agora", "bedlam",
-           "wham", "gvhmr", "tram", "hybrik", "pymafx", "trace", "slahmr", "glamr"]
+           "wham", "gvhmr", "tram", "hybrik", "pymafx", "trace", "slahmr", "glamr", "comotion", "prompthmr"]
 
 
 @dataclass
@@ -274,12 +275,12 @@ FORMAT_SRC = {"cliff": "src/demo_cliff_hr48.npz", "bev": "src/bev", "romp": "src
               "multihmr": "src/mh", "spec": "src/spec_out", "agora": "src/agora", "bedlam": "src/scene.npz",
               "wham": "src/wham_output.pkl", "gvhmr": "src/gvhmr", "tram": "src/tram", "hybrik": "src/res.pk",
               "pymafx": "src/output.pkl", "trace": "src/trace_demo.npz", "slahmr": "src/slahmr_run",
-              "glamr": "src/glamr_out"}
+              "glamr": "src/glamr_out", "comotion": "src/video.pt", "prompthmr": "src/results/video"}
 # The file each importer reads first (damaged by the generic cases), when it is not the first in name order.
 _SLAHMR_WORLD = "src/slahmr_run/motion_chunks/demo_000060_world_results.npz"
 FORMAT_MAIN = {"slahmr": _SLAHMR_WORLD, "tram": "src/tram/hps/hps_track_0.npy"}
 # The body model each format's parameters need (the tiny body in that model's joint layout): model.npz.
-FORMAT_MODEL = {"gvhmr": "smplx", "slahmr": "smplh"}
+FORMAT_MODEL = {"gvhmr": "smplx", "slahmr": "smplh", "prompthmr": "smplx"}
 
 
 def _capture(write: Callable[[Path], Any]) -> dict[str, bytes]:
@@ -328,6 +329,10 @@ def format_files(fmt: str) -> dict[str, bytes]:
             SG.write_slahmr(path, scene, model)
         elif fmt == "glamr":
             SG.write_glamr(path / "grecon" / "demo_seed1.pkl", scene)
+        elif fmt == "comotion":
+            CP.write_comotion(path, scene)
+        elif fmt == "prompthmr":
+            CP.write_prompthmr(path, scene, cam, (W, H))
 
     files = _capture(write)
     files["model.npz"] = model_bytes(FORMAT_MODEL.get(fmt, "smpl"))
