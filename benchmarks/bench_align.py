@@ -83,7 +83,7 @@ import json, resource, sys
 sys.path.insert(0, {root!r})
 from rotavat_cli.alignment.align import align_sequence
 from rotavat_cli.sequence import open_sequence, Sequence
-from rotavat_cli.camera import camera_from_yaml_dict
+from rotavat_cli.geometry.camera import camera_from_yaml_dict
 seq = open_sequence({seq!r})
 seq = Sequence(seq.path, seq.form, seq.frame_names[:{n}], seq.meta)
 align_sequence(seq, camera_from_yaml_dict(json.loads({cam!r})), {out!r})
@@ -93,7 +93,7 @@ print(max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, resource.getrusage
 
 def peak_rss_mb(seq_path: Path, out: Path, camera, n_frames: int) -> float:
     """Peak RSS (MB) of the largest process (main or worker) aligning the first ``n_frames`` frames."""
-    from rotavat_cli.camera import camera_to_yaml_dict
+    from rotavat_cli.geometry.camera import camera_to_yaml_dict
 
     code = _CHILD.format(root=str(Path(__file__).resolve().parents[1]), seq=str(seq_path), n=n_frames,
                          cam=json.dumps(camera_to_yaml_dict(camera)), out=str(out))

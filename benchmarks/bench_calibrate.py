@@ -37,9 +37,9 @@ from rotavat_cli.calibration import (  # noqa: E402
     fit_per_frame,
     paper_grid_search,
 )
-from rotavat_cli.camera import Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px, up_vector_cam  # noqa: E402
+from rotavat_cli.geometry.camera import Camera, backproject_px_to_plane, camera_from_yaml_dict, project_cam_to_px, up_vector_cam  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
-from rotavat_cli.frame_points import in_view  # noqa: E402
+from rotavat_cli.bodies.frame_points import in_view  # noqa: E402
 
 REALDATA = ROOT.parent / "shared" / "realdata"
 METRICS = ("focal %", "pitch °", "roll °", "height %", "horizon px")
@@ -107,7 +107,7 @@ def synthetic_table(seeds: int) -> None:
 
 def synth_scene_table(seeds: int) -> None:
     """`refine` on full `rotavat synth` scenes: realistic bodies, their own mid-sole/crown landmarks."""
-    from rotavat_cli.config import default_config
+    from rotavat_cli.settings.config import default_config
     from rotavat_cli.sequence import open_sequence
     from rotavat_cli.synth import SynthOptions, write_synth_scene
 

@@ -50,7 +50,7 @@ from rotavat_cli.calibration.model import head_errors  # noqa: E402
 from rotavat_cli.calibration.pairs import FootHeadPairs  # noqa: E402
 from rotavat_cli.calibration.params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL  # noqa: E402
 from rotavat_cli.calibration.sequence import fit_pooled_pairs  # noqa: E402
-from rotavat_cli.camera import Camera  # noqa: E402
+from rotavat_cli.geometry.camera import Camera  # noqa: E402
 
 LAYOUTS = ("still", "walk", "mix")
 PARAMS = ("focal %", "pitch °", "height %")

@@ -45,11 +45,11 @@ sys.path.insert(0, str(ROOT))
 
 from rotavat_cli.alignment import AlignOptions, align_sequence, summarize_people_csv  # noqa: E402
 from rotavat_cli.calibration import CalibrateOptions, calibrate_sequence  # noqa: E402
-from rotavat_cli.camera import Camera  # noqa: E402
-from rotavat_cli.config import default_config  # noqa: E402
+from rotavat_cli.geometry.camera import Camera  # noqa: E402
+from rotavat_cli.settings.config import default_config  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
-from rotavat_cli.focal import FOCAL_RULES, focal_from_rule  # noqa: E402
-from rotavat_cli.landmarks import foot_head_points  # noqa: E402
+from rotavat_cli.geometry.focal import FOCAL_RULES, focal_from_rule  # noqa: E402
+from rotavat_cli.bodies.landmarks import foot_head_points  # noqa: E402
 from rotavat_cli.metrics.evaluate import evaluate  # noqa: E402
 from rotavat_cli.sequence import open_sequence  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402

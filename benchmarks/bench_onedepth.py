@@ -54,9 +54,9 @@ sys.path.insert(0, str(ROOT))
 
 from rotavat_cli.alignment import AlignOptions, align_sequence, summarize_people_csv  # noqa: E402
 from rotavat_cli.calibration import CalibrateOptions, calibrate_sequence  # noqa: E402
-from rotavat_cli.camera import camera_parameters  # noqa: E402
+from rotavat_cli.geometry.camera import camera_parameters  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
-from rotavat_cli.focal import focal_from_rule  # noqa: E402
+from rotavat_cli.geometry.focal import focal_from_rule  # noqa: E402
 from rotavat_cli.metrics.evaluate import evaluate  # noqa: E402
 from rotavat_cli.sequence import open_sequence  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402

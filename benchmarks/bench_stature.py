@@ -42,9 +42,9 @@ sys.path.insert(0, str(ROOT))
 
 from rotavat_cli.calibration import CalibrateOptions, fit_camera  # noqa: E402
 from rotavat_cli.calibration.pairs import FootHeadPairs, gather_pairs  # noqa: E402
-from rotavat_cli.camera import Camera  # noqa: E402
+from rotavat_cli.geometry.camera import Camera  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
-from rotavat_cli.measure import TrackStatures, statures_from_camera_m, statures_by_track  # noqa: E402
+from rotavat_cli.bodies.measure import TrackStatures, statures_from_camera_m, statures_by_track  # noqa: E402
 from rotavat_cli.sequence import open_sequence, read_camera_yaml  # noqa: E402
 
 REALDATA = ROOT.parent / "shared" / "realdata"

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
-from .limits import current
+from .settings.limits import current
 
 __all__ = ["to_plain", "csv_cell"]
 

@@ -21,13 +21,13 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from . import limits
-from .atomic import atomic_open
-from .camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict, people_not_in_front
+from .settings import limits
+from .files.atomic import atomic_open
+from .geometry.camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict, people_not_in_front
 from .errors import InputError, file_error, input_errors
-from .focal import focal_kind_or_default
+from .geometry.focal import focal_kind_or_default
 from .unpickle.npz import load_npz
-from .yaml_io import read_yaml, write_yaml
+from .files.yaml_io import read_yaml, write_yaml
 
 __all__ = [
     "Frame",
@@ -692,7 +692,7 @@ def _check_meta(meta: dict, source: Path) -> None:
 
 
 def people_not_placed(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-    """(root_centred, behind) (P,) of a frame's people: :func:`rotavat_cli.camera.people_not_in_front`
+    """(root_centred, behind) (P,) of a frame's people: :func:`rotavat_cli.geometry.camera.people_not_in_front`
     on its meshes (else its joints), the root being joint 0 when it has joints, else the points' mean."""
     verts, joints = frame.get("vertices"), frame.get("joints")
     points = verts if verts is not None and verts.shape[1] else joints

@@ -21,8 +21,8 @@ import _fixtures_torch as T
 import _format_fixtures as F
 import numpy as np
 
-from rotavat_cli.camera import Camera
-from rotavat_cli.rotations import matrix_to_axis_angle
+from rotavat_cli.geometry.camera import Camera
+from rotavat_cli.geometry.rotations import matrix_to_axis_angle
 
 __all__ = ["comotion_rows", "write_comotion", "write_comotion_image", "prompthmr_results", "write_prompthmr",
            "world_pelvis", "world_root"]

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.formats.smpl import BodyModel, load_body_model
-from rotavat_cli.rotations import axis_angle_to_matrix
+from rotavat_cli.geometry.rotations import axis_angle_to_matrix
 
 
 # ---- scene -------------------------------------------------------------------------------------

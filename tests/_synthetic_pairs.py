@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.synth import random_camera
 from rotavat_cli.synth.layouts import STILL_SWAY_M  # a standing person's offset from their place per frame, sd
 

@@ -14,7 +14,7 @@ from _cli import invoke
 from conftest import tree_hash
 
 from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence, aligned_meta
-from rotavat_cli.camera import Camera, camera_parameters
+from rotavat_cli.geometry.camera import Camera, camera_parameters
 from rotavat_cli.sequence import Frame, open_sequence, read_camera_yaml, write_frame
 
 
@@ -75,7 +75,7 @@ def test_pixels_unchanged_and_feet_on_ground(scene):
     cam = open_sequence(scene / "gt").camera
     frame = seq.read_frame("000000")
     new, cols = align_frame(frame, cam)
-    from rotavat_cli.landmarks import foot_head_points
+    from rotavat_cli.bodies.landmarks import foot_head_points
 
     f0, h0 = foot_head_points(frame.data["vertices"])
     f1, h1 = foot_head_points(new.data["vertices"])
@@ -276,8 +276,8 @@ def test_align_options_read_their_config_section_and_refuse_bad_values():
 
 def _joints_only(frame: Frame, intrinsics) -> Frame:
     """The frame as a joints-only import has it: no meshes; feet_2d/heads_2d = the mesh landmarks' pixels."""
-    from rotavat_cli.camera import project_cam_to_px
-    from rotavat_cli.landmarks import foot_head_points
+    from rotavat_cli.geometry.camera import project_cam_to_px
+    from rotavat_cli.bodies.landmarks import foot_head_points
 
     feet, heads = foot_head_points(frame.data["vertices"])
     focal = intrinsics.focals_px(frame.n_people)
@@ -320,7 +320,7 @@ def test_a_frame_without_meshes_or_2d_points_is_refused(scene):
 def test_track_plots_of_joints_only_people_measure_them_as_align_does(scene, tmp_path):
     """A joints-only person's per-track stature is the one of align's mid-sole and crown (feet_2d/heads_2d at the
     joints' depth: frame_points.frame_foot_head_cam), not another estimate."""
-    from rotavat_cli.frame_points import MeshIntrinsics, frame_foot_head_cam
+    from rotavat_cli.bodies.frame_points import MeshIntrinsics, frame_foot_head_cam
     from rotavat_cli.render import sequence_tracks
 
     seq, cam = open_sequence(scene / "pred"), open_sequence(scene / "gt").camera

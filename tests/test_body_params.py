@@ -10,11 +10,11 @@ import pytest
 
 from rotavat_cli.alignment.align import align_sequence
 from rotavat_cli.alignment.options import AlignOptions
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats.convert import import_sequence
 from rotavat_cli.formats.smpl import lbs, load_body_model, pose_from_body, smpl_param_arrays
-from rotavat_cli.rotations import matrix_to_axis_angle
+from rotavat_cli.geometry.rotations import matrix_to_axis_angle
 from rotavat_cli.sequence import SMPL_PARAM_KEYS, WORLD_PARAM_KEYS, open_sequence, validate_frame, write_meta
 
 CAMERA = Camera((1280, 720), 1000.0, None, np.deg2rad(12.0), np.deg2rad(2.0), 3.5)

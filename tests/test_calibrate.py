@@ -15,8 +15,8 @@ from rotavat_cli.calibration import (RESIDUAL_KINDS, RESIDUALS, CalibrateOptions
 from rotavat_cli.calibration.objective import make_problem, profiled, whitened
 from rotavat_cli.calibration.params import FOCAL, HEIGHT, PITCH, ROLL, param_vector
 from rotavat_cli.calibration.uncertainty import jackknife_cov
-from rotavat_cli.camera import Camera, backproject_px_to_plane, project_cam_to_px, up_vector_cam
-from rotavat_cli.config import default_config
+from rotavat_cli.geometry.camera import Camera, backproject_px_to_plane, project_cam_to_px, up_vector_cam
+from rotavat_cli.settings.config import default_config
 from rotavat_cli.errors import DegenerateSceneError, InputError
 
 # Tolerances (why): 100 frames x 20 walking people, 2 px noise, stature sd 0.07 m -> the camera is

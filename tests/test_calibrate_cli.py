@@ -142,7 +142,7 @@ def box_seq(path: Path) -> tuple[Path, dict]:
 
     from _synthetic_pairs import synthetic_pairs
 
-    from rotavat_cli.camera import Camera
+    from rotavat_cli.geometry.camera import Camera
 
     cam = Camera((1280, 720), 1800.0, None, math.radians(18.0), math.radians(1.0), 6.5)
     data = synthetic_pairs(np.random.default_rng(51), camera=cam, frames=40, people=15, points="boxes",

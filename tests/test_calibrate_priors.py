@@ -17,7 +17,7 @@ from rotavat_cli.calibration import CalibrateOptions, calibrate_sequence, fit_ca
 from rotavat_cli.calibration.objective import BodyAxes
 from rotavat_cli.calibration.plausibility import implausible_findings
 from rotavat_cli.calibration.priors import LENS_FOCAL_OVER_DIAGONAL, default_priors, lens_range_px
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import DegenerateSceneError, InputError
 from rotavat_cli.sequence import open_sequence, write_camera_yaml, write_meta
 

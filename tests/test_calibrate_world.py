@@ -30,9 +30,9 @@ from rotavat_cli.calibration.params import param_vector
 from rotavat_cli.calibration.priors import default_priors
 from rotavat_cli.calibration.residuals import residual_kind
 from rotavat_cli.calibration.sequence import fit_pooled_pairs
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import DegenerateSceneError
-from rotavat_cli.frame_points import in_view
+from rotavat_cli.bodies.frame_points import in_view
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta
 from rotavat_cli.synth.layouts import standing_row
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rotavat_cli.camera import (Camera, backproject_px_to_plane, camera_from_yaml_dict, camera_to_yaml_dict,
+from rotavat_cli.geometry.camera import (Camera, backproject_px_to_plane, camera_from_yaml_dict, camera_to_yaml_dict,
                                 pitch_roll_from_up, project_cam_to_px, up_vector_cam)
 
 

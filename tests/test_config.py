@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from rotavat_cli.config import DEFAULT_CONFIG_PATH, default_config, load_config
+from rotavat_cli.settings.config import DEFAULT_CONFIG_PATH, default_config, load_config
 from rotavat_cli.errors import InputError
 
 

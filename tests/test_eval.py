@@ -10,7 +10,7 @@ import pytest
 from _cli import invoke
 from conftest import tree_hash
 
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import InputError
 from rotavat_cli.metrics.evaluate import EvalOptions, evaluate, parse_joints
 from rotavat_cli.metrics.report import parse_gate

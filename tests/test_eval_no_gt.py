@@ -14,8 +14,8 @@ from _cli import invoke
 from conftest import tree_hash
 
 from rotavat_cli.batch.report import aggregate_rows
-from rotavat_cli.camera import Camera
-from rotavat_cli.landmarks import SMPL
+from rotavat_cli.geometry.camera import Camera
+from rotavat_cli.bodies.landmarks import SMPL
 from rotavat_cli.metrics.ground_free import (acceleration_m, consecutive_windows, contact_sliding_m,
                                              feet_height_summary, lean_summary, stature_summary)
 from rotavat_cli.metrics.ground_free_eval import (ALONGSIDE, GIVEN, GROUND_FREE_METRICS, OWN, measure_sequence,

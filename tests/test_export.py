@@ -11,7 +11,7 @@ import trimesh
 from _cli import invoke
 from conftest import tree_hash
 
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.render import (R_CV_FROM_GL, RenderStyle, build_scene, export_frame, frustum_segments_world,
                                 ground_quad_world, read_glb_json, read_row, world_from_gl_camera, write_glb)
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml

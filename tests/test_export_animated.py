@@ -17,15 +17,15 @@ from _cli import invoke
 from conftest import tree_hash
 from scipy.spatial.transform import Rotation
 
-from rotavat_cli import limits
-from rotavat_cli.camera import Camera
+from rotavat_cli.settings import limits
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.exchange import (R_AMASS_FROM_WORLD, BinLayout, GlbWriter, bvh_joint_positions, joint_names, json_chunk,
                                   read_bvh, rest_shape, skin_weights)
 from rotavat_cli.exchange.animated import export_animated
 from rotavat_cli.formats.smpl import BodyModel, lbs, load_body_model, pose_from_body
-from rotavat_cli.outputs import written_by_rotavat
+from rotavat_cli.files.outputs import written_by_rotavat
 from rotavat_cli.render.export import world_from_gl_camera
-from rotavat_cli.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from rotavat_cli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from rotavat_cli.sequence import open_sequence, write_camera_yaml, write_meta
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 

@@ -14,10 +14,10 @@ from _cli import invoke
 
 from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence
 from rotavat_cli.alignment.transform import apply_transforms, method_rays_cam, rotavat_transforms
-from rotavat_cli.camera import Camera, reexpress_cam
+from rotavat_cli.geometry.camera import Camera, reexpress_cam
 from rotavat_cli.errors import InputError
-from rotavat_cli.focal import focal_from_rule, hybrik_focal_px
-from rotavat_cli.landmarks import foot_head_points
+from rotavat_cli.geometry.focal import focal_from_rule, hybrik_focal_px
+from rotavat_cli.bodies.landmarks import foot_head_points
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta
 from rotavat_cli.synth import SynthOptions, synth_frames, write_synth_scene
 

@@ -14,9 +14,9 @@ from PIL import Image
 from PIL.ExifTags import IFD, Base
 
 from rotavat_cli.calibration import CalibrateOptions
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import InputError
-from rotavat_cli.focal import FULL_FRAME_DIAGONAL_MM, focal_px_at_size, focal_px_from_35mm
+from rotavat_cli.geometry.focal import FULL_FRAME_DIAGONAL_MM, focal_px_at_size, focal_px_from_35mm
 from rotavat_cli.formats.exif import focal_from_exif, read_photo_focal
 
 SIZE = (1920, 1080)

@@ -24,13 +24,13 @@ from _cli import invoke
 from conftest import tree_hash
 
 from rotavat_cli import unpickle
-from rotavat_cli.camera import horizon_v_px
+from rotavat_cli.geometry.camera import horizon_v_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import available_formats, detect_format, import_sequence, imported_sequence
 from rotavat_cli.formats.agora import focal_mm
 from rotavat_cli.formats.source import ImporterSource, forget, recipe_cached
-from rotavat_cli.focal import focal_from_rule
-from rotavat_cli.landmarks import foot_head_points
+from rotavat_cli.geometry.focal import focal_from_rule
+from rotavat_cli.bodies.landmarks import foot_head_points
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
 
 W, H = 640, 480

@@ -17,13 +17,13 @@ import pytest
 from _cli import invoke
 
 from rotavat_cli import unpickle
-from rotavat_cli.camera import project_cam_to_px
+from rotavat_cli.geometry.camera import project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
 from rotavat_cli.formats.image_size import image_size_from_header
 from rotavat_cli.formats.keypoints import feet_heads_px
-from rotavat_cli.joint_layouts import LAYOUT_NAMES
-from rotavat_cli.landmarks import foot_head_points, sole_crown_points
+from rotavat_cli.bodies.joint_layouts import LAYOUT_NAMES
+from rotavat_cli.bodies.landmarks import foot_head_points, sole_crown_points
 from rotavat_cli.sequence import open_sequence
 
 REALFILES = Path(__file__).resolve().parents[2] / "shared" / "realfiles"

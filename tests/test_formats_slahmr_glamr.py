@@ -15,7 +15,7 @@ import pytest
 from _cli import invoke
 
 from rotavat_cli import unpickle
-from rotavat_cli.camera import world_to_cam
+from rotavat_cli.geometry.camera import world_to_cam
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence
 from rotavat_cli.formats import glamr as glamr_module

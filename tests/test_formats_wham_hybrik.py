@@ -17,7 +17,7 @@ from rotavat_cli import unpickle
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import detect_format, import_sequence, imported_sequence
 from rotavat_cli.formats.hybrik import HYBRIK29_JOINT_NAMES, fitted_depth_factor_m, uvd_to_px
-from rotavat_cli.landmarks import SMPL_JOINT_NAMES
+from rotavat_cli.bodies.landmarks import SMPL_JOINT_NAMES
 from rotavat_cli.sequence import open_sequence, read_camera_yaml
 
 W, H = 640, 480

@@ -217,7 +217,7 @@ def test_the_reader_sees_the_whole_package():
     """The graph is read from every module (a reader that found nothing would pass everything)."""
     assert len(MODULES) > 80 and {"rotavat_cli.cli", "rotavat_cli.calibration.fit", "rotavat_cli.sequence"} <= set(MODULES)
     graph = import_graph()
-    assert "rotavat_cli.camera" in graph["rotavat_cli.calibration.fit"]  # a top-level import
+    assert "rotavat_cli.geometry.camera" in graph["rotavat_cli.calibration.fit"]  # a top-level import
     assert "rotavat_cli.calibration.fit" in graph["rotavat_cli.calibration"]  # a face's table
     assert "rotavat_cli.cli.calibrate" not in graph["rotavat_cli.cli.group"]  # the group imports commands by name
 

@@ -8,7 +8,7 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 
-from rotavat_cli.camera import ROOT_CENTRED_M, project_cam_to_px
+from rotavat_cli.geometry.camera import ROOT_CENTRED_M, project_cam_to_px
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import import_sequence
 from rotavat_cli.formats.frames import people_frame
@@ -22,8 +22,8 @@ def unplaced_people(vertices, joints) -> np.ndarray:
     data = {k: v for k, v in (("vertices", vertices), ("joints", joints)) if v is not None}
     return np.logical_or(*people_not_placed(Frame("f", data, "f")))
 from rotavat_cli.formats.keypoints import LAYOUTS, PointRule, extrapolated, feet_heads_px, mean_of, recipe_for
-from rotavat_cli.joint_layouts import LAYOUT_NAMES, layout_by_count
-from rotavat_cli.landmarks import foot_head_points, sole_crown_points
+from rotavat_cli.bodies.joint_layouts import LAYOUT_NAMES, layout_by_count
+from rotavat_cli.bodies.landmarks import foot_head_points, sole_crown_points
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
 

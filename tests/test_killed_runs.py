@@ -19,14 +19,14 @@ from pathlib import Path
 
 import pytest
 
-from rotavat_cli.atomic import atomic_open, atomic_write_text, staged_directory
-from rotavat_cli.outputs import STAGING_OWNER
+from rotavat_cli.files.atomic import atomic_open, atomic_write_text, staged_directory
+from rotavat_cli.files.outputs import STAGING_OWNER
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads process states from /proc")
 
 _STAGING_CHILD = """
 import sys, time
-from rotavat_cli.atomic import staged_directory
+from rotavat_cli.files.atomic import staged_directory
 with staged_directory(sys.argv[1], "test") as stage:
     (stage / "half.txt").write_text("half")
     print(stage, flush=True)
@@ -35,7 +35,7 @@ with staged_directory(sys.argv[1], "test") as stage:
 
 _WRITER_CHILD = """
 import sys, time
-from rotavat_cli.atomic import atomic_open
+from rotavat_cli.files.atomic import atomic_open
 with atomic_open(sys.argv[1], "w") as handle:
     handle.write("half")
     handle.flush()

@@ -1,4 +1,4 @@
-"""Tests for rotavat_cli.landmarks: mid-sole and crown from meshes (known topology and geometry)."""
+"""Tests for rotavat_cli.bodies.landmarks: mid-sole and crown from meshes (known topology and geometry)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from rotavat_cli import landmarks
-from rotavat_cli.landmarks import (SMPL, SMPLX, Topology, foot_head_points, ground_contact, register_topology,
+from rotavat_cli.bodies import landmarks
+from rotavat_cli.bodies.landmarks import (SMPL, SMPLX, Topology, foot_head_points, ground_contact, register_topology,
                                   sole_crown_points, topology_for)
 
 TOL_M = 0.01  # the brief's accuracy target for geometry mode: 1 cm

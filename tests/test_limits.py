@@ -31,10 +31,12 @@ import pytest
 from _cli import invoke
 from conftest import tetra_frame
 
-from rotavat_cli import limits, unpickle
+from rotavat_cli import unpickle
+
+from rotavat_cli.settings import limits
 from rotavat_cli.calibration import GridSpec
 from rotavat_cli.errors import InputError
-from rotavat_cli.limits import Limits
+from rotavat_cli.settings.limits import Limits
 from rotavat_cli.plain import to_plain
 from rotavat_cli.unpickle.allowed import numpy_multiarray
 
@@ -424,7 +426,7 @@ def test_limits_from_config_and_errors():
 
 def test_batch_tasks_apply_the_plan_limits(tmp_path, npz_seq):
     from rotavat_cli.batch.tasks import _apply_limits
-    from rotavat_cli.config import default_config
+    from rotavat_cli.settings.config import default_config
 
     config = default_config()
     config["limits"]["max_array_mb"] = 0.0001  # 104 bytes: the fixture's vertices are larger

@@ -1,4 +1,4 @@
-"""Statures from a known camera (rotavat_cli.measure) and `rotavat measure`."""
+"""Statures from a known camera (rotavat_cli.bodies.measure) and `rotavat measure`."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import pytest
 from _cli import invoke
 from conftest import tree_hash
 
-from rotavat_cli.camera import Camera
-from rotavat_cli.measure import statures_from_camera_m, statures_by_track
+from rotavat_cli.geometry.camera import Camera
+from rotavat_cli.bodies.measure import statures_from_camera_m, statures_by_track
 from rotavat_cli.sequence import Frame, write_camera_yaml, write_frame, write_meta
 
 # A street camera: tilted, rolled, principal point off the image centre (every term of the model matters).

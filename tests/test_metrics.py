@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from _reference_metrics import reference_pa_errors_mm
 
-from rotavat_cli.camera import height_above_ground
+from rotavat_cli.geometry.camera import height_above_ground
 from rotavat_cli.metrics import (JOINT_ERROR_KEYS, VERTEX_ERROR_KEYS, camera_errors, compiled_kernels, detection_scores,
                                  lean_deg, mpjpe, normalize_by_f1, person_errors_mm, point_errors_mm, procrustes_align,
                                  pve, root_err_mm, stature_err_mm, stature_m, to_gravity_frame, umeyama,

@@ -32,7 +32,7 @@ from _cli import invoke
 
 from rotavat_cli.calibration.priors import Priors
 from rotavat_cli.calibration.uncertainty import MOVED_PRIOR_SD, moved_by_data
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.cli.commands import COMMANDS
 from rotavat_cli.formats.agora import model_kind_of
 from rotavat_cli.sequence import open_sequence, write_camera_yaml

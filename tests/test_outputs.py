@@ -12,7 +12,7 @@ import pytest
 from _cli import invoke
 from conftest import tree_hash
 
-from rotavat_cli.outputs import MARKER, STAGING_OWNER, written_by_rotavat
+from rotavat_cli.files.outputs import MARKER, STAGING_OWNER, written_by_rotavat
 
 
 @pytest.fixture(scope="module")

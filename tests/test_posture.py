@@ -1,4 +1,4 @@
-"""rotavat_cli.posture (who stands) and rotavat_cli.joint_layouts (the layouts' joint names).
+"""rotavat_cli.bodies.posture (who stands) and rotavat_cli.bodies.joint_layouts (the layouts' joint names).
 
 Hand-built bodies in three layouts, turned every way in the camera frame; the real HPS outputs of
 ../shared/realfiles (skipped when absent) classified as the photos show them.
@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotavat_cli import joint_layouts, posture
+from rotavat_cli.bodies import joint_layouts, posture
 from rotavat_cli.formats import imported_sequence, keypoints
 from rotavat_cli.formats.smpl import joints_to_smpl24, load_body_model, pose_from_body, posed_joints
-from rotavat_cli.joint_layouts import LAYOUT_NAMES
+from rotavat_cli.bodies.joint_layouts import LAYOUT_NAMES
 from rotavat_cli.unpickle.torch_files import load_torch
-from rotavat_cli.posture import (KNEE_DOWN_MAX, PELVIS_LOW_MAX, PELVIS_SEATED_MAX, POSTURE_JOINTS, THIGH_SEATED_MIN_RAD,
+from rotavat_cli.bodies.posture import (KNEE_DOWN_MAX, PELVIS_LOW_MAX, PELVIS_SEATED_MAX, POSTURE_JOINTS, THIGH_SEATED_MIN_RAD,
                                  TRUNK_BEND_MAX_RAD, posture_measures, posture_reasons, postures, standing_mask,
                                  summarize_postures)
 
@@ -120,7 +120,7 @@ def _rotavat_imports(module_path: Path) -> set[str]:
 
 def test_the_new_modules_import_only_the_bottom_floor():
     assert _rotavat_imports(Path(joint_layouts.__file__)) == {".landmarks"}
-    assert _rotavat_imports(Path(posture.__file__)) == {".joint_layouts", ".rotations"}
+    assert _rotavat_imports(Path(posture.__file__)) == {".joint_layouts", "..geometry.rotations"}
 
 
 def test_formats_keypoints_recipes_are_of_the_leafs_layouts():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from _cli import invoke
 
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import InputError
 from rotavat_cli.metrics.evaluate import EvalOptions, evaluate, merge_results
 from rotavat_cli.metrics.protocols import agora_prf1, agora_round

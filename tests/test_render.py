@@ -12,10 +12,10 @@ from _cli import invoke
 from conftest import tree_hash
 from PIL import Image
 
-from rotavat_cli.camera import Camera
-from rotavat_cli.config import default_config
+from rotavat_cli.geometry.camera import Camera
+from rotavat_cli.settings.config import default_config
 from rotavat_cli.errors import RotavatError
-from rotavat_cli.landmarks import foot_head_points
+from rotavat_cli.bodies.landmarks import foot_head_points
 from rotavat_cli.render import (LABEL_PX, REGISTRY, RENDERERS, VIEWS, FigureOptions, FrontCrop, PanelView, RenderStyle,
                                 RowFrame, clip_from_cam_perspective, figure_steps, fit_ortho_extent, front_view,
                                 ground_truth_row, horizontal_forward_world, layout_bones, layout_name, metrics_caption,
@@ -605,7 +605,7 @@ def test_front_view_frames_the_people_or_the_whole_image():
 
 def test_rows_are_placed_by_their_own_camera(runner, scene, tmp_path):
     """--camera is for the rows without a camera.yaml: the ground truth stays in its true camera."""
-    from rotavat_cli.camera import camera_parameters
+    from rotavat_cli.geometry.camera import camera_parameters
     from rotavat_cli.sequence import write_camera_yaml
 
     gt_cam = open_sequence(scene / "gt").camera

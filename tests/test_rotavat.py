@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rotavat_cli.alignment.transform import FLAGS, apply_transforms, rotavat_transforms
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 
 TOL = 1e-6  # relative, per the issue: geometry is float64, errors are ~1e-12 in practice
 

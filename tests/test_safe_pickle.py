@@ -19,7 +19,9 @@ import _format_fixtures as F
 import numpy as np
 import pytest
 
-from rotavat_cli import limits, unpickle
+from rotavat_cli import unpickle
+
+from rotavat_cli.settings import limits
 from rotavat_cli.errors import InputError
 
 

@@ -15,7 +15,7 @@ import yaml
 from _cli import invoke
 from conftest import tetra_frame, tree_hash
 
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.errors import InputError
 from rotavat_cli.sequence import (DirectorySource, Frame, FrameSource, Sequence, open_sequence, read_camera_yaml,
                                   read_frame_npz, write_camera_yaml, write_frame)

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotavat_cli import limits
+from rotavat_cli.settings import limits
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats import smpl
 from rotavat_cli.formats.smpl import SMPLX_TO_SMPL24, joints_to_smpl24, lbs, load_body_model, pose_to_matrices
-from rotavat_cli.rotations import axis_angle_to_matrix
+from rotavat_cli.geometry.rotations import axis_angle_to_matrix
 
 # A 3-joint chain along +y (joints at y = 0, 1, 2), written in the official npz layout:
 # vertex 0/1/2 sit on the joints, vertex 3 is the tip (y = 3), vertex 4 is half skinned to joints 0 and 1.

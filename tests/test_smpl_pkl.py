@@ -27,7 +27,9 @@ import numpy as np
 import pytest
 from _cli import invoke
 
-from rotavat_cli import limits, unpickle
+from rotavat_cli import unpickle
+
+from rotavat_cli.settings import limits
 from rotavat_cli.errors import InputError
 from rotavat_cli.formats.smpl import BodyModel, lbs, load_body_model
 from rotavat_cli.sequence import open_sequence

@@ -17,10 +17,10 @@ import pytest
 from rotavat_cli.alignment import AlignOptions, align_frame, align_sequence, rotavat_transforms
 from rotavat_cli.alignment.align import FLIGHT, flight_plan
 from rotavat_cli.alignment.flight import MIN_ELEVATION_M, foot_elevation_m
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.formats.keypoints import contact_weights_3d, feet_heads_px, recipe_for, rule_px
-from rotavat_cli.landmarks import SMPL_JOINT_NAMES, ground_contact, sole_crown_points
-from rotavat_cli.rotations import axis_angle_to_matrix
+from rotavat_cli.bodies.landmarks import SMPL_JOINT_NAMES, ground_contact, sole_crown_points
+from rotavat_cli.geometry.rotations import axis_angle_to_matrix
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta
 from rotavat_cli.synth.bodies import load_bodies
 

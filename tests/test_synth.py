@@ -10,7 +10,7 @@ import pytest
 from _cli import invoke
 from conftest import tree_hash
 
-from rotavat_cli.landmarks import _points_by_geometry, foot_head_points, ground_contact
+from rotavat_cli.bodies.landmarks import _points_by_geometry, foot_head_points, ground_contact
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.synth.bodies import load_bodies
 from rotavat_cli.synth.scene import SynthOptions, _pose_bodies, random_camera, synth_frames

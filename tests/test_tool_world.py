@@ -19,12 +19,12 @@ from _cli import invoke
 from rotavat_cli import unpickle
 
 from rotavat_cli.alignment.align import align_sequence
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.formats import import_sequence
 from rotavat_cli.formats.smpl import lbs, load_body_model
 from rotavat_cli.metrics.tool_world import (FIT, TOOL_WORLD_KEYS, angles_deg, heading_fit, path_lengths_m,
                                             their_up_cam, tool_world_report, tool_world_tracks, wander_deg)
-from rotavat_cli.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from rotavat_cli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from rotavat_cli.sequence import SMPL_PARAM_KEYS, open_sequence, read_camera_yaml, write_camera_yaml
 
 W, H = 640, 480

@@ -15,9 +15,9 @@ import yaml
 from _cli import invoke
 
 from rotavat_cli.alignment import AlignOptions, align_sequence
-from rotavat_cli.camera import Camera
+from rotavat_cli.geometry.camera import Camera
 from rotavat_cli.metrics.evaluate import EvalOptions, evaluate
-from rotavat_cli.outputs import written_by_rotavat
+from rotavat_cli.files.outputs import written_by_rotavat
 from rotavat_cli.sequence import open_sequence, read_camera_yaml, write_camera_yaml
 from rotavat_cli.synth import SynthOptions, write_synth_scene
 from rotavat_cli.view import (camera_label, grid_lines_world, grid_step_m, grid_ticks_world, ground_extent_m,

@@ -31,16 +31,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_open, staged_directory
-from ..camera import Camera, project_cam_to_px
+from ..files.atomic import atomic_open, staged_directory
+from ..geometry.camera import Camera, project_cam_to_px
 from ..errors import InputError
-from ..frame_points import MeshIntrinsics, frame_foot_head_cam, in_view
-from ..focal import CAMERA
-from ..outputs import check_output_dir
-from ..measure import scale_source
+from ..bodies.frame_points import MeshIntrinsics, frame_foot_head_cam, in_view
+from ..geometry.focal import CAMERA
+from ..files.outputs import check_output_dir
+from ..bodies.measure import scale_source
 from ..parallel import cap_workers, ordered_map
 from ..plain import csv_cell
-from ..posture import POSTURES, postures
+from ..bodies.posture import POSTURES, postures
 from ..sequence import Frame, Intrinsics, Sequence, write_camera_yaml, write_frame, write_meta
 from .flight import TrackRows, flight_rows
 from .options import AlignOptions
@@ -56,7 +56,7 @@ PEOPLE_COLUMNS = (
     "final_scale", "mesh_focal_px", "drift_mean_px", "drift_max_px", "head_drift_px", "flag", "stature_from",
 )
 IMPLAUSIBLE_STATURE = "implausible_stature"  # aligned, but the stature is outside the plausible range (AlignOptions)
-# Aligned, but the joints say the person does not stand (rotavat_cli.posture): a sitting body has no stature.
+# Aligned, but the joints say the person does not stand (rotavat_cli.bodies.posture): a sitting body has no stature.
 NOT_STANDING = tuple(name for name in POSTURES if name not in ("standing", "unknown"))
 CUT_BY_BORDER = FLAGS[5]  # left unchanged: the image border cuts the person (no seen foot to re-seat it by)
 FLIGHT = "flight"  # aligned in the air: a run of a track's frames whose foot is above the ground (.flight)
@@ -214,7 +214,7 @@ def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = Non
     frame's own keys); what is not stated is the camera's own; joints_layout: the layout of the
     frame's ``joints`` (``Sequence.joints_layout``; None: SMPL's by count); elevation_m: (P,) the
     height above the ground of the people in the air (NaN: on the ground), flagged ``flight``;
-    stature_from: where the camera's scale comes from (:func:`rotavat_cli.measure.scale_source` of its fit
+    stature_from: where the camera's scale comes from (:func:`rotavat_cli.bodies.measure.scale_source` of its fit
     block), the people.csv column that says whether the statures are measured. People aligned to a stature
     outside ``options.stature_range_m`` are flagged ``implausible_stature``, people whose joints say they
     sit, kneel or bend by their posture (``sitting``, ...); all are aligned. People cut by the image border
@@ -456,7 +456,7 @@ class AlignSummary:
     median_drift_px: float = float("nan")  # median over people of their mean vertex motion in the picture
     max_drift_px: float = float("nan")  # the largest motion of any vertex (foot and crown stay: 0)
     max_head_drift_px: float = 0.0
-    stature_from: str = "given_camera"  # where the camera's scale comes from (rotavat_cli.measure.SCALE_SOURCES)
+    stature_from: str = "given_camera"  # where the camera's scale comes from (rotavat_cli.bodies.measure.SCALE_SOURCES)
     cut: int = 0  # people left unchanged because the image border cuts them (cut_by_border)
     _aligned_columns: list[dict[str, np.ndarray]] = field(default_factory=list, repr=False)
 
@@ -541,7 +541,7 @@ def align_sequence(seq: Sequence, camera: Camera, out: str | Path, options: Alig
     sequence in parts gives what one call does. ``camera_fit`` is written as
     camera.yaml's fit block. ``out`` is replaced only when it is rotavat's own output or empty
     (``force``: any folder that is not and does not hold an input;
-    :func:`rotavat_cli.outputs.check_output_dir`).
+    :func:`rotavat_cli.files.outputs.check_output_dir`).
     """
     options = AlignOptions() if options is None else options
     out = Path(out)

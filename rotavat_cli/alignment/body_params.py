@@ -23,8 +23,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..camera import Camera
-from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from ..geometry.camera import Camera
+from ..geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from ..sequence import SMPL_PARAM_KEYS
 from .transform import AlignTransform, affine_maps
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..sequence import Sequence
 
 __all__ = ["GIVEN", "CALIBRATED", "AlignCamera", "camera_for_align"]

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
-from ..outputs import imported_output
+from ..files.outputs import imported_output
 from .camera_choice import CALIBRATED, AlignCamera
 
 __all__ = ["IMPLAUSIBLE", "ACCEPTED", "ACCEPT_FLAG", "CAMERA_DOC", "KNOWN_FLAGS", "OTHER_CAUSES", "ImplausibleCameraError",

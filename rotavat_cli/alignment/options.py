@@ -19,8 +19,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ..config import default_config, packaged_default
-from ..option_rules import Rule, check_fields
+from ..settings.config import default_config, packaged_default
+from ..settings.option_rules import Rule, check_fields
 from .transform import UPRIGHT
 
 __all__ = ["HEIGHT_FROM", "AlignOptions"]
@@ -43,7 +43,7 @@ class AlignOptions:
     jobs: int = packaged_default(_packaged_options, "jobs")  # worker processes; 0 = one per core (never more than the cores)
     stature_range_m: tuple[float, float] = packaged_default(_packaged_options, "stature_range_m")  # plausible aligned statures
 
-    RULES: ClassVar[dict[str, Rule]] = {  # the ``align`` keys' bounds and names (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``align`` keys' bounds and names (rotavat_cli/settings/option_rules.py)
         "upright": Rule(names=UPRIGHT), "height_from": Rule(names=HEIGHT_FROM), "jobs": Rule(low=0),
         "stature_range_m": Rule(low=0, high=10, ordered="<", unit="m"),
     }

@@ -26,7 +26,7 @@ change is reported); a per-person ``stature_m`` (e.g. one per track) replaces st
 per-person ``elevation_m`` puts the foot point that high above the ground instead of on it (a
 person in the air: :mod:`rotavat_cli.alignment.flight`).
 
-The foot point is the ground contact (:func:`rotavat_cli.landmarks.ground_contact`: the mid-sole
+The foot point is the ground contact (:func:`rotavat_cli.bodies.landmarks.ground_contact`: the mid-sole
 when both soles are level, else on the lower sole's level), so a person on one leg ends with the
 standing foot on the ground.
 """
@@ -38,8 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import pixel_rays_cam, project_cam_to_px
-from ..rotations import axis_angle_to_matrix, cross3
+from ..geometry.camera import pixel_rays_cam, project_cam_to_px
+from ..geometry.rotations import axis_angle_to_matrix, cross3
 
 __all__ = [
     "FLAGS", "UPRIGHT", "AlignTransform", "rotavat_transforms", "affine_maps", "transformed_blocks", "apply_transforms",
@@ -129,7 +129,7 @@ def rotavat_transforms(
     its ray (NaN entries keep the ray rule). ``foot_rays_cam``/``head_rays_cam`` (P, 3): the rays
     the foot and crown must end on (default: through the points themselves). ``elevation_m`` (P,):
     the height above the ground the foot point ends at (default 0: on the ground; NaN entries: 0).
-    ``seen`` (P,) bool: whose foot and crown pixels are seen whole (:func:`rotavat_cli.frame_points.in_view`);
+    ``seen`` (P,) bool: whose foot and crown pixels are seen whole (:func:`rotavat_cli.bodies.frame_points.in_view`);
     the others are left unchanged, flagged ``cut_by_border`` (default: everyone is seen).
     """
     if upright not in UPRIGHT:

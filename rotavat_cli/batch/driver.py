@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import TaskError
-from ..outputs import check_output_dir, mark_output_dir
+from ..files.outputs import check_output_dir, mark_output_dir
 from .executors import InlineExecutor, make_executor
 from .plan import BatchOptions, completed_marker, make_plan
 from .report import BatchReport, aggregate_rows, write_batch_report

@@ -9,16 +9,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
-from ..camera import camera_from_yaml_dict
-from ..config import default_config
+from ..geometry.camera import camera_from_yaml_dict
+from ..settings.config import default_config
 from ..errors import InputError, input_errors
 from ..metrics.evaluate import MATCHES
-from ..option_rules import Rule, check_fields
+from ..settings.option_rules import Rule, check_fields
 from ..plain import to_plain
 from ..render.sequences import FigureOptions
 from ..view.recording import ViewOptions
 from ..view.writer import require_rerun
-from ..yaml_io import read_yaml
+from ..files.yaml_io import read_yaml
 from .discover import discover_sequences, fingerprint, frames_hint
 
 __all__ = ["STEPS", "MARKER", "MARKER_VERSION", "ALIGN_STAGING", "OUTPUTS", "BatchOptions", "parse_steps",
@@ -52,7 +52,7 @@ class BatchOptions:
     accept_camera: bool = False  # --accept-camera: use cameras whose calibration is implausible (with a warning)
     config: dict = field(default_factory=default_config)
 
-    RULES: ClassVar[dict[str, Rule]] = {  # the ``batch`` keys' bounds and names (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``batch`` keys' bounds and names (rotavat_cli/settings/option_rules.py)
         "executor": Rule(names=EXECUTORS), "jobs": Rule(low=0), "chunk_frames": Rule(low=1),
     }
 

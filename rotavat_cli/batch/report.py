@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text
+from ..files.atomic import atomic_write_text
 from ..metrics.ground_free_eval import GROUND_FREE_METRICS, GROUND_FREE_UNITS
 from ..metrics.protocols import detection, protocol
 from ..metrics.report import REPORT_COLUMNS, format_value

@@ -30,7 +30,7 @@ except ImportError:  # not a POSIX system: no peak memory in the report
     resource = None
 
 from ..version import __version__
-from ..atomic import atomic_open, atomic_write_text, staged_directory
+from ..files.atomic import atomic_open, atomic_write_text, staged_directory
 from ..alignment.align import align_sequence, flight_plan, summarize_people_csv
 from ..alignment.camera_choice import CALIBRATED, GIVEN, AlignCamera, camera_for_align
 from ..alignment.camera_gate import (ImplausibleCameraError, batch_remedies, check_align_camera, implausible_findings,
@@ -38,11 +38,11 @@ from ..alignment.camera_gate import (ImplausibleCameraError, batch_remedies, che
 from ..alignment.options import AlignOptions
 from ..calibration.options import CalibrateOptions
 from ..calibration.sequence import calibrate_sequence
-from ..camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
+from ..geometry.camera import camera_from_yaml_dict, camera_parameters, camera_to_yaml_dict
 from ..errors import InputError, RotavatError, TaskError, input_errors
 from ..formats.convert import import_sequence
-from ..limits import Limits
-from ..limits import configure as configure_limits
+from ..settings.limits import Limits
+from ..settings.limits import configure as configure_limits
 from ..metrics.evaluate import EvalOptions, evaluate, merge_results
 from ..metrics.ground_free_eval import measure_sequence, scene_cameras
 from ..metrics.report import write_reports

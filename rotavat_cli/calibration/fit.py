@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..camera import Camera, camera_parameters, horizon_v_px
+from ..geometry.camera import Camera, camera_parameters, horizon_v_px
 from ..errors import DegenerateSceneError
 from .flat_ground import ground_findings
 from .grid import paper_grid_search

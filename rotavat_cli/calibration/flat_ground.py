@@ -3,7 +3,7 @@
 The calibration's model is upright people of similar stature on one flat ground. Stairs, a raised
 back row, a person held in arms, a giant (a detection that is not a whole person) or a model that
 does not fit at all break it, and the fit still returns a camera. What that camera implies says so:
-each pair's **implied stature** (:func:`rotavat_cli.measure.statures_from_camera_m`: the height of
+each pair's **implied stature** (:func:`rotavat_cli.bodies.measure.statures_from_camera_m`: the height of
 the point of the person's vertical nearest the head pixel, over the stature the fit assumed), looked
 at three ways (:func:`ground_findings`):
 
@@ -27,7 +27,7 @@ the fit kept (and, for a region, stand :data:`IMPLAUSIBLE_SHIFT`, 10%, or more o
 people on each side), or
 always for the whole-model spread: it is then also a plausibility finding (:mod:`.plausibility`).
 
->>> from rotavat_cli.camera import Camera
+>>> from rotavat_cli.geometry.camera import Camera
 >>> cam = Camera((1280, 720), 900.0, None, np.deg2rad(20.0), 0.0, 4.0)
 >>> rng = np.random.default_rng(0)
 >>> feet = np.stack([rng.uniform(100, 1180, 60), rng.uniform(400, 700, 60)], 1)
@@ -44,8 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
-from ..measure import statures_by_track, statures_from_camera_m
+from ..geometry.camera import Camera
+from ..bodies.measure import statures_by_track, statures_from_camera_m
 
 __all__ = ["WHOLE_SPREAD_MAX", "REGION_SHIFT_MIN", "REGION_MIN_PEOPLE", "SIGNIFICANCE", "PERSON_RATIO_RANGE",
            "IMPLAUSIBLE_SHARE", "IMPLAUSIBLE_SHIFT", "IMPLAUSIBLE_MIN_PEOPLE", "GroundFinding", "implied_ratios", "ground_findings"]

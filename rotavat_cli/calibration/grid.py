@@ -32,9 +32,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..camera import up_vector_cam
-from ..limits import current as current_limits
-from ..option_rules import Rule, check_fields
+from ..geometry.camera import up_vector_cam
+from ..settings.limits import current as current_limits
+from ..settings.option_rules import Rule, check_fields
 from .model import RAY_EPS, foot_terms, head_errors
 from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector
 from .residuals import ResidualKind, residual_kind
@@ -63,7 +63,7 @@ class GridSpec:
     height_range_m: tuple[float, float] = (0.5, 40.0)
     steps: tuple[int, int, int] = (50, 50, 50)  # focal, pitch, height
 
-    RULES: ClassVar[dict[str, Rule]] = {  # the ``calibrate.grid`` keys' bounds (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``calibrate.grid`` keys' bounds (rotavat_cli/settings/option_rules.py)
         "focal_range_h": Rule(low=1e-3, high=1e3, ordered="<=", unit="H"),
         "pitch_range_deg": Rule(low=-90, high=90, ordered="<=", unit="deg"),
         "height_range_m": Rule(low=1e-2, high=1e5, ordered="<=", unit="m"),

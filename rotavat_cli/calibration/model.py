@@ -18,7 +18,7 @@ and box-derived points put the head ``b`` metres beyond the foot (``k = (S rho +
 :func:`head_errors` is the one implementation: the paper grid's exact re-scoring, the
 refinement and the uncertainty all call it, over ``Q`` parameter sets at once.
 
->>> from rotavat_cli.camera import Camera
+>>> from rotavat_cli.geometry.camera import Camera
 >>> cam = Camera((640, 480), 500.0, None, 0.5, 0.02, 4.0)
 >>> feet = np.array([[100.0, 300.0], [500.0, 420.0]])
 >>> heads = predict_heads_px(feet, 500.0, 0.5, 0.02, 4.0, (320.0, 240.0), 1.7)
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..camera import up_vector_cam
+from ..geometry.camera import up_vector_cam
 from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, slot
 
 __all__ = ["RAY_EPS", "Z_MIN", "foot_terms", "undistort", "head_errors", "head_gain", "predict_heads_px"]

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..camera import up_vector_cam
+from ..geometry.camera import up_vector_cam
 from .model import head_errors, head_gain
 from .params import PITCH, ROLL, from_internal, to_internal
 from .priors import Priors

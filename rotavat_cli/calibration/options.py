@@ -6,7 +6,7 @@ named like it; the YAML is the source of their defaults, and a test checks
 dataclass cannot drift from it. The last fields are not in the config: the model's pixel noise
 and the sds of what it assumes without fitting (Python callers and tests set them).
 
->>> from rotavat_cli.config import default_config
+>>> from rotavat_cli.settings.config import default_config
 >>> CalibrateOptions.from_config(default_config()["calibrate"]) == CalibrateOptions()
 True
 >>> CalibrateOptions(method="grid", distortion=True)
@@ -24,8 +24,8 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InputError
-from ..focal import focal_px_from_35mm
-from ..option_rules import Rule, check_fields
+from ..geometry.focal import focal_px_from_35mm
+from ..settings.option_rules import Rule, check_fields
 from .grid import GridSpec
 from .priors import FOCAL_PRIORS
 from .residuals import RESIDUALS
@@ -95,7 +95,7 @@ class CalibrateOptions:
     # False gives the weights of earlier versions (benchmarks/bench_consistency.py shows what that costs).
     errors_in_variables: bool = field(default=True, metadata=_NOT_IN_CONFIG)
 
-    RULES: ClassVar[dict[str, Rule]] = {  # every option's bounds and names (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # every option's bounds and names (rotavat_cli/settings/option_rules.py)
         "method": Rule(names=METHODS), "residual": Rule(names=RESIDUALS), "points": Rule(names=POINTS),
         "focal_prior": Rule(names=FOCAL_PRIORS),
         "person_height_m": Rule(low=0.5, high=3.0, unit="m"), "person_height_sd_m": Rule(low=0, high=1.0, unit="m"),
@@ -158,7 +158,7 @@ class CalibrateOptions:
 
     def given_focal_px(self, image_size: tuple[int, int]) -> float | None:
         """The focal (px) the options fix on an image of ``image_size`` (W, H): ``focal_px``, else ``focal_mm``
-        converted (:func:`~rotavat_cli.focal.focal_px_from_35mm`), else None (not given).
+        converted (:func:`~rotavat_cli.geometry.focal.focal_px_from_35mm`), else None (not given).
 
         >>> CalibrateOptions(focal_mm=26.0).given_focal_px((4032, 3024)) == focal_px_from_35mm(26.0, (4032, 3024))
         True

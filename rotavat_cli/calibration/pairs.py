@@ -1,19 +1,19 @@
 """Foot (mid-sole) and head (crown) points of the people of a frame or a whole sequence.
 
 2D points: explicit ``feet_2d``/``heads_2d`` in a frame take precedence; otherwise they are the
-projections of the mesh landmarks (:mod:`rotavat_cli.landmarks`) through the intrinsics the HPS
+projections of the mesh landmarks (:mod:`rotavat_cli.bodies.landmarks`) through the intrinsics the HPS
 method used (the frame's ``focal_length``/``K``, one per person or one per frame, or meta.yaml's):
 the pixels the method drew, whatever the camera's real focal.
 
 Where the frame has 3D people, each pair also carries the person's own sole->crown axis in the
 method's camera frame (the mesh landmarks, or align's rule for joints:
-:func:`rotavat_cli.frame_points.frame_foot_head_cam`), which calibration may use as evidence of
+:func:`rotavat_cli.bodies.frame_points.frame_foot_head_cam`), which calibration may use as evidence of
 the vertical.
 
 **Who is in view.** A pair whose foot or crown pixel lies outside the image or within
-:func:`rotavat_cli.frame_points.edge_margin_px` of its border (for a mesh, its projected mid-sole or crown: the tool drew
+:func:`rotavat_cli.bodies.frame_points.edge_margin_px` of its border (for a mesh, its projected mid-sole or crown: the tool drew
 legs the photo cuts off, as BEV on upper-body photos puts the feet 600-1300 px below a 2500-px
-image) is not a foot/head pair: :func:`rotavat_cli.frame_points.in_view` marks it, ``FootHeadPairs.cut`` carries
+image) is not a foot/head pair: :func:`rotavat_cli.bodies.frame_points.in_view` marks it, ``FootHeadPairs.cut`` carries
 the mark, and calibration leaves it out with a note (:func:`rotavat_cli.calibration.sequence.calibrate_sequence`).
 """
 
@@ -23,11 +23,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..camera import project_cam_to_px
-from ..frame_points import MeshIntrinsics, beyond_border_px, edge_margin_px, frame_foot_head_cam
+from ..geometry.camera import project_cam_to_px
+from ..bodies.frame_points import MeshIntrinsics, beyond_border_px, edge_margin_px, frame_foot_head_cam
 from ..errors import InputError
-from ..landmarks import foot_head_points
-from ..posture import postures
+from ..bodies.landmarks import foot_head_points
+from ..bodies.posture import postures
 from ..sequence import Frame, Intrinsics, Sequence, can_align, people_not_placed
 
 __all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
@@ -45,7 +45,7 @@ class FootHeadPairs:
     source: str  # "2d" (explicit points), "mesh" (projected landmarks) or "mixed"
     not_in_front: int = 0  # meshes dropped: root-centred or behind the camera (sequence.people_not_placed)
     axes_cam: np.ndarray | None = None  # (N, 3) unit sole->crown axis in the method's camera frame; NaN: no 3D person
-    postures: np.ndarray | None = None  # (N,) posture of the person (rotavat_cli.posture.POSTURES); "unknown": no joints
+    postures: np.ndarray | None = None  # (N,) posture of the person (rotavat_cli.bodies.posture.POSTURES); "unknown": no joints
     cut: np.ndarray | None = None  # (N,) bool: the person is cut by the image border (:func:`in_view`); None: unknown
     cut_depth_px: np.ndarray | None = None  # (N,) px: how far the cut pair's farthest point lies beyond the border
 
@@ -127,7 +127,7 @@ def _cut_beyond_px(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[
 
 
 def _postures(frame: Frame, layout: str | None) -> np.ndarray:
-    """(P,) posture of each person from the frame's 3D joints (:func:`rotavat_cli.posture.postures`);
+    """(P,) posture of each person from the frame's 3D joints (:func:`rotavat_cli.bodies.posture.postures`);
     "unknown" without joints or for a layout without the legs' and shoulders' joints."""
     joints = frame.get("joints")
     names = None if joints is None or frame.n_people == 0 else postures(joints, layout)

@@ -29,7 +29,7 @@ camera height (std)        std over half the height
 focal (std)                undetermined (infinite std: no prior, the people do not fix it)
 =========================  ==================================================================
 
->>> from rotavat_cli.camera import Camera
+>>> from rotavat_cli.geometry.camera import Camera
 >>> cam = Camera((1280, 720), 96.0, None, 0.3, 0.0, 0.11)
 >>> for line in implausible_findings(cam, {"focal_px": 20.0, "pitch_deg": 2.0, "roll_deg": 1.0, "height_m": 0.05},
 ...                                  focal_estimated=True):
@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from .flat_ground import GroundFinding
 from .priors import lens_range_px
 

@@ -26,10 +26,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import DegenerateSceneError, InputError
-from ..focal import CAMERA
-from ..frame_points import edge_margin_px
-from ..measure import REFERENCE_SD_MAX_M
-from ..posture import summarize_postures
+from ..geometry.focal import CAMERA
+from ..bodies.frame_points import edge_margin_px
+from ..bodies.measure import REFERENCE_SD_MAX_M
+from ..bodies.posture import summarize_postures
 from ..sequence import Sequence
 from ..words import count
 from .fit import CalibrationResult, fit_camera, fit_per_frame
@@ -53,7 +53,7 @@ class SequenceCalibration:
     per_frame: dict | None = None  # spread of per-frame estimates when asked
     mesh_focal_px: float | None = None  # the focal the sequence's meshes were made with (median over people)
     mesh_focal_kind: str | None = None  # "camera" | "assumed" (None: no focal stated)
-    scale_from: str = "prior"  # where the camera's scale comes from (rotavat_cli.measure.SCALE_SOURCES)
+    scale_from: str = "prior"  # where the camera's scale comes from (rotavat_cli.bodies.measure.SCALE_SOURCES)
     focal_source: str | None = None  # where a given focal came from (CalibrateOptions.given_focal_source)
 
     def fit_dict(self) -> dict:

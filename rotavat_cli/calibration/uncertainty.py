@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..camera import Camera, horizon_v_px
+from ..geometry.camera import Camera, horizon_v_px
 from .chi_square import chi2_99
 from .grid import order_invariant_subset
 from .model import undistort

@@ -18,12 +18,12 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from ..config import load_config, merge_config
+from ..settings.config import load_config, merge_config
 from ..errors import InputError
-from ..limits import Limits
-from ..limits import configure as configure_limits
-from ..option_rules import Rule
-from ..outputs import as_typed, beside, imported_output
+from ..settings.limits import Limits
+from ..settings.limits import configure as configure_limits
+from ..settings.option_rules import Rule
+from ..files.outputs import as_typed, beside, imported_output
 from ..plain import to_plain
 from ..sequence import Sequence, is_sequence_dir, open_sequence
 from ._run import ARGV_KEY, JSON_PRINTED_KEY, current_context
@@ -86,7 +86,7 @@ def polish_help(command: Any, section: dict | None, rules: dict[str, Rule] | Non
 
     Help text is plain text (``pip install 'rotavat[fast]'`` keeps its brackets), flags show no
     type, arguments show their name (SEQ), an option of a few names lists them and a bounded one its
-    range (``rules``: config key -> :class:`~rotavat_cli.option_rules.Rule`, the options class's own),
+    range (``rules``: config key -> :class:`~rotavat_cli.settings.option_rules.Rule`, the options class's own),
     and every option shows its default: the packaged
     config's value for options read from ``section`` (a flag left unset takes it), else the
     command's own default.
@@ -237,7 +237,7 @@ _SECTION_RULES = {
     "calibrate": ("calibration.options", "SECTION_RULES"), "align": ("alignment.options", "AlignOptions.RULES"),
     "eval": ("metrics.evaluate", "EvalOptions.RULES"), "render": ("render.sequences", "FigureOptions.RULES"),
     "view": ("view.recording", "ViewOptions.RULES"), "synth": ("synth.scene", "SynthOptions.RULES"),
-    "batch": ("batch.plan", "BatchOptions.RULES"), "limits": ("limits", "RULES"),
+    "batch": ("batch.plan", "BatchOptions.RULES"), "limits": ("settings.limits", "RULES"),
     "export": ("exchange.options", "ExportOptions.RULES"),
 }
 

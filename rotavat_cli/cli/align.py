@@ -13,8 +13,8 @@ from ..alignment.camera_gate import align_remedies, check_align_camera, implausi
 from ..alignment.align import align_sequence
 from ..calibration.plausibility import MEAN_STATURE_RANGE_M
 from ..errors import InputError, input_errors
-from ..measure import stature_provenance
-from ..outputs import check_output_dir
+from ..bodies.measure import stature_provenance
+from ..files.outputs import check_output_dir
 from ..parallel import cpu_count
 from ..sequence import Sequence, read_camera_yaml
 from ..words import count

@@ -15,7 +15,7 @@ from ..batch.report import REPORT_JSON, REPORT_MD
 from ..batch.plan import BatchOptions
 from ..batch.driver import run_batch
 from ..errors import BatchFailedError, InputError
-from ..outputs import beside
+from ..files.outputs import beside
 from ..parallel import cpu_count
 from ._common import (ConfigOpt, FocalMmOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, check_focal_flags,
                       check_sequence_path, console, focal_flag_wins, print_json, progress_enabled, report, use_config)

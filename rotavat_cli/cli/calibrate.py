@@ -14,13 +14,13 @@ from ..calibration.residuals import RESIDUAL_KINDS
 from ..calibration.options import CalibrateOptions
 from ..alignment.camera_gate import what_to_give
 from ..calibration.sequence import SequenceCalibration, calibrate_sequence
-from ..camera import camera_parameters
+from ..geometry.camera import camera_parameters
 from ..errors import InputError
-from ..focal import CAMERA
+from ..geometry.focal import CAMERA
 from ..formats.model_fit import model_fit_finding
-from ..outputs import check_output_file
+from ..files.outputs import check_output_file
 from ..sequence import Sequence, write_camera_yaml
-from ..yaml_io import read_yaml
+from ..files.yaml_io import read_yaml
 from ..words import count
 from ._common import (ConfigOpt, FocalMmOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt,
                       check_focal_flags, check_sequence_path, config_for, focal_flag_wins, info, input_sequence, print_json, report, warn)

@@ -22,7 +22,7 @@ from ..metrics.tool_world import tool_world_line, tool_world_reports
 from ..metrics.report import (change_text, check_gate_metrics, check_gate_rows, check_gates, column_labels,
                               format_value, ground_free_sections, metric_label, metric_value, parse_gate, report_paths,
                               report_sections, write_ground_free_reports, write_reports)
-from ..outputs import check_output_file
+from ..files.outputs import check_output_file
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for,
                       default_output, info, input_sequence, print_json, progress_bar, progress_enabled, report)
 

@@ -10,7 +10,7 @@ import typer
 from rich.markup import escape
 
 from ..errors import InputError, input_errors
-from ..outputs import check_output_dir, check_output_file
+from ..files.outputs import check_output_dir, check_output_file
 from ..words import count
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, console, default_output,
                       input_sequence, print_json, progress_bar, progress_enabled, report, use_config, warn)

@@ -11,12 +11,12 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..atomic import atomic_open
+from ..files.atomic import atomic_open
 from ..calibration.pairs import gather_pairs
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..errors import InputError
-from ..measure import TrackStatures, scale_source, stature_provenance, statures_by_track, statures_from_camera_m
-from ..outputs import check_output_file
+from ..bodies.measure import TrackStatures, scale_source, stature_provenance, statures_by_track, statures_from_camera_m
+from ..files.outputs import check_output_file
 from ..plain import csv_cell
 from ..sequence import Sequence, read_camera_yaml
 from ._common import (ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, default_output,
@@ -115,7 +115,7 @@ def _warn(fit: dict, origin: str, tracked: bool, statures_m: np.ndarray, quiet: 
 
 def _write_csv(path: Path, tracks: TrackStatures, source: str) -> None:
     """One row per track (atomic): track_id, pairs, median_stature_m, spread_m (half the IQR), stature_from (where
-    the camera's scale comes from: rotavat_cli.measure.SCALE_SOURCES)."""
+    the camera's scale comes from: rotavat_cli.bodies.measure.SCALE_SOURCES)."""
     with atomic_open(path, "w") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(CSV_COLUMNS)

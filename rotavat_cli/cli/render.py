@@ -11,9 +11,9 @@ import typer
 from rich.markup import escape
 
 from ..alignment.camera_gate import reader_flags
-from ..atomic import staged_directory
+from ..files.atomic import staged_directory
 from ..errors import input_errors
-from ..outputs import check_output_dir
+from ..files.outputs import check_output_dir
 from ..render.views import FITS, VIEWS
 from ..render.sequences import GHOSTS, SCALES, FigureOptions, figure_steps, render_sequences
 from ._common import (ConfigOpt, ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, config_for, console,

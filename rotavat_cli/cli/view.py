@@ -17,7 +17,7 @@ from rich.markup import escape
 
 from ..alignment.camera_gate import reader_flags
 from ..errors import InputError, input_errors
-from ..outputs import check_output_file
+from ..files.outputs import check_output_file
 from ..view.recording import ViewOptions, record_sequences, view_steps
 from ..view.writer import RERUN_INSTALL, require_rerun
 from ..words import count

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import limits
-from ..atomic import atomic_open
+from ..settings import limits
+from ..files.atomic import atomic_open
 from ..errors import InputError
 from ..formats.smpl import BodyModel
 from ..render.rows import OWN, no_camera, sequence_camera_fit

@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..errors import InputError, file_error
 from ..formats.smpl import BodyModel, lbs, pose_from_body, pose_to_matrices
-from ..joint_layouts import LAYOUT_NAMES
+from ..bodies.joint_layouts import LAYOUT_NAMES
 from ..sequence import SMPL_PARAM_KEYS, WORLD_PARAM_KEYS, Frame
 
 __all__ = ["BodyFrame", "body_frame", "has_body_params", "check_model", "check_frame_fits", "joint_names",

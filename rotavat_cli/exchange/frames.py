@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..errors import InputError
 from ..render.rows import read_row
 from ..render.style import RGB

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..atomic import staged_directory
-from ..camera import Camera
+from ..files.atomic import staged_directory
+from ..geometry.camera import Camera
 from ..errors import InputError, file_error
 from ..formats.smpl import BodyModel
 from ..render.rows import OWN, no_camera, sequence_camera_fit

@@ -10,9 +10,9 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from ..config import default_config, packaged_default
+from ..settings.config import default_config, packaged_default
 from ..errors import file_error
-from ..option_rules import Rule, check_fields
+from ..settings.option_rules import Rule, check_fields
 from ..sequence import Sequence
 
 __all__ = ["ExportOptions", "FORMATS", "EULER_ORDERS", "sequence_fps"]

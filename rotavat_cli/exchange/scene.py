@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..render.export import frustum_segments_world, gltf_camera, ground_quad_world, world_from_gl_camera
 from ..render.style import RGB, person_colors
 from ..version import WRITTEN_BY

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..errors import InputError
 from ..formats.smpl import BodyModel
 from ..render.style import RGB

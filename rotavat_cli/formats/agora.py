@@ -41,8 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, file_error
-from ..focal import CAMERA
-from ..joint_layouts import layout_by_count
+from ..geometry.focal import CAMERA
+from ..bodies.joint_layouts import layout_by_count
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get

@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import file_error
-from ..focal import CAMERA
-from ..joint_layouts import layout_by_count
+from ..geometry.focal import CAMERA
+from ..bodies.joint_layouts import layout_by_count
 from ..sequence import Frame
 from ..unpickle.npz import load_npz
 from .content import as_array

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import file_error
-from ..focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
+from ..geometry.focal import ASSUMED, BEV_FOCAL_ON_512, focal_from_rule
 from ..sequence import Frame
 from ..unpickle.npz import load_npz
 from .content import as_array, get

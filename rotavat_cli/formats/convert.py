@@ -9,9 +9,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ..atomic import staged_directory
+from ..files.atomic import staged_directory
 from ..errors import file_error
-from ..outputs import check_output_dir
+from ..files.outputs import check_output_dir
 from ..plain import to_plain
 from ..sequence import Sequence, write_camera_yaml, write_frame, write_meta
 from .model_fit import fit_finding, sequence_model_fit
@@ -31,7 +31,7 @@ def import_sequence(src: str | Path, out: str | Path, fmt: str, *, image_size: t
     Frames are written to a staging directory beside ``out`` and swapped in whole only when every
     frame converted, so a failed import leaves ``out`` untouched. An existing ``out`` is replaced
     only when it is empty or rotavat's own output, or with ``overwrite``; never when it is, holds or
-    lies inside ``src`` (:func:`rotavat_cli.outputs.check_output_dir`). ``progress()`` is called
+    lies inside ``src`` (:func:`rotavat_cli.files.outputs.check_output_dir`). ``progress()`` is called
     after each frame.
 
     Every import ends with :mod:`.model_fit`'s check, on at most a few hundred frames read back: a warning

@@ -4,7 +4,7 @@ A photo taken with the camera (same lens, same zoom) states its focal length in 
 two ways rotavat can turn into pixels:
 
 - ``FocalLengthIn35mmFilm`` (tag 0xA405): the 35 mm-equivalent focal (what phones write), converted
-  at the photo's own size (:func:`~rotavat_cli.focal.focal_px_from_35mm`);
+  at the photo's own size (:func:`~rotavat_cli.geometry.focal.focal_px_from_35mm`);
 - else ``FocalLength`` (0x920A, mm) with the sensor's pixel pitch, ``FocalPlaneXResolution`` (0xA20E:
   image pixels per ``FocalPlaneResolutionUnit``, 0xA210: 2 inch, the default; 3 cm; 4 mm; 5 µm), so
   ``f_px = FocalLength * FocalPlaneXResolution / mm per unit`` (the sensor is the image width over it).
@@ -37,7 +37,7 @@ from typing import Any
 from PIL import ExifTags, Image, UnidentifiedImageError
 
 from ..errors import file_error
-from ..focal import focal_px_at_size, focal_px_from_35mm
+from ..geometry.focal import focal_px_at_size, focal_px_from_35mm
 from ..unpickle.streams import file_size
 
 __all__ = ["PhotoFocal", "focal_from_exif", "read_photo_focal"]
@@ -65,7 +65,7 @@ class PhotoFocal:
 
     def at_size(self, image_size: tuple[int, int]) -> float:
         """The focal (px) on the same camera's images of ``image_size`` (W, H), e.g. a video's frames: scaled by
-        the width ratio (:func:`~rotavat_cli.focal.focal_px_at_size`); InputError naming the photo when its
+        the width ratio (:func:`~rotavat_cli.geometry.focal.focal_px_at_size`); InputError naming the photo when its
         shape differs (another crop of the sensor) or it states no focal."""
         if self.focal_px is None:
             raise file_error(self.path, f"its EXIF states no focal length ({self.tags})")

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import file_error
-from ..joint_layouts import layout_by_count
+from ..bodies.joint_layouts import layout_by_count
 from ..sequence import Frame, validate_frame
 from .ids import check_int64_ids
 from .keypoints import feet_heads_px

@@ -54,9 +54,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import world_to_cam
+from ..geometry.camera import world_to_cam
 from ..errors import file_error
-from ..focal import ASSUMED, focal_from_rule
+from ..geometry.focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get

@@ -56,9 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import MAX_IMAGE_SIDE_PX, project_cam_to_px
+from ..geometry.camera import MAX_IMAGE_SIDE_PX, project_cam_to_px
 from ..errors import file_error
-from ..focal import ASSUMED, hybrik_focal_px
+from ..geometry.focal import ASSUMED, hybrik_focal_px
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get

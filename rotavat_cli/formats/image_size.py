@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import MAX_IMAGE_SIDE_PX
+from ..geometry.camera import MAX_IMAGE_SIDE_PX
 from ..errors import file_error
 from .imported import ImportOptions
 

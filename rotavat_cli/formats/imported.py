@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..sequence import Frame, people_not_placed
 from .smpl import BodyModel
 

@@ -3,7 +3,7 @@ keypoints.
 
 Calibration and joint-level alignment need, per person, the pixel of the foot point and of the
 crown (``feet_2d`` / ``heads_2d``, docs/conventions.md). Meshes give them through their landmark
-vertices (:mod:`rotavat_cli.landmarks`); without a body model, an importer still has the tool's
+vertices (:mod:`rotavat_cli.bodies.landmarks`); without a body model, an importer still has the tool's
 2D keypoints, and the importer passes its layout's name to
 :func:`rotavat_cli.formats.frames.people_frame` (``keypoints_layout=``), which writes
 ``feet_2d``/``heads_2d`` and records which points were used (``meta.yaml``
@@ -12,12 +12,12 @@ vertices (:mod:`rotavat_cli.landmarks`); without a body model, an importer still
 Each layout has a recipe: a :class:`PointRule` for each foot's sole point (their midpoint is the
 mid-sole) and one for the crown. A rule is an affine combination of keypoint means (weights summing
 to one), so it moves, turns and scales with the person in the image. The foot pixel written is the
-ground contact (:func:`rotavat_cli.landmarks.ground_contact`): the two soles' and the crown's pixels
+ground contact (:func:`rotavat_cli.bodies.landmarks.ground_contact`): the two soles' and the crown's pixels
 weighted as the person's own 3D joints' ground contact is (:func:`contact_weights_3d`; the image
 cannot tell a raised foot from a nearer one), the mid-sole without 3D joints. The rules:
 
 - **points the layout has**: the mean of named keypoints (OpenPose's big toes, small toes and
-  heels for the mid-sole, as the mesh landmark's own recipe in :data:`rotavat_cli.landmarks.SMPL`;
+  heels for the mid-sole, as the mesh landmark's own recipe in :data:`rotavat_cli.bodies.landmarks.SMPL`;
   LSP's top of head or HybrIK's head-top leaf for the crown);
 - **estimates**, where the layout has no such point: ``anchor + k (anchor - away_from)``, i.e.
   the anchor pushed along the body axis by a fraction ``k`` of a body segment in pixels (e.g. the
@@ -91,8 +91,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..joint_layouts import LAYOUT_NAMES, layout_key
-from ..landmarks import contact_weights, ground_contact
+from ..bodies.joint_layouts import LAYOUT_NAMES, layout_key
+from ..bodies.landmarks import contact_weights, ground_contact
 
 __all__ = [
     "LAYOUTS",
@@ -170,7 +170,7 @@ class KeypointRecipe:
         return averaged(self.left_sole, self.right_sole)
 
 
-# ---- layouts: the joint names of each layout live in rotavat_cli.joint_layouts (LAYOUT_NAMES) ----------
+# ---- layouts: the joint names of each layout live in rotavat_cli.bodies.joint_layouts (LAYOUT_NAMES) ----------
 
 
 def _at(layout: str, *names: str) -> tuple[int, ...]:
@@ -295,7 +295,7 @@ def _joints_recipe(joints_cam: np.ndarray | None, layout: str | None) -> tuple[n
 
 
 def feet_heads_cam(joints_cam: np.ndarray, layout: str | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """Foot points (ground contact, :func:`rotavat_cli.landmarks.ground_contact`) and crowns (P, 3) of joints
+    """Foot points (ground contact, :func:`rotavat_cli.bodies.landmarks.ground_contact`) and crowns (P, 3) of joints
     (P, J, 3) by the layout's recipe applied in 3D; None for a layout without a recipe (or fewer joints than
     the layout has)."""
     found = _joints_recipe(joints_cam, layout)
@@ -307,7 +307,7 @@ def feet_heads_cam(joints_cam: np.ndarray, layout: str | None) -> tuple[np.ndarr
 
 def contact_weights_3d(joints_cam: np.ndarray | None, layout: str | None) -> np.ndarray | None:
     """(P, 3) each person's ground contact weights (left sole, right sole, crown;
-    :func:`rotavat_cli.landmarks.contact_weights`) from 3D joints in ``layout``; the mid-sole's (0.5, 0.5, 0)
+    :func:`rotavat_cli.bodies.landmarks.contact_weights`) from 3D joints in ``layout``; the mid-sole's (0.5, 0.5, 0)
     where a person's joints give no axis; None without joints in a layout with a recipe.
 
     The image cannot tell a raised foot from a foot nearer the camera (a walker seen from above has its

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..joint_layouts import layout_key
+from ..bodies.joint_layouts import layout_key
 from .imported import ImportOptions
 from .keypoints import recipe_for
 

@@ -7,7 +7,7 @@ rule's focal and the principal point follow it) breaks that silently: the import
 fits a camera to people drawn where nobody stood. This module measures, per person of a frame,
 
 - **the offset to its own 2D evidence** (px, and in person heights), the first there is of: the
-  per-axis median, over the joints the 3D and 2D layouts share by name (:mod:`rotavat_cli.joint_layouts`),
+  per-axis median, over the joints the 3D and 2D layouts share by name (:mod:`rotavat_cli.bodies.joint_layouts`),
   of projected joint minus keypoint; the projected mesh mid-sole and crown minus ``feet_2d`` and
   ``heads_2d``; the centre of the projection's bounding box minus that of ``boxes_2d`` (GVHMR's crops);
 - **the share of its projection outside the image** (the mesh's vertices, else its joints), and
@@ -39,9 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import project_cam_to_px
-from ..joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
-from ..landmarks import foot_head_points
+from ..geometry.camera import project_cam_to_px
+from ..bodies.joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
+from ..bodies.landmarks import foot_head_points
 from ..sequence import Frame, Intrinsics, Sequence, people_not_placed
 
 __all__ = ["MAX_FRAMES", "OFF_HEIGHTS", "OUTSIDE_SHARE", "PeopleFit", "FitSummary", "frame_model_fit",
@@ -150,7 +150,7 @@ def sampled_names(names: tuple[str, ...], max_frames: int = MAX_FRAMES) -> tuple
 def shared_joints(joints_layout: str | None, n_joints: int, keypoints_layout: str | None,
                   n_keypoints: int) -> tuple[np.ndarray, np.ndarray]:
     """Indices (S,), (S,) of the joints and keypoints that bear the same name in their layouts (a layout
-    not named is recognised by its count, :func:`rotavat_cli.joint_layouts.layout_by_count`); empty when
+    not named is recognised by its count, :func:`rotavat_cli.bodies.joint_layouts.layout_by_count`); empty when
     either layout is unknown or its names do not fit its count.
 
     >>> [ix.tolist()[:3] for ix in shared_joints("smpl24", 24, "hybrik29", 29)]

@@ -36,10 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import project_cam_to_px
+from ..geometry.camera import project_cam_to_px
 from ..errors import file_error
-from ..focal import ASSUMED
-from ..joint_layouts import layout_by_count
+from ..geometry.focal import ASSUMED
+from ..bodies.joint_layouts import layout_by_count
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from ..unpickle.npy import load_npy

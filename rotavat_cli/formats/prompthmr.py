@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import file_error
-from ..focal import ASSUMED, focal_from_rule, focal_px_at_size
+from ..geometry.focal import ASSUMED, focal_from_rule, focal_px_at_size
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get

@@ -62,10 +62,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import limits
-from ..camera import world_to_cam
+from ..settings import limits
+from ..geometry.camera import world_to_cam
 from ..errors import file_error
-from ..focal import ASSUMED, focal_from_rule
+from ..geometry.focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ..unpickle.npz import load_npz
 from .content import as_array, get

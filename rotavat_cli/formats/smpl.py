@@ -41,9 +41,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import limits
+from ..settings import limits
 from ..errors import InputError, file_error
-from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from ..geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from ..unpickle.model_files import load_model_pickle
 from ..unpickle.npz import open_npz
 
@@ -146,7 +146,7 @@ def load_body_model(path: str | Path) -> BodyModel:
     ``.pkl`` (restricted unpickler: :func:`_pickled_model_arrays`).
 
     Read once per process for each version of the file (its path, size and modification time) under the
-    same :mod:`rotavat_cli.limits`: a batch's tasks, or a sequence read frame by frame, pose from one copy,
+    same :mod:`rotavat_cli.settings.limits`: a batch's tasks, or a sequence read frame by frame, pose from one copy,
     whose arrays are read-only. A file that fails is read again next time (errors are not kept).
     """
     path = Path(path)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ..camera import camera_from_yaml_dict, camera_to_yaml_dict
+from ..geometry.camera import camera_from_yaml_dict, camera_to_yaml_dict
 from ..errors import file_error, input_errors
 from ..plain import to_plain
 from ..sequence import Frame, Sequence

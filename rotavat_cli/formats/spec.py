@@ -26,11 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Camera, pitch_roll_from_up
+from ..geometry.camera import Camera, pitch_roll_from_up
 from ..errors import file_error
-from ..focal import ASSUMED
-from ..landmarks import foot_head_points
-from ..rotations import axis_angle_to_matrix
+from ..geometry.focal import ASSUMED
+from ..bodies.landmarks import foot_head_points
+from ..geometry.rotations import axis_angle_to_matrix
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get

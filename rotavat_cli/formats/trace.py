@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import file_error
-from ..focal import ASSUMED, focal_from_rule
+from ..geometry.focal import ASSUMED, focal_from_rule
 from ..sequence import Frame
 from ..unpickle.npz import load_npz
 from .bev import _infer_image_size

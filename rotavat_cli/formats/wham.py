@@ -45,8 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import file_error
-from ..focal import ASSUMED, focal_from_rule
-from ..rotations import axis_angle_to_matrix
+from ..geometry.focal import ASSUMED, focal_from_rule
+from ..geometry.rotations import axis_angle_to_matrix
 from ..sequence import Frame
 from ..unpickle.dispatch import load_file
 from .content import as_array, get

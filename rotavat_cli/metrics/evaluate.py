@@ -38,13 +38,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..atomic import atomic_open
-from ..camera import Camera, camera_parameters, project_cam_to_px
+from ..files.atomic import atomic_open
+from ..geometry.camera import Camera, camera_parameters, project_cam_to_px
 from ..errors import InputError, input_errors
-from ..joint_layouts import LAYOUT_NAMES, layout_key
-from ..landmarks import SMPL_JOINT_NAMES
-from ..measure import scale_source
-from ..option_rules import Rule, check_fields
+from ..bodies.joint_layouts import LAYOUT_NAMES, layout_key
+from ..bodies.landmarks import SMPL_JOINT_NAMES
+from ..bodies.measure import scale_source
+from ..settings.option_rules import Rule, check_fields
 from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
 from .fused import ENGINES, resolve_engine
@@ -72,7 +72,7 @@ class EvalOptions:
     engine: str = "auto"  # vertex metrics: auto | numpy | numba (see metrics.ENGINES)
     protocol: str = "paper"  # whose definitions: paper | spec | agora | bedlam | wham (metrics.protocols)
 
-    RULES: ClassVar[dict[str, Rule]] = {  # the ``eval`` keys' bounds and names (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``eval`` keys' bounds and names (rotavat_cli/settings/option_rules.py)
         "match": Rule(names=MATCHES), "engine": Rule(names=ENGINES), "protocol": Rule(names=PROTOCOL_NAMES),
         "threshold_px": Rule(low=0, open_low=True, unit="px"), "iou_threshold": Rule(low=0, high=1),
     }

@@ -20,7 +20,7 @@ The measures (docs/metrics.md, "Without ground truth", defines them with their s
   frames of a track (:func:`.temporal.second_differences`);
 - :func:`lean_summary`: the foot -> crown axis's angle from world up, mean and 90th percentile;
 - :func:`stature_summary`: each track's median foot -> crown length and its spread, and the spread
-  across people (:func:`rotavat_cli.measure.statures_by_track`).
+  across people (:func:`rotavat_cli.bodies.measure.statures_by_track`).
 
 Examples
 --------
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..measure import TrackStatures, statures_by_track
+from ..bodies.measure import TrackStatures, statures_by_track
 from .temporal import second_differences
 
 __all__ = ["FLOATING_M", "SINKING_M", "CONTACT_M", "UP_WORLD", "consecutive_windows", "feet_height_summary",
@@ -111,7 +111,7 @@ def contact_sliding_m(soles_world: np.ndarray, track_ids: np.ndarray, frame_inde
     has no lower bound: its motions never sink far; an HPS output can be metres under the ground, and a
     sole 10 m down is not in contact). With two soles, each is followed to the nearer of the next frame's two (the
     assignment with the smaller summed 3D distance): a mesh whose soles come from its geometry does not
-    say which is left (rotavat_cli.landmarks). Returns (C,) the displacement in the ground plane
+    say which is left (rotavat_cli.bodies.landmarks). Returns (C,) the displacement in the ground plane
     ``|(dX, dZ)|`` of every (frame pair, sole) in contact, track-major; divide by the frame interval for m/s.
     """
     soles = np.asarray(soles_world, dtype=np.float64)

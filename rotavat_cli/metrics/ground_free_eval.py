@@ -11,7 +11,7 @@ sequence given alongside that has one (the aligned output's camera.yaml is the c
 with), as ``eval --gt`` measures every prediction against the one camera given alongside them (the
 ground truth's). ``None`` for a sequence none of these gives: the caller says how to make one.
 
-**Per person and frame** it keeps the foot point (ground contact: :func:`rotavat_cli.landmarks.ground_contact`
+**Per person and frame** it keeps the foot point (ground contact: :func:`rotavat_cli.bodies.landmarks.ground_contact`
 of the soles and the crown, the point align seats; meshes only), the crown, the two soles and the
 joints (else the foot point and crown) for the temporal measures: a few hundred bytes, never meshes.
 """
@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Camera, camera_parameters
+from ..geometry.camera import Camera, camera_parameters
 from ..errors import InputError
-from ..landmarks import ground_contact, sole_crown_points
-from ..measure import scale_source
+from ..bodies.landmarks import ground_contact, sole_crown_points
+from ..bodies.measure import scale_source
 from ..sequence import Frame, Sequence, read_camera_yaml
 from .ground_free import (CONTACT_M, UP_WORLD, acceleration_m, contact_sliding_m, feet_height_summary, lean_summary,
                           stature_summary)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
-from ..landmarks import foot_head_points
+from ..geometry.camera import Camera
+from ..bodies.landmarks import foot_head_points
 from .fused import person_errors_mm
 from .multi_person import depth_order_shares, group_pa_errors_mm, mean_over_groups, pooled_over_pairs
 from .scene import lean_deg, root_err_mm, stature_err_mm

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..landmarks import SMPL_JOINT_NAMES
+from ..bodies.landmarks import SMPL_JOINT_NAMES
 from .person_metrics import PERSON_METRIC_POOLS, PERSON_METRICS
 from .scene import detection_scores, normalize_by_f1
 from .temporal import WINDOWS, TrackSeries, chunk_aligned_errors, first_frames_aligned_errors, rte

@@ -11,9 +11,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..atomic import atomic_write_text
+from ..files.atomic import atomic_write_text
 from ..errors import InputError
-from ..measure import source_words
+from ..bodies.measure import source_words
 from ..plain import to_plain
 from ..version import WRITTEN_BY
 from .evaluate import EvalResult

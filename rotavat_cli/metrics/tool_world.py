@@ -29,8 +29,8 @@ from collections.abc import Mapping, Sequence as Seq
 
 import numpy as np
 
-from ..camera import Camera
-from ..rotations import axis_angle_to_matrix, rotation_between
+from ..geometry.camera import Camera
+from ..geometry.rotations import axis_angle_to_matrix, rotation_between
 from ..sequence import Sequence
 
 __all__ = ["TOOL_WORLD_KEYS", "FIT", "their_up_cam", "angles_deg", "wander_deg", "heading_fit", "path_lengths_m",

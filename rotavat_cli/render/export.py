@@ -31,8 +31,8 @@ from trimesh.exchange.gltf import export_glb
 from trimesh.visual.material import PBRMaterial
 
 from ..version import WRITTEN_BY
-from ..atomic import atomic_open
-from ..camera import Camera
+from ..files.atomic import atomic_open
+from ..geometry.camera import Camera
 from ..sequence import Sequence
 from .rows import frame_names, no_camera, read_row, row_labels, sequence_camera
 from .grid import row_shapes

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 
 __all__ = [
     "UP_WORLD",

@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from ..camera import Camera, reexpress_cam
+from ..geometry.camera import Camera, reexpress_cam
 from ..errors import InputError, input_errors
-from ..outputs import imported_output
+from ..files.outputs import imported_output
 from ..sequence import Frame, Sequence, read_camera_yaml
 from .skeleton import layout_name
 from .views import RowFrame
@@ -118,7 +118,7 @@ def no_camera(seq: Sequence, what: str, reader_flags: tuple[str, ...] = (), rows
     written. A folder: ``rotavat calibrate SEQ`` writes its camera.yaml. An HPS tool's output read with
     ``--from`` (``reader_flags``: ``--from FMT [--image-size W H] [--smpl-model FILE]``, as given): calibrate
     it with the same flags into ``<name>_camera.yaml`` in the current folder (never into the user's data folder:
-    :func:`rotavat_cli.outputs.imported_output`), then render (or another ``command``: ``view``) the ``rows``
+    :func:`rotavat_cli.files.outputs.imported_output`), then render (or another ``command``: ``view``) the ``rows``
     (every SEQ, as given) with ``--camera`` that file.
 
     >>> print(no_camera(Sequence(Path("bev/a.npz"), "npz", ("a",), origin="bev/a.npz"), "side views",

@@ -30,12 +30,12 @@ import numpy as np
 from PIL import Image
 
 from ..alignment.camera_gate import check_fit, render_remedies
-from ..atomic import atomic_open
-from ..camera import Camera
-from ..config import default_config, packaged_default
+from ..files.atomic import atomic_open
+from ..geometry.camera import Camera
+from ..settings.config import default_config, packaged_default
 from ..errors import InputError, RotavatError
 from ..metrics.evaluate import EvalOptions, evaluate
-from ..option_rules import Rule, check_fields
+from ..settings.option_rules import Rule, check_fields
 from ..sequence import Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
@@ -84,7 +84,7 @@ class FigureOptions:
     accept_camera: bool = False  # not a config key: --accept-camera (use cameras whose calibration is implausible)
     reader_flags: tuple[str, ...] = ()  # not a config key: how rows read with --from were read (the gate's advice)
 
-    RULES: ClassVar[dict[str, Rule]] = {  # the ``render`` keys' bounds and names (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``render`` keys' bounds and names (rotavat_cli/settings/option_rules.py)
         "size": Rule(low=16, high=8192, unit="px"), "every": Rule(low=1), "renderer": Rule(names=RENDERERS),
         "fit": Rule(names=FITS), "scale": Rule(names=SCALES), "ghost": Rule(names=GHOSTS),
         "fps": Rule(low=0.01, high=1000), "margin": RenderStyle.RULES["margin"],

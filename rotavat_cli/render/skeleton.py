@@ -6,7 +6,7 @@ drawn here as triangles, so every view, both rasterisers (depth test, shading) a
 take them unchanged:
 
 - **skeleton**: a 6-sided tube per bone and an icosahedron per joint; the bones come from the
-  layout's joint *names* (:data:`rotavat_cli.joint_layouts.LAYOUT_NAMES`), so one bone list per
+  layout's joint *names* (:data:`rotavat_cli.bodies.joint_layouts.LAYOUT_NAMES`), so one bone list per
   skeleton family serves every layout that carries its joints (SMPL-24, SMPL-45, SMPL-X and
   HybrIK-29 share SMPL's kinematic tree; OpenPose-25, SPIN-49 and PHALP-44 share OpenPose's);
 - **points**: an icosahedron per joint of a layout without bones, an octahedron per vertex of a point cloud.
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..formats.smpl import SMPL_PARENTS
-from ..joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
-from ..landmarks import SMPL_JOINT_NAMES
+from ..bodies.joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
+from ..bodies.landmarks import SMPL_JOINT_NAMES
 
 __all__ = ["Shapes", "BONE_FAMILIES", "layout_name", "layout_bones", "skeleton_shapes", "point_shapes",
            "BONE_RADIUS_M", "JOINT_RADIUS_M", "POINT_RADIUS_M"]

@@ -16,8 +16,8 @@ import numpy as np
 from PIL import ImageFont
 from scipy.sparse import csr_matrix
 
-from ..config import default_config, packaged_default
-from ..option_rules import Rule, check_fields
+from ..settings.config import default_config, packaged_default
+from ..settings.option_rules import Rule, check_fields
 
 __all__ = ["RGB", "RenderStyle", "parse_color", "person_colors", "vertex_normals", "shade_vertices"]
 
@@ -55,7 +55,7 @@ class RenderStyle:
     palette: tuple[RGB, ...] = packaged_default(_packaged_style, "palette")
     margin: float = packaged_default(_packaged_style, "margin")  # orthographic views: fraction of the people's extent added
 
-    RULES: ClassVar[dict[str, Rule]] = {"margin": Rule(low=0, high=10)}  # rotavat_cli/option_rules.py
+    RULES: ClassVar[dict[str, Rule]] = {"margin": Rule(low=0, high=10)}  # rotavat_cli/settings/option_rules.py
 
     def __post_init__(self) -> None:
         check_fields(self, self.RULES, prefix="render.")

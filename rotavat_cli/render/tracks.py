@@ -2,9 +2,9 @@
 
 For each frame and person (``person_id`` = the track), in the row's camera (its world: ground at
 ``Y = 0``): the foot point's height above the ground (m, signed: below 0 = sunk; the foot point is the
-ground contact, :func:`rotavat_cli.landmarks.ground_contact`), the lean of the foot -> crown axis from
+ground contact, :func:`rotavat_cli.bodies.landmarks.ground_contact`), the lean of the foot -> crown axis from
 the vertical (deg) and the stature (the foot -> crown length, m).
-Mid-sole and crown are those ``rotavat align`` uses (:func:`rotavat_cli.frame_points.frame_foot_head_cam`:
+Mid-sole and crown are those ``rotavat align`` uses (:func:`rotavat_cli.bodies.frame_points.frame_foot_head_cam`:
 the mesh landmarks, or for joints-only people their ``feet_2d``/``heads_2d`` at the joints' depth),
 else for joints without those pixels the layout's keypoint recipe applied to the 3D joints
 (:func:`rotavat_cli.formats.keypoints.feet_heads_cam`). These
@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..atomic import atomic_open
-from ..camera import Camera
+from ..files.atomic import atomic_open
+from ..geometry.camera import Camera
 from ..formats.keypoints import feet_heads_cam
-from ..frame_points import MeshIntrinsics, frame_foot_head_cam
+from ..bodies.frame_points import MeshIntrinsics, frame_foot_head_cam
 from ..metrics.scene import lean_deg, stature_m
 from ..sequence import Frame, Sequence, can_align
 from .geometry import nice_length_m

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from ..atomic import atomic_open
+from ..files.atomic import atomic_open
 from ..errors import InputError
 
 __all__ = ["MP4_INSTALL", "require_mp4", "write_gif", "write_mp4"]

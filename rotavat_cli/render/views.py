@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..camera import Camera, camera_parameters
+from ..geometry.camera import Camera, camera_parameters
 from .geometry import (UP_WORLD, FrontCrop, OrthoExtent, PanelView, clip_from_cam_perspective, clip_from_world_ortho,
                        fit_front_crop, fit_ortho_extent, horizontal_forward_world, nice_length_m, paste_boxes_px,
                        project_view_px, unit, world_from_cam_h)

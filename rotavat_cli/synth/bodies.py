@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..landmarks import PACKAGED_BODIES, Topology, topology_from_npz
+from ..bodies.landmarks import PACKAGED_BODIES, Topology, topology_from_npz
 
 __all__ = ["BodyLibrary", "load_bodies", "BODIES_PATH"]
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 
 __all__ = ["LAYOUTS", "FPS", "WALK_SPEED_MPS", "MAX_GROUND_DISTANCE_M", "STILL_SWAY_M", "place_people", "sample_walks",
            "standing_still"]

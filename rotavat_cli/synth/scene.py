@@ -7,7 +7,7 @@ body leans toward the image plane (keeping its foot and crown pixels), has a nea
 a per-person depth error, and lives in the method's own assumed camera: a real method's focal
 rule (``hps_focal``: ``cliff``, ``bev``, ``romp``, ``4dhumans``, ``true`` or a number of pixels)
 puts the rigid, undistorted body with its root on the root pixel's ray at the depth scaled by
-``F / f`` (:func:`rotavat_cli.camera.reexpress_cam`), turned so its foot and crown fall on their
+``F / f`` (:func:`rotavat_cli.geometry.camera.reexpress_cam`), turned so its foot and crown fall on their
 pixels, as a method fitted to the image draws them. Plus small 3D noise and noisy 2D detections
 with gross outliers. Deterministic for a given seed.
 
@@ -27,15 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from ..alignment.transform import closest_scale_on_line
-from ..atomic import staged_directory
-from ..camera import MAX_HEIGHT_M, MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
-from ..focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
-from ..landmarks import foot_head_points
-from ..option_rules import Rule, check_fields
-from ..outputs import check_output_dir
-from ..rotations import axis_angle_to_matrix, rotation_between
+from ..files.atomic import staged_directory
+from ..geometry.camera import MAX_HEIGHT_M, MAX_IMAGE_SIDE_PX, Camera, camera_parameters, pixel_rays_cam, reexpress_cam
+from ..geometry.focal import ASSUMED, CAMERA, FOCAL_RULES, focal_from_rule
+from ..bodies.landmarks import foot_head_points
+from ..settings.option_rules import Rule, check_fields
+from ..files.outputs import check_output_dir
+from ..geometry.rotations import axis_angle_to_matrix, rotation_between
 from ..sequence import Frame, write_camera_yaml, write_frame, write_meta
-from ..yaml_io import write_yaml
+from ..files.yaml_io import write_yaml
 from .bodies import BodyLibrary, load_bodies
 from .layouts import FPS, LAYOUTS, place_people, sample_walks
 
@@ -83,7 +83,7 @@ class SynthOptions:
                 values[key] = tuple(values[key])
         return cls(**values)
 
-    RULES: ClassVar[dict[str, Rule]] = {  # the ``synth`` keys' bounds and names (rotavat_cli/option_rules.py)
+    RULES: ClassVar[dict[str, Rule]] = {  # the ``synth`` keys' bounds and names (rotavat_cli/settings/option_rules.py)
         "frames": Rule(low=1), "people": Rule(low=0), "layout": Rule(names=LAYOUTS),
         "image_size": Rule(low=32, high=MAX_IMAGE_SIDE_PX, unit="px"),
         "camera_height_range_m": Rule(low=1e-3, high=MAX_HEIGHT_M, ordered="<=", unit="m"),
@@ -118,7 +118,7 @@ def random_camera(rng: np.random.Generator, image_size: tuple[int, int], roll_de
 def hps_focal_px(spec: str | float, camera: Camera) -> tuple[float, str]:
     """The focal (px) an HPS method assumes for this camera's images, and the rule's name.
 
-    spec: a rule of :data:`rotavat_cli.focal.FOCAL_RULES`, ``"true"`` (the camera's own focal),
+    spec: a rule of :data:`rotavat_cli.geometry.focal.FOCAL_RULES`, ``"true"`` (the camera's own focal),
     or a number of pixels (given as a number or a numeric string). Raises ValueError otherwise.
     """
     if isinstance(spec, str) and spec in FOCAL_RULES:

@@ -26,7 +26,7 @@ One concern per module, each built on the ones before it (no module imports one 
 - ``model_files``: the official SMPL-family ``.pkl`` model files, their chumpy arrays and scipy
   sparse matrices rebuilt as numpy arrays from their state (:func:`load_model_pickle`).
 
-Sizes are checked before anything is allocated, against :mod:`rotavat_cli.limits` (the config's
+Sizes are checked before anything is allocated, against :mod:`rotavat_cli.settings.limits` (the config's
 ``limits:`` section): files and decompressed streams (``max_file_mb``), every array a header or a
 pickle declares (``max_array_mb``), the objects a pickle builds and the items its shared
 references add when expanded (``max_pickle_items``). A compressed pickle (joblib's, an ``.npz``

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import limits as _limits
-from ..limits import human_bytes
+from ..settings import limits as _limits
+from ..settings.limits import human_bytes
 from .refusal import Refused
 
 __all__ = ["TEXT", "Budget", "array_bytes", "array_refusal", "check_array", "check_shape", "invalid_text"]

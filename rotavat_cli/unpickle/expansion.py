@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import limits as _limits
+from ..settings import limits as _limits
 from .checks import TEXT
 from .refusal import Refused
 

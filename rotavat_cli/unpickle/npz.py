@@ -21,9 +21,9 @@ from typing import BinaryIO
 
 import numpy as np
 
-from .. import limits as _limits
+from ..settings import limits as _limits
 from ..errors import InputError
-from ..limits import human_bytes
+from ..settings.limits import human_bytes
 from .checks import array_refusal
 from .npy import read_npy, read_npy_header
 

@@ -18,9 +18,9 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from .. import limits as _limits
+from ..settings import limits as _limits
 from ..errors import InputError
-from ..limits import human_bytes
+from ..settings.limits import human_bytes
 from .refusal import Refused
 
 __all__ = ["CHUNK", "INFLATE_CHUNK", "Inflater", "Stream", "chunked", "file_size", "fill", "read_bytes", "read_up_to"]

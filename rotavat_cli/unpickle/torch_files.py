@@ -45,9 +45,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import limits as _limits
+from ..settings import limits as _limits
 from ..errors import InputError
-from ..limits import human_bytes
+from ..settings.limits import human_bytes
 from .checks import Budget
 from .core import RestrictedUnpickler
 from .expansion import check_expansion

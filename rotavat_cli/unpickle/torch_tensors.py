@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import limits as _limits
-from ..limits import human_bytes
+from ..settings import limits as _limits
+from ..settings.limits import human_bytes
 from .checks import Budget, check_array
 from .refusal import Refused, shown
 

@@ -47,15 +47,15 @@ from typing import ClassVar
 import numpy as np
 
 from ..alignment.camera_gate import check_fit, render_remedies
-from ..atomic import atomic_path
-from ..camera import Camera
-from ..config import default_config, packaged_default
+from ..files.atomic import atomic_path
+from ..geometry.camera import Camera
+from ..settings.config import default_config, packaged_default
 from ..errors import InputError, RotavatError, input_errors
-from ..measure import scale_source
+from ..bodies.measure import scale_source
 from ..metrics.evaluate import EvalOptions, evaluate
 from ..metrics.tool_world import angles_deg, heading_fit, pelvis_cam, their_up_cam
-from ..option_rules import Rule, check_fields
-from ..outputs import RRD_APPLICATION_ID
+from ..settings.option_rules import Rule, check_fields
+from ..files.outputs import RRD_APPLICATION_ID
 from ..render.rows import (frame_image_path, label_stem, no_camera, people_flags, read_row, row_labels,
                            select_frames)
 from ..render.style import RenderStyle, person_colors, vertex_normals
@@ -534,7 +534,7 @@ def _record_their_world(writer: RecordingWriter, state: _RowState, style: Render
 
 
 def _stature_note(seq: Sequence) -> str:
-    """How an aligned row's statures are to be read (rotavat_cli.measure): "prior given back" when its camera's
+    """How an aligned row's statures are to be read (rotavat_cli.bodies.measure): "prior given back" when its camera's
     scale came from the people's stature prior, else "measured"; "" for other rows (a raw prediction's statures
     are its tool's bodies, the truth's the truth)."""
     if "aligned_from" not in seq.meta:

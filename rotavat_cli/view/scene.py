@@ -19,7 +19,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 
 __all__ = ["GRID_MARGIN_M", "MAX_GRID_LINES", "ground_extent_m", "grid_step_m", "grid_lines_world", "grid_ticks_world",
            "plane_quad_world", "uncertainty_cameras", "camera_label", "track_strips", "EYE_FOV_Y_DEG", "eye_world",

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Camera
+from ..geometry.camera import Camera
 from ..errors import InputError
 from ..render.skeleton import BONE_RADIUS_M, JOINT_RADIUS_M, POINT_RADIUS_M, layout_bones
 from ..render.style import RGB, RenderStyle, rgb8

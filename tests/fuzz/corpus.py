@@ -60,7 +60,7 @@ import _fixtures_wham_hybrik as WH  # noqa: E402
 import _format_fixtures as F  # noqa: E402
 
 from rotavat_cli import unpickle  # noqa: E402
-from rotavat_cli.camera import Camera, camera_to_yaml_dict  # noqa: E402
+from rotavat_cli.geometry.camera import Camera, camera_to_yaml_dict  # noqa: E402
 from rotavat_cli.formats.smpl import SMPL_PARENTS, load_body_model  # noqa: E402
 
 Content = Union[bytes, str, Callable[[Path], bytes]]

@@ -41,8 +41,8 @@ import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from .errors import InputError
-from .version import WRITTEN_BY
+from ..errors import InputError
+from ..version import WRITTEN_BY
 
 try:
     import fcntl

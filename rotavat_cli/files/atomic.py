@@ -1,7 +1,7 @@
 """Atomic file writing: write to a temporary file beside the target, then rename over it.
 
 Temporary files and staging folders are locked by their writer for their whole life
-(:mod:`rotavat_cli.outputs`), so whatever a killed run leaves is recognised and removed by the next
+(:mod:`rotavat_cli.files.outputs`), so whatever a killed run leaves is recognised and removed by the next
 write of the same output, and a live writer's never is.
 """
 
@@ -26,7 +26,7 @@ def atomic_open(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
     """Open a temporary file next to ``path``; on success rename it to ``path``, else delete it.
 
     The temporary, ``.<name>.rotavat-XXXXXXXX.tmp``, is locked until it is renamed; temporaries of
-    ``path`` that killed writers left are removed first (:func:`rotavat_cli.outputs.remove_stale_staging`).
+    ``path`` that killed writers left are removed first (:func:`rotavat_cli.files.outputs.remove_stale_staging`).
     """
     with _atomic(path) as (fd, _):
         with os.fdopen(fd, mode) as handle:
@@ -96,7 +96,7 @@ def staged_directory(path: str | os.PathLike, command: str | None = None) -> Ite
 
     A half-finished output never stands at ``path``; an existing ``path`` is replaced only once
     the new one is complete. The caller has checked that ``path`` may be replaced
-    (:func:`rotavat_cli.outputs.check_output_dir`). With ``command``, the new folder carries
+    (:func:`rotavat_cli.files.outputs.check_output_dir`). With ``command``, the new folder carries
     rotavat's output marker. Staging folders left by killed runs are removed first; while this one
     is built its owner file (host, pid) stays locked, so a later run can tell when it is abandoned.
     """

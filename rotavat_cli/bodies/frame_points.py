@@ -1,9 +1,9 @@
 """Where each person of a frame stands and how tall it is drawn: the foot points (the ground contact:
-:func:`rotavat_cli.landmarks.ground_contact`) and crown points (P, 3)
+:func:`rotavat_cli.bodies.landmarks.ground_contact`) and crown points (P, 3)
 in the method's camera frame, and the intrinsics the frame's meshes were made with.
 
 Calibration (its evidence of who stands), alignment (what it re-seats) and rendering (the tracks
-plot) take the same points from here: the mesh landmarks (:mod:`rotavat_cli.landmarks`), or for a
+plot) take the same points from here: the mesh landmarks (:mod:`rotavat_cli.bodies.landmarks`), or for a
 joints-only frame its 2D foot point and crown back-projected to the joints' depth.
 
 Who is in view is decided here too, once for every command: a foot or crown pixel outside the image or
@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Camera, pixel_rays_cam, project_cam_to_px
-from .errors import InputError
+from ..geometry.camera import Camera, pixel_rays_cam, project_cam_to_px
+from ..errors import InputError
 from .landmarks import foot_head_points
-from .sequence import Frame, Intrinsics, can_align
+from ..sequence import Frame, Intrinsics, can_align
 
 __all__ = ["EDGE_MARGIN_FRACTION", "EDGE_MARGIN_MIN_PX", "MeshIntrinsics", "beyond_border_px", "edge_margin_px", "in_view",
            "joints_foot_head_cam", "frame_foot_head_cam"]

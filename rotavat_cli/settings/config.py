@@ -3,7 +3,7 @@
 The defaults file is the single source of every option's default. A user file may set any
 subset of its keys; an unknown key or a value of the wrong type is an :class:`InputError`
 naming the key and the file. This module only loads and merges: what a value may be (its bounds,
-its names) each options class says in its ``RULES`` (:mod:`rotavat_cli.option_rules`), and the
+its names) each options class says in its ``RULES`` (:mod:`rotavat_cli.settings.option_rules`), and the
 command line checks a file's values against them. The merged result is a fresh plain dict (never a shared preset
 mutated in place), safe to dump next to outputs with ``yaml.safe_dump``.
 """
@@ -17,13 +17,13 @@ from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
-from .errors import InputError
+from ..errors import InputError
 from .option_rules import is_number, short_repr
-from .yaml_io import read_yaml
+from ..files.yaml_io import read_yaml
 
 __all__ = ["DEFAULT_CONFIG_PATH", "default_config", "load_config", "merge_config", "packaged_default"]
 
-DEFAULT_CONFIG_PATH = Path(__file__).resolve().parent / "data" / "default.yaml"
+DEFAULT_CONFIG_PATH = Path(__file__).resolve().parents[1] / "data" / "default.yaml"
 
 
 def default_config() -> dict:

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Camera
+from ..geometry.camera import Camera
 
 __all__ = ["statures_from_camera_m", "TrackStatures", "statures_by_track", "SCALE_SOURCES", "REFERENCE_SD_MAX_M",
            "scale_source", "source_words", "stature_provenance"]

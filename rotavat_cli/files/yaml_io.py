@@ -1,6 +1,6 @@
 """YAML files in and out: the safe loader only, one-line errors naming the file, atomic writes under
 rotavat's header line (which says rotavat wrote the file and may replace it:
-:func:`rotavat_cli.outputs.written_by_rotavat`)."""
+:func:`rotavat_cli.files.outputs.written_by_rotavat`)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from pathlib import Path
 import yaml
 
 from .atomic import atomic_write_text
-from .errors import file_error
+from ..errors import file_error
 from .outputs import TEXT_HEADER
-from .version import __version__
+from ..version import __version__
 
 
 def read_yaml(path: str | Path) -> dict:

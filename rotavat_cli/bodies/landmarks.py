@@ -178,7 +178,7 @@ _TOPOLOGIES: dict[int, Topology] = {SMPL.n_verts: SMPL, SMPLX.n_verts: SMPLX}
 # rotavat's own synthetic bodies (``rotavat synth``; data/bodies.npz) carry their sole and crown
 # indices in the package data. They are a built-in topology like SMPL's, read on first use, so
 # every process finds the same points whether or not it has synthesised anything.
-PACKAGED_BODIES = Path(__file__).resolve().parent / "data" / "bodies.npz"
+PACKAGED_BODIES = Path(__file__).resolve().parents[1] / "data" / "bodies.npz"
 
 
 def topology_from_npz(npz: Mapping[str, np.ndarray], name: str) -> Topology:

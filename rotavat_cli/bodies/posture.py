@@ -4,7 +4,7 @@ Calibration takes each person's foot and crown pixels as the ends of a 1.70 m ve
 sits, kneels or bends is not one. This module tells them apart from the joints an HPS tool wrote
 (camera frame; only the body's own segments are used, so the result does not depend on the camera's
 orientation, position or on the body's size). Joints are read by name
-(:data:`rotavat_cli.joint_layouts.LAYOUT_NAMES`): hips, knees, ankles and shoulders, which every
+(:data:`rotavat_cli.bodies.joint_layouts.LAYOUT_NAMES`): hips, knees, ankles and shoulders, which every
 layout there has.
 
 It decides by **what touches the ground**, not by how bent the knees are: a dancer in plie, a
@@ -14,7 +14,7 @@ ground. The measures, per person (:class:`PostureMeasures`):
 
 - **support leg**: the leg whose ankle is lower along the body's axis (mid-ankles -> mid-shoulders):
   the standing foot of a one-leg stance, a runner's or walker's stance foot (the foot the ground
-  contact point of :func:`rotavat_cli.landmarks.ground_contact` is on);
+  contact point of :func:`rotavat_cli.bodies.landmarks.ground_contact` is on);
 - **pelvis height**: the mid-hips above the support ankle, along the axis from that ankle to the
   mid-shoulders, in the support leg's lengths (thigh + shank): 1 standing straight, ~0.85 a tennis
   player's ready crouch, 0.65 seated on a chair, 0.4 squatting or on a sofa;
@@ -133,7 +133,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .joint_layouts import LAYOUT_NAMES, layout_by_count, layout_key
-from .rotations import cross3
+from ..geometry.rotations import cross3
 
 __all__ = [
     "KNEE_DOWN_MAX",
@@ -184,7 +184,7 @@ class PostureMeasures:
     hip_flexion_rad: (P, 2) left, right; trunk reversed (mid-shoulders -> mid-hips) to thigh, radians, 0 = in line.
     trunk_bend_rad: (P,) trunk (mid-hips -> mid-shoulders) to the body axis (mid-ankles -> mid-shoulders), radians.
     support_leg: (P,) int, 0 left / 1 right: the leg whose ankle is lower along the body axis (what stands on the
-        ground; the foot :func:`rotavat_cli.landmarks.ground_contact` puts there); 0 for people with NaN joints.
+        ground; the foot :func:`rotavat_cli.bodies.landmarks.ground_contact` puts there); 0 for people with NaN joints.
     pelvis_height: (P,) mid-hips above the support ankle along the support ankle -> mid-shoulders axis, in support
         leg lengths (thigh + shank): ~1 standing straight, ~0.65 seated on a chair, ~0.4 squatting.
     knee_height: (P,) the lower knee above the support ankle along the trunk (mid-hips -> mid-shoulders), in that
@@ -245,9 +245,9 @@ def posture_measures(joints_cam: np.ndarray, layout: str | None) -> PostureMeasu
     """Posture measures of each person from joints (P, J, 3) in ``layout``; None for a layout without them.
 
     joints_cam: (P, J, 3) float, any frame (camera frame, metres, in practice); P may be 0.
-    layout: a name of :data:`~rotavat_cli.joint_layouts.LAYOUT_NAMES`, with or without its description
+    layout: a name of :data:`~rotavat_cli.bodies.joint_layouts.LAYOUT_NAMES`, with or without its description
         ('phalp44 (OpenPose-25 + 19 extra)', meta.yaml ``import.joints_layout``); None: by the joint count
-        (SMPL family, :func:`~rotavat_cli.joint_layouts.layout_by_count`).
+        (SMPL family, :func:`~rotavat_cli.bodies.joint_layouts.layout_by_count`).
     """
     joints = np.asarray(joints_cam, dtype=np.float64)
     if joints.ndim != 3 or joints.shape[-1] != 3:

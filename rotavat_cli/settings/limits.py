@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .config import default_config
-from .errors import InputError, input_errors
+from ..errors import InputError, input_errors
 from .option_rules import Rule, check_rules
 
 __all__ = ["Limits", "current", "configure", "applied", "human_bytes"]

@@ -4,7 +4,7 @@ Each options class (``CalibrateOptions``, ``AlignOptions``, ``EvalOptions``, ``F
 ``SynthOptions``, ``BatchOptions``, ``GridSpec``) holds a ``RULES`` table, option name -> :class:`Rule`,
 and checks itself against it. The same table answers a ``--config`` file (the command line names the
 file and the key) and a flag (it names the flag), and ``--help`` shows each option's range and names
-from it (``rotavat_cli/cli/_common.py``). The config (:mod:`rotavat_cli.config`) only loads and merges:
+from it (``rotavat_cli/cli/_common.py``). The config (:mod:`rotavat_cli.settings.config`) only loads and merges:
 it checks that a file is shaped like the defaults, never what a value means.
 
 >>> Rule(low=0.5, high=3.0, unit="m").problem(5)

@@ -1,8 +1,8 @@
 """Joint layouts: the names of each HPS tool's joints / 2D keypoints, in the tool's order.
 
-A leaf module (it imports only :mod:`rotavat_cli.landmarks`, for SMPL's 24 joint names): whatever
+A leaf module (it imports only :mod:`rotavat_cli.bodies.landmarks`, for SMPL's 24 joint names): whatever
 addresses joints by name (the keypoint recipes of :mod:`rotavat_cli.formats.keypoints`, the skeletons
-of :mod:`rotavat_cli.render.skeleton`, the posture angles of :mod:`rotavat_cli.posture`, the joint-order
+of :mod:`rotavat_cli.render.skeleton`, the posture angles of :mod:`rotavat_cli.bodies.posture`, the joint-order
 check of :mod:`rotavat_cli.metrics.evaluate`) reads this one table. An importer records its layout in ``meta.yaml``
 (``import.joints_layout``), sometimes with a description after the key
 (``'phalp44 (OpenPose-25 + 19 extra)'``); :func:`layout_key` strips it. Files that store an
