@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -35,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rotavat_cli.alignment.align import align_sequence  # noqa: E402
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta  # noqa: E402
 from rotavat_cli.synth import SynthOptions, synth_frames  # noqa: E402
+from _measure import cpu_seconds  # noqa: E402
 
 SMPL_VERTS = 6890
 
@@ -54,12 +54,6 @@ def make_sequence(path: Path, n_frames: int, n_people: int) -> object:
         write_frame(path, Frame(f"{t:06d}", data), "npz")
     write_meta(path, {"image_size": list(camera.image_size), "focal_length": focal})
     return camera
-
-
-def cpu_seconds() -> float:
-    """User + system CPU time of this process and its finished children (align's workers)."""
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
 
 
 def io_floor(seq_path: Path, out: Path) -> tuple[float, float]:

@@ -26,13 +26,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -44,40 +42,11 @@ from rotavat_cli.exchange.animated import export_animated  # noqa: E402
 from rotavat_cli.exchange.frames import world_points_f32  # noqa: E402
 from rotavat_cli.sequence import open_sequence  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402
+from _measure import check_disk, cpu_seconds, read_all, rotavat_argv, row, size_bytes, timed  # noqa: E402
 
 TARGET_RATIO = 3.0  # export / npz
 TARGET_RSS_RATIO, RSS_SLACK_MB = 1.25, 50.0  # whole sequence vs its first tenth
 KB_PER_PERSON_FRAME = 500  # disk: synth pred + gt (~170) + the largest output at once (~80) + npz (~80), doubled
-
-
-def cpu_seconds() -> float:
-    """User + system CPU time of this process (every thread) and its finished children."""
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
-
-
-def size_bytes(path: Path) -> int:
-    """Bytes of a file, or of every file under a folder."""
-    return path.stat().st_size if path.is_file() else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
-
-
-def timed(step: Callable[[Path], None], out: Path) -> dict:
-    """Wall and CPU seconds of ``step(out)``, and the bytes it wrote there (then deleted: the disk is not filled)."""
-    start, cpu = time.perf_counter(), cpu_seconds()
-    step(out)
-    result = {"s": time.perf_counter() - start, "cpu": cpu_seconds() - cpu, "bytes": size_bytes(out) if out.exists() else 0}
-    if out.is_dir():
-        shutil.rmtree(out)
-    elif out.exists():
-        out.unlink()
-    return result
-
-
-def read_all(seq_dir: Path) -> None:
-    """Read every frame of the sequence (the input floor)."""
-    seq = open_sequence(seq_dir)
-    for name in seq.frame_names:
-        seq.read_frame(name)
 
 
 def write_npz(seq_dir: Path, out: Path) -> None:
@@ -86,12 +55,6 @@ def write_npz(seq_dir: Path, out: Path) -> None:
     out.mkdir(parents=True)
     for name in seq.frame_names:
         np.savez(out / f"{name}.npz", vertices=world_points_f32(seq.camera, seq.read_frame(name).data["vertices"]))
-
-
-def rotavat_argv() -> list[str]:
-    """How to start rotavat: the console script beside this interpreter, else the same entry point."""
-    script = Path(sys.executable).with_name("rotavat")
-    return [str(script)] if script.exists() else [sys.executable, "-c", "from rotavat_cli.cli import main; main()"]
 
 
 def run_cli(seq_dir: Path, out: Path) -> None:
@@ -144,25 +107,6 @@ def peak_rss_mb(seq_dir: Path, out: Path) -> tuple[int, int, float, float]:
     return int(n), int(written), int(start_kb) / 1024.0, int(peak_kb) / 1024.0
 
 
-def check_disk(work: Path, frames: int, people: int) -> None:
-    """Say how much disk is free against what the run needs; SystemExit when it is short."""
-    need = frames * people * KB_PER_PERSON_FRAME * 1e3 + 200e6
-    free = shutil.disk_usage(work).free
-    print(f"free disk at {work}: {free / 1e9:.1f} GB (the run needs about {need / 1e9:.1f} GB)")
-    if free < need:
-        raise SystemExit(f"not enough free disk at {work}: {free / 1e9:.1f} GB free, about {need / 1e9:.1f} GB needed "
-                         "(use --workdir elsewhere or fewer --frames)")
-
-
-def row(name: str, r: dict, floor: dict | None) -> str:
-    """One table row: wall s, MB, MB/s, CPU s and the ratio to the npz baseline."""
-    mb = r["bytes"] / 1e6
-    rate = f"{mb / r['s']:.0f}" if mb else "-"
-    ratio = f"{r['s'] / floor['s']:.2f}x" if floor else "-"
-    seconds = f"{r['s']:.2f}" + (f" ({', '.join(f'{s:.2f}' for s in r['all'])})" if len(r.get("all", [])) > 1 else "")
-    return f"| {name} | {seconds} | {mb:.0f} | {rate} | {r['cpu']:.2f} | {ratio} |"
-
-
 def parse_args() -> argparse.Namespace:
     """Command-line options; ``--quick`` only changes the defaults of the others."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -184,7 +128,7 @@ def main() -> int:
     work = Path(args.workdir or tempfile.mkdtemp(prefix="rotavat-bench-export-"))
     work.mkdir(parents=True, exist_ok=True)
     try:
-        check_disk(work, args.frames, args.people)
+        check_disk(work, args.frames, args.people, KB_PER_PERSON_FRAME)
         scene = work / "scene"
         t0 = time.perf_counter()
         write_synth_scene(scene, SynthOptions(seed=0, frames=args.frames, people=args.people, image_size=(1280, 720)))

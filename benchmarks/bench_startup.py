@@ -32,14 +32,9 @@ from _synthetic_pairs import synthetic_pairs  # noqa: E402
 from bench_calibrate import loop_baseline  # noqa: E402
 
 from rotavat_cli.calibration.grid import GridSpec  # noqa: E402
+from _measure import rotavat_argv  # noqa: E402
 
 PAIRS_FRAMES, PAIRS_PEOPLE = 100, 20  # 2,000 pairs
-
-
-def rotavat_argv() -> list[str]:
-    """How to start rotavat: the console script beside this interpreter, else the same entry point."""
-    script = Path(sys.executable).with_name("rotavat")
-    return [str(script)] if script.exists() else [sys.executable, "-c", "from rotavat_cli.cli import main; main()"]
 
 
 def write_pairs_sequence(folder: Path, seed: int = 7) -> tuple[Path, object]:

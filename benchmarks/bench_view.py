@@ -38,13 +38,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -56,40 +54,11 @@ from rotavat_cli.sequence import open_sequence, read_camera_yaml  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402
 from rotavat_cli.view import ViewOptions, record_sequences, require_rerun  # noqa: E402
 from rotavat_cli.view.scene import world_points_f32  # noqa: E402
+from _measure import check_disk, cpu_seconds, read_all, rotavat_argv, row, size_bytes, timed  # noqa: E402
 
 TARGET_RATIO = 10.0  # recording / npz
 TARGET_RSS_RATIO, RSS_SLACK_MB = 1.25, 50.0  # whole sequence vs its first third
 KB_PER_PERSON_FRAME = 600  # disk: synth pred + gt (~170) + the largest output at once (~160) + npz (~80), doubled
-
-
-def cpu_seconds() -> float:
-    """User + system CPU time of this process (every thread) and its finished children."""
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
-
-
-def size_bytes(path: Path) -> int:
-    """Bytes of a file, or of every file under a folder."""
-    return path.stat().st_size if path.is_file() else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
-
-
-def timed(step: Callable[[Path], None], out: Path) -> dict:
-    """Wall and CPU seconds of ``step(out)``, and the bytes it wrote there (then deleted: the disk is not filled)."""
-    start, cpu = time.perf_counter(), cpu_seconds()
-    step(out)
-    result = {"s": time.perf_counter() - start, "cpu": cpu_seconds() - cpu, "bytes": size_bytes(out) if out.exists() else 0}
-    if out.is_dir():
-        shutil.rmtree(out)
-    elif out.exists():
-        out.unlink()
-    return result
-
-
-def read_all(pred: Path) -> None:
-    """Read every frame of the sequence (the input floor)."""
-    seq = open_sequence(pred)
-    for name in seq.frame_names:
-        seq.read_frame(name)
 
 
 def write_npz(pred: Path, camera_yaml: Path, out: Path, float64: bool = False) -> None:
@@ -106,12 +75,6 @@ def write_npz(pred: Path, camera_yaml: Path, out: Path, float64: bool = False) -
 def record(pred: Path, camera_yaml: Path, out: Path, normals: bool = True) -> None:
     """``record_sequences`` of the pred sequence in the ground truth's camera."""
     record_sequences([open_sequence(pred)], out, None, ViewOptions(camera_path=camera_yaml, normals=normals))
-
-
-def rotavat_argv() -> list[str]:
-    """How to start rotavat: the console script beside this interpreter, else the same entry point."""
-    script = Path(sys.executable).with_name("rotavat")
-    return [str(script)] if script.exists() else [sys.executable, "-c", "from rotavat_cli.cli import main; main()"]
 
 
 def run_cli(pred: Path, camera_yaml: Path, out: Path) -> None:
@@ -157,25 +120,6 @@ def peak_rss_mb(pred: Path, camera_yaml: Path, out: Path, n_frames: int, total: 
     return int(n), int(start_kb) / 1024.0, int(peak_kb) / 1024.0
 
 
-def check_disk(work: Path, frames: int, people: int) -> None:
-    """Say how much disk is free against what the run needs; SystemExit when it is short."""
-    need = frames * people * KB_PER_PERSON_FRAME * 1e3 + 200e6
-    free = shutil.disk_usage(work).free
-    print(f"free disk at {work}: {free / 1e9:.1f} GB (the run needs about {need / 1e9:.1f} GB)")
-    if free < need:
-        raise SystemExit(f"not enough free disk at {work}: {free / 1e9:.1f} GB free, about {need / 1e9:.1f} GB needed "
-                         "(use --workdir elsewhere or fewer --frames)")
-
-
-def row(name: str, r: dict, floor: dict | None) -> str:
-    """One table row: wall s, MB, MB/s, CPU s and the ratio to the npz baseline."""
-    mb = r["bytes"] / 1e6
-    rate = f"{mb / r['s']:.0f}" if mb else "-"
-    ratio = f"{r['s'] / floor['s']:.2f}x" if floor else "-"
-    seconds = f"{r['s']:.2f}" + (f" ({', '.join(f'{s:.2f}' for s in r['all'])})" if len(r.get("all", [])) > 1 else "")
-    return f"| {name} | {seconds} | {mb:.0f} | {rate} | {r['cpu']:.2f} | {ratio} |"
-
-
 def parse_args() -> argparse.Namespace:
     """Command-line options; ``--quick`` only changes the defaults of the others."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -198,7 +142,7 @@ def main() -> int:
     work = Path(args.workdir or tempfile.mkdtemp(prefix="rotavat-bench-view-"))
     work.mkdir(parents=True, exist_ok=True)
     try:
-        check_disk(work, args.frames, args.people)
+        check_disk(work, args.frames, args.people, KB_PER_PERSON_FRAME)
         scene = work / "scene"
         t0 = time.perf_counter()
         write_synth_scene(scene, SynthOptions(seed=0, frames=args.frames, people=args.people, image_size=(1280, 720)))
