@@ -4,8 +4,10 @@ scripts, this folder is on their path)."""
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -67,3 +69,39 @@ def row(name: str, r: dict, floor: dict | None) -> str:
     ratio = f"{r['s'] / floor['s']:.2f}x" if floor else "-"
     seconds = f"{r['s']:.2f}" + (f" ({', '.join(f'{s:.2f}' for s in r['all'])})" if len(r.get("all", [])) > 1 else "")
     return f"| {name} | {seconds} | {mb:.0f} | {rate} | {r['cpu']:.2f} | {ratio} |"
+
+
+def run_or_exit(argv: list[str], cwd: Path) -> None:
+    """Run a whole command in a fresh process; SystemExit naming it when it fails."""
+    proc = subprocess.run(argv, cwd=cwd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+
+
+# A child process's own high-water mark (``peak_kb()``), for the peak-RSS children's code (``{peak_kb}`` in it).
+PEAK_KB_SOURCE = '''
+import resource
+
+def peak_kb():
+    # this process's own high-water mark: ru_maxrss also keeps the forking parent's RSS across exec
+    try:
+        with open("/proc/self/status") as f:
+            return int(next(line.split()[1] for line in f if line.startswith("VmHWM:")))
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+'''
+
+
+def scene_args(description: str) -> argparse.Namespace:
+    """The options of a benchmark over a synthetic scene; ``--quick`` only changes the defaults of the others."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--quick", action="store_true", help="60 frames x 20 people, 1 repeat")
+    parser.add_argument("--frames", type=int, default=None, help="frames of the scene (default 300, quick 60)")
+    parser.add_argument("--people", type=int, default=20)
+    parser.add_argument("--repeats", type=int, default=None, help="best of this many runs of each step (default 2, quick 1)")
+    parser.add_argument("--workdir", type=Path, default=None, help="default: a new temporary folder, deleted at the end")
+    parser.add_argument("--keep", action="store_true", help="keep the work folder")
+    args = parser.parse_args()
+    args.frames = args.frames or (60 if args.quick else 300)
+    args.repeats = max(1, args.repeats or (1 if args.quick else 2))
+    return args

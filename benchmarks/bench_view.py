@@ -36,7 +36,6 @@ recording / npz <= 10x with normals on and off, and the whole sequence's peak RS
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import subprocess
@@ -54,7 +53,8 @@ from rotavat_cli.sequence import open_sequence, read_camera_yaml  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402
 from rotavat_cli.view import ViewOptions, record_sequences, require_rerun  # noqa: E402
 from rotavat_cli.view.scene import world_points_f32  # noqa: E402
-from _measure import check_disk, cpu_seconds, read_all, rotavat_argv, row, size_bytes, timed  # noqa: E402
+from _measure import (PEAK_KB_SOURCE, check_disk, read_all, rotavat_argv, row, run_or_exit,  # noqa: E402
+                      scene_args, size_bytes, timed)
 
 TARGET_RATIO = 10.0  # recording / npz
 TARGET_RSS_RATIO, RSS_SLACK_MB = 1.25, 50.0  # whole sequence vs its first third
@@ -80,25 +80,16 @@ def record(pred: Path, camera_yaml: Path, out: Path, normals: bool = True) -> No
 def run_cli(pred: Path, camera_yaml: Path, out: Path) -> None:
     """The whole ``rotavat view`` command in a fresh process; SystemExit when it fails."""
     argv = [*rotavat_argv(), "view", str(pred), "--camera", str(camera_yaml), "--out", str(out), "--quiet"]
-    proc = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+    run_or_exit(argv, ROOT)
 
 
 _CHILD = """
-import resource, sys
+import sys
 sys.path.insert(0, {root!r})
 from pathlib import Path
 from rotavat_cli.sequence import open_sequence
 from rotavat_cli.view import ViewOptions, record_sequences, require_rerun
-
-def peak_kb():
-    # this process's own high-water mark: ru_maxrss also keeps the forking parent's RSS across exec
-    try:
-        with open("/proc/self/status") as f:
-            return int(next(line.split()[1] for line in f if line.startswith("VmHWM:")))
-    except (OSError, StopIteration):
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+{peak_kb}
 
 require_rerun()
 start = peak_kb()
@@ -111,7 +102,7 @@ def peak_rss_mb(pred: Path, camera_yaml: Path, out: Path, n_frames: int, total: 
     """(frames recorded, peak RSS after the imports, peak RSS at the end) in MB of a fresh process recording
     the first ``n_frames`` frames."""
     frames = None if n_frames >= total else ",".join(str(i) for i in range(n_frames))
-    code = _CHILD.format(root=str(ROOT), pred=str(pred), out=str(out), camera=str(camera_yaml), frames=frames)
+    code = _CHILD.format(peak_kb=PEAK_KB_SOURCE, root=str(ROOT), pred=str(pred), out=str(out), camera=str(camera_yaml), frames=frames)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"peak RSS child failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
@@ -120,24 +111,9 @@ def peak_rss_mb(pred: Path, camera_yaml: Path, out: Path, n_frames: int, total: 
     return int(n), int(start_kb) / 1024.0, int(peak_kb) / 1024.0
 
 
-def parse_args() -> argparse.Namespace:
-    """Command-line options; ``--quick`` only changes the defaults of the others."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="60 frames x 20 people, 1 repeat")
-    parser.add_argument("--frames", type=int, default=None, help="frames of the scene (default 300, quick 60)")
-    parser.add_argument("--people", type=int, default=20)
-    parser.add_argument("--repeats", type=int, default=None, help="best of this many runs of each step (default 2, quick 1)")
-    parser.add_argument("--workdir", type=Path, default=None, help="default: a new temporary folder, deleted at the end")
-    parser.add_argument("--keep", action="store_true", help="keep the work folder")
-    args = parser.parse_args()
-    args.frames = args.frames or (60 if args.quick else 300)
-    args.repeats = max(1, args.repeats or (1 if args.quick else 2))
-    return args
-
-
 def main() -> int:
     """Run the benchmark, print its tables; 0 when every target is met, else 1."""
-    args = parse_args()
+    args = scene_args(__doc__.splitlines()[0])
     require_rerun()
     work = Path(args.workdir or tempfile.mkdtemp(prefix="rotavat-bench-view-"))
     work.mkdir(parents=True, exist_ok=True)
