@@ -14,6 +14,7 @@ from __future__ import annotations
 import ast
 import io
 import math
+import re
 from pathlib import Path
 from typing import BinaryIO
 
@@ -24,9 +25,14 @@ from .checks import array_refusal, invalid_text
 from .pickles import load_stream
 from .streams import chunked, file_size, fill
 
-__all__ = ["load_npy", "load_npy_bytes", "read_npy", "read_npy_header"]
+__all__ = ["load_npy", "load_npy_bytes", "parse_npy_header", "read_npy", "read_npy_header"]
 
 _MAX_NPY_HEADER = 10_000  # numpy's own default limit for .npy headers
+# The header numpy itself writes for a plain dtype (np.lib.format.header_data_from_array_1_0, keys sorted, padded
+# with spaces to a 64-byte boundary and a newline): read by this pattern without compiling anything; any other
+# header (record dtypes, another key order, Python literals numpy never writes) goes through ast.literal_eval.
+_NUMPY_HEADER = re.compile(r"\{'descr': '([<>|=]?[A-Za-z][A-Za-z0-9]*(?:\[[A-Za-z]+\])?)', 'fortran_order': (True|False), "
+                           r"'shape': \((\d+,|\d+(?:, \d+)+|)\), \} *\n?\Z")  # one dimension: "(3,)"
 
 
 def read_npy_header(stream: BinaryIO, source: str) -> tuple[np.dtype, tuple[int, ...], bool, int]:
@@ -49,15 +55,31 @@ def read_npy_header(stream: BinaryIO, source: str) -> tuple[np.dtype, tuple[int,
     if len(raw) < hlen:
         raise InputError(f"{source}: malformed .npy header")
     try:
-        header = ast.literal_eval(raw.decode(enc))
-        dtype = np.lib.format.descr_to_dtype(header["descr"])
-        shape = tuple(int(s) for s in header["shape"])
-        fortran = bool(header["fortran_order"])
+        dtype, shape, fortran = parse_npy_header(raw.decode(enc))
     except (ValueError, SyntaxError, KeyError, TypeError, UnicodeDecodeError, MemoryError, RecursionError):
         raise InputError(f"{source}: malformed .npy header") from None
     if any(s < 0 for s in shape):
         raise InputError(f"{source}: malformed .npy header (negative shape)")
     return dtype, shape, fortran, 8 + size_bytes + hlen
+
+
+def parse_npy_header(text: str) -> tuple[np.dtype, tuple[int, ...], bool]:
+    """(dtype, shape, fortran_order) of a ``.npy`` header's text: numpy's own layout by a pattern, anything else as
+    a Python literal (``ast.literal_eval``); ValueError, SyntaxError, KeyError or TypeError when it is not one.
+
+    >>> parse_npy_header("{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4), }" + " " * 3 + "\\n")
+    (dtype('float32'), (3, 4), False)
+    >>> parse_npy_header("{'shape': (2,), 'fortran_order': True, 'descr': '|u1'}")  # not numpy's order: the literal
+    (dtype('uint8'), (2,), True)
+    """
+    found = _NUMPY_HEADER.match(text)
+    if found is not None:
+        descr, fortran, dims = found.groups()
+        return (np.lib.format.descr_to_dtype(descr), tuple(int(d) for d in dims.split(",") if d.strip()),
+                fortran == "True")
+    header = ast.literal_eval(text)
+    return (np.lib.format.descr_to_dtype(header["descr"]), tuple(int(s) for s in header["shape"]),
+            bool(header["fortran_order"]))
 
 
 def read_npy(stream: BinaryIO, size: int, source: str, what: str, objects: bool) -> np.ndarray:
