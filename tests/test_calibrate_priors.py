@@ -61,7 +61,7 @@ def test_a_walker_at_one_depth_gets_an_answer_from_the_lens_prior(camera):
     res = fit_camera(feet, heads, SIZE, frame_index=frames, track_id=ids)  # the step the refusal names
     assert "prior" in res.determined_by["focal_px"].split("+") and res.focal_prior == "lens"
     if res.determined_by["focal_px"] == "prior":
-        assert any("focal length from the prior" in w and "--focal PX" in w for w in res.warnings)
+        assert any("focal length from the prior" in w and "--focal PX or --focal-mm MM" in w for w in res.warnings)
     assert abs(res.camera.focal_px - camera.focal_px) < 2 * res.std["focal_px"]
     assert 0.15 < res.std["focal_px"] / res.camera.focal_px < 0.4  # no wider than the lens prior
     assert abs(math.degrees(res.camera.pitch_rad - camera.pitch_rad)) < 2 * res.std["pitch_deg"]

@@ -328,7 +328,7 @@ def std_and_corr(params: np.ndarray, cov: np.ndarray, free: np.ndarray) -> tuple
     return std, corr
 
 
-_GIVE = {"focal_px": "--focal PX", "pitch_deg": "--pitch DEG", "roll_deg": "--no-roll", "height_m": "--camera-height M",
+_GIVE = {"focal_px": "--focal PX or --focal-mm MM", "pitch_deg": "--pitch DEG", "roll_deg": "--no-roll", "height_m": "--camera-height M",
          "person_height_m": "--person-height M"}
 _WORDS = {"focal_px": "focal length", "pitch_deg": "pitch", "roll_deg": "roll", "height_m": "camera height",
           "person_height_m": "people's mean stature"}
