@@ -28,12 +28,14 @@ True
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..geometry.camera import up_vector_cam
 from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, slot
 
-__all__ = ["RAY_EPS", "Z_MIN", "foot_terms", "undistort", "head_errors", "head_gain", "predict_heads_px"]
+__all__ = ["RAY_EPS", "Z_MIN", "CameraTerms", "camera_terms", "foot_ray_d", "foot_terms", "undistort", "head_errors", "head_gain", "predict_heads_px"]
 
 RAY_EPS = 1e-12  # foot ray "parallel to the ground" (as camera.backproject_px_to_plane)
 Z_MIN = 0.05  # refinement: head depth / foot depth below this -> head (nearly) behind the camera, invalid pair
@@ -47,8 +49,14 @@ def foot_terms(u: np.ndarray, v: np.ndarray, f: np.ndarray, nx, ny, nz) -> tuple
     camera frame. Shapes broadcast: ``(N,)`` pairs against ``(Q, 1)`` parameter sets (refinement)
     or ``(1, B)`` against ``(F, 1)`` focals and scalar ``n`` (the grid's kernel).
     """
-    d = -(nx * u + ny * v) / f - nz
+    d = foot_ray_d(u, v, f, nx, ny, nz)
     return d, d * (f * nx - nz * u), d * (f * ny - nz * v)
+
+
+def foot_ray_d(u: np.ndarray, v: np.ndarray, f: np.ndarray, nx, ny, nz) -> np.ndarray:
+    """The model's ``d = -n . (F/f, 1)`` alone (:func:`foot_terms`'s first term, same arguments and broadcasting):
+    ``d > 0`` when the foot ray meets the ground in front of the camera."""
+    return -(nx * u + ny * v) / f - nz
 
 
 def undistort(rel_feet: np.ndarray, diff: np.ndarray, lam: np.ndarray, radius_px: float
@@ -64,8 +72,40 @@ def undistort(rel_feet: np.ndarray, diff: np.ndarray, lam: np.ndarray, radius_px
     return feet, feet - one(rel_feet - diff)
 
 
+@dataclass(frozen=True)
+class CameraTerms:
+    """What the model needs of parameter sets ``params (Q, 6)`` and pairs, whatever the stature: the pairs
+    (undistorted when a set holds a lens distortion), the focal, height and box depth (Q, 1), the up vector's
+    components (Q, 1) and ``d``, ``M_u``, ``M_v`` (Q, N) (:func:`foot_terms`). A refinement step evaluates the
+    model at several statures for one set of parameters: these are computed once."""
+
+    rel_feet: np.ndarray
+    diff: np.ndarray
+    f: np.ndarray
+    h: np.ndarray
+    box: np.ndarray
+    n: tuple[np.ndarray, np.ndarray, np.ndarray]
+    d: np.ndarray
+    m_u: np.ndarray
+    m_v: np.ndarray
+    plain: bool  # no lens distortion and no box depth: the closed-form foot gain applies (:func:`head_gain`)
+
+
+def camera_terms(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, radius_px: float = 1.0) -> CameraTerms:
+    """:class:`CameraTerms` of ``params (Q, 6)`` for pairs ``rel_feet``, ``diff`` (N, 2) px (as :func:`head_errors`)."""
+    f, pitch, roll, h = (slot(params, i) for i in (FOCAL, PITCH, ROLL, HEIGHT))
+    lam, box = slot(params, DISTORTION), slot(params, BOX_DEPTH)
+    distorted = bool(np.any(lam))
+    if distorted:
+        rel_feet, diff = undistort(rel_feet, diff, lam, radius_px)
+    n = up_vector_cam(pitch[:, 0], roll[:, 0])
+    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
+    d, m_u, m_v = foot_terms(rel_feet[..., 0], rel_feet[..., 1], f, nx, ny, nz)
+    return CameraTerms(rel_feet, diff, f, h, box, (nx, ny, nz), d, m_u, m_v, not distorted and not np.any(box))
+
+
 def head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, stature_m: float | np.ndarray,
-                radius_px: float = 1.0, z_min: float = Z_MIN
+                radius_px: float = 1.0, z_min: float = Z_MIN, terms: CameraTerms | None = None
                 ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray]:
     """Head errors (u, v), their derivatives by the stature (u, v), each (Q, N), and validity (Q, N).
 
@@ -73,39 +113,34 @@ def head_errors(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, stat
     (:mod:`.params` slots); stature_m: scalar, (N,) or (Q, N); radius_px: the distortion's radius
     (half-diagonal). Errors are predicted minus observed heads, px; derivatives px/m. A pair is
     valid when its foot ray meets the ground and its head depth ratio ``z`` exceeds ``z_min``.
+    terms: :func:`camera_terms` of these arguments, when already computed.
     """
-    f, pitch, roll, h = (slot(params, i) for i in (FOCAL, PITCH, ROLL, HEIGHT))
-    lam, box = slot(params, DISTORTION), slot(params, BOX_DEPTH)
-    if np.any(lam):
-        rel_feet, diff = undistort(rel_feet, diff, lam, radius_px)
-    n = up_vector_cam(pitch[:, 0], roll[:, 0])
-    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
-    u, v = rel_feet[..., 0], rel_feet[..., 1]
-    d, m_u, m_v = foot_terms(u, v, f, nx, ny, nz)
-    k, dk, ok = _box_k(u, v, f, h, d, box, stature_m) if np.any(box) else (stature_m / h, 1.0 / h, True)
-    z = 1.0 + k * nz * d
-    valid = (d > RAY_EPS) & (z > z_min) & ok
+    t = camera_terms(rel_feet, diff, params, radius_px) if terms is None else terms
+    u, v = t.rel_feet[..., 0], t.rel_feet[..., 1]
+    k, dk, ok = _box_k(u, v, t.f, t.h, t.d, t.box, stature_m) if np.any(t.box) else (stature_m / t.h, 1.0 / t.h, True)
+    z = 1.0 + k * t.n[2] * t.d
+    valid = (t.d > RAY_EPS) & (z > z_min) & ok
     z = np.maximum(z, max(z_min, _Z_FLOOR))
     coef, dcoef = k / z, dk / (z * z)
-    return (diff[..., 0] + coef * m_u, diff[..., 1] + coef * m_v), (dcoef * m_u, dcoef * m_v), valid
+    return ((t.diff[..., 0] + coef * t.m_u, t.diff[..., 1] + coef * t.m_v), (dcoef * t.m_u, dcoef * t.m_v), valid)
 
 
-def head_gain(rel_feet: np.ndarray, params: np.ndarray, stature_m: float | np.ndarray) -> np.ndarray | None:
+def head_gain(rel_feet: np.ndarray, params: np.ndarray, stature_m: float | np.ndarray,
+              terms: CameraTerms | None = None) -> np.ndarray | None:
     """How each predicted head moves with its foot pixel, in closed form: ``d head / d foot`` (Q, N, 2, 2),
     rows (u, v) of the head, columns (u, v) of the foot; None when the parameter sets hold a lens distortion or a
-    box depth (then :func:`head_errors` by finite differences says it).
+    box depth (then :func:`head_errors` by finite differences says it). terms: :func:`camera_terms` of
+    ``rel_feet`` and ``params``, when already computed.
 
     With ``d`` and ``M`` of the module docstring, ``d' = -n_xy / f`` and ``c = k / z``: the head is
     ``F + c M``, so ``dH/dF = I + M (dc/dF)^T + c dM/dF`` with ``dM/dF = (f n_xy - n_z F) d'^T - d n_z I`` and
     ``dc/dF = -c^2 n_z d'`` (``k = S / h`` does not depend on the foot).
     """
-    if np.any(slot(params, DISTORTION)) or np.any(slot(params, BOX_DEPTH)):
+    t = camera_terms(rel_feet, np.zeros_like(rel_feet), params) if terms is None else terms
+    if not t.plain:
         return None
-    f, pitch, roll, h = (slot(params, i) for i in (FOCAL, PITCH, ROLL, HEIGHT))
-    n = up_vector_cam(pitch[:, 0], roll[:, 0])
-    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
-    u, v = rel_feet[..., 0], rel_feet[..., 1]
-    d, m_u, m_v = foot_terms(u, v, f, nx, ny, nz)
+    f, h, (nx, ny, nz), d, m_u, m_v = t.f, t.h, t.n, t.d, t.m_u, t.m_v
+    u, v = t.rel_feet[..., 0], t.rel_feet[..., 1]
     k = stature_m / h
     z = np.maximum(1.0 + k * nz * d, _Z_FLOOR)
     c = k / z

@@ -22,13 +22,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry.camera import up_vector_cam
-from .model import head_errors, head_gain
+from .model import CameraTerms, camera_terms, head_errors, head_gain
 from .params import PITCH, ROLL, from_internal, to_internal
 from .priors import Priors
 from .residuals import PairCovariance, ResidualKind
 
 __all__ = ["MIN_NOISE_PX", "BodyAxes", "Problem", "make_problem", "foot_gain", "pair_covariance", "profiled", "whitened",
-           "prior_rows", "body_rows", "ROBUST_LOSSES", "robust_rows", "model_residual", "residual_and_jacobian", "pair_chi2", "robust_scale",
+           "prior_rows", "body_rows", "ROBUST_LOSSES", "robust_rows", "model_residual", "residual_and_jacobian", "residual_at", "jacobian_at", "pair_chi2", "robust_scale",
            "design_effect"]
 
 _FD_STEP = 1e-6  # finite-difference step in the internal parameters (log f, rad, rad, log h, ...)
@@ -125,14 +125,15 @@ def make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_hei
 
 
 def foot_gain(prob: Problem, params: np.ndarray, e: tuple[np.ndarray, np.ndarray],
-              stature_m: float | np.ndarray) -> np.ndarray:
+              stature_m: float | np.ndarray, terms: CameraTerms | None = None) -> np.ndarray:
     """How each predicted head moves with its foot pixel: ``G[q, n] = d e / d foot`` (Q, N, 2, 2), rows
     (u, v) of the head error, columns (u, v) of the foot: in closed form (:func:`.model.head_gain`), or with a
     lens distortion or a box depth by forward differences of half a pixel.
 
-    e: the head errors (u, v) (Q, N) at params (Q, 6) and stature_m (as :func:`.model.head_errors`).
+    e: the head errors (u, v) (Q, N) at params (Q, 6) and stature_m (as :func:`.model.head_errors`); terms: their
+    :func:`.model.camera_terms`, when already computed.
     """
-    closed = head_gain(prob.rel_feet, params, stature_m)
+    closed = head_gain(prob.rel_feet, params, stature_m, terms)
     if closed is not None:
         return closed
     columns = []
@@ -177,7 +178,8 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
     residuals / scale (``effective``: with the pairs' design effects, as the objective weighs them).
     """
     Q, T = len(params), prob.n_tracks
-    e, de, valid = head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m, prob.radius_px)
+    terms = camera_terms(prob.rel_feet, prob.diff, params, prob.radius_px)  # the same at every stature
+    e, de, valid = head_errors(prob.rel_feet, prob.diff, params, prob.person_height_m, prob.radius_px, terms=terms)
     delta = np.zeros((Q, T))
     stature = prob.person_height_m
     if T:
@@ -187,25 +189,25 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
         # The statures' steps weigh as the objective does (the foot's gain at the prior stature): weighed by the
         # pixel noise alone, the profiled statures are not the objective's own and people standing still drift
         # again (2,000 frames: focal 2.3% off, against 0.7%).
-        steps_cov = _covariance_at(prob, params, e, stature, effective)
+        whiten = prob.residual.whitener(prob.axis, _covariance_at(prob, params, e, stature, effective, terms))
         for _ in range(2):
-            r = prob.residual.whitened(e, prob.axis, steps_cov) / scale
-            j = prob.residual.whitened(de, prob.axis, steps_cov) / scale
+            r = whiten(e) / scale
+            j = whiten(de) / scale
             w = (valid & tracked) / (1.0 + (r[..., 0] / 3.0) ** 2)
             num = np.bincount(flat, (w * np.sum(j * r, axis=-1)).ravel(), Q * T).reshape(Q, T) + delta * prec
             den = np.bincount(flat, (w * np.sum(j * j, axis=-1)).ravel(), Q * T).reshape(Q, T) + prec
             delta = delta - num / den
             stature = prob.person_height_m + np.where(tracked, delta[:, np.maximum(prob.track, 0)], 0.0)
-            e, de, valid = head_errors(prob.rel_feet, prob.diff, params, stature, prob.radius_px)
+            e, de, valid = head_errors(prob.rel_feet, prob.diff, params, stature, prob.radius_px, terms=terms)
     # The foot's gain at each person's own stature: the pairs then cannot see the scene's scale.
-    return e, valid, delta, _covariance_at(prob, params, e, stature, effective)
+    return e, valid, delta, _covariance_at(prob, params, e, stature, effective, terms)
 
 
 def _covariance_at(prob: Problem, params: np.ndarray, e: tuple[np.ndarray, np.ndarray], stature_m: float | np.ndarray,
-                   effective: bool) -> PairCovariance:
+                   effective: bool, terms: CameraTerms | None = None) -> PairCovariance:
     """:func:`pair_covariance` with the foot's gain at ``params`` (Q, 6) and ``stature_m`` where the problem carries
-    the foot's noise (``e``: the head errors there, (Q, N) each)."""
-    return pair_covariance(prob, foot_gain(prob, params, e, stature_m) if prob.foot_noise else None, effective)
+    the foot's noise (``e``: the head errors there, (Q, N) each; terms: their :func:`.model.camera_terms`)."""
+    return pair_covariance(prob, foot_gain(prob, params, e, stature_m, terms) if prob.foot_noise else None, effective)
 
 
 def whitened(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: bool = False
@@ -275,6 +277,21 @@ def residual_and_jacobian(prob: Problem, x: np.ndarray, full0: np.ndarray, free:
     xs = np.vstack([x, x + _FD_STEP * np.eye(len(x))])
     r = model_residual(prob, from_internal(xs, full0, free), free, scale, loss, f_scale)
     return r[0], ((r[1:] - r[0]) / _FD_STEP).T
+
+
+def residual_at(prob: Problem, x: np.ndarray, full0: np.ndarray, free: np.ndarray, scale: float,
+                loss: str = "linear", f_scale: float = 1.0) -> np.ndarray:
+    """The residual vector (M,) of :func:`residual_and_jacobian` alone (same arguments, the same numbers: each
+    parameter set's rows are computed on their own)."""
+    return model_residual(prob, from_internal(x[None], full0, free), free, scale, loss, f_scale)[0]
+
+
+def jacobian_at(prob: Problem, x: np.ndarray, r0: np.ndarray, full0: np.ndarray, free: np.ndarray, scale: float,
+                loss: str = "linear", f_scale: float = 1.0) -> np.ndarray:
+    """The Jacobian (M, n_free) of :func:`residual_and_jacobian` given its residual ``r0 (M,)`` at ``x``: a
+    least-squares step that is rejected then costs one parameter set, not ``1 + n_free``."""
+    r = model_residual(prob, from_internal(x + _FD_STEP * np.eye(len(x)), full0, free), free, scale, loss, f_scale)
+    return ((r - r0) / _FD_STEP).T
 
 
 def pair_chi2(prob: Problem, params: np.ndarray, scale: float = 1.0) -> np.ndarray:

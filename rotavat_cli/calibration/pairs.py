@@ -82,7 +82,7 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     Meshes that are root-centred or behind the camera (never placed in the camera frame) give no
     pair; ``not_in_front`` counts them, so a refusal can say why.
     """
-    feet, heads, index, ids, axes, poses, cuts, sources = [], [], [], [], [], [], [], set()
+    feet, heads, index, ids, axes, poses, sources = [], [], [], [], [], [], set()
     layout = seq.joints_layout
     size = seq.image_size
     tracked = True
@@ -97,7 +97,6 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
             f[off], h[off] = np.nan, np.nan
             not_in_front += int(off.sum())
         axes.append(_body_axes_cam(frame, intrinsics, f, h))
-        cuts.append(_cut_beyond_px(f, h, size))
         poses.append(_postures(frame, layout))
         if len(f):
             sources.add(src)
@@ -109,7 +108,7 @@ def gather_pairs(seq: Sequence) -> FootHeadPairs:
     heads_px = np.concatenate(heads) if heads else np.zeros((0, 2))
     keep = np.all(np.isfinite(feet_px), axis=1) & np.all(np.isfinite(heads_px), axis=1)
     source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
-    beyond = np.concatenate(cuts)[keep] if cuts else np.zeros(0)
+    beyond = _cut_beyond_px(feet_px, heads_px, size)[keep]  # over every pair at once, not frame by frame
     return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
                          np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source,
                          not_in_front, np.concatenate(axes)[keep] if axes else np.zeros((0, 3)),

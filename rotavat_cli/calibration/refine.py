@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import DegenerateSceneError
 from .grid import GridSpec, seed_params
-from .objective import Problem, body_rows, pair_chi2, prior_rows, residual_and_jacobian, robust_scale
+from .objective import Problem, body_rows, jacobian_at, pair_chi2, prior_rows, residual_at, robust_scale
 from .params import FOCAL, from_internal, param_bounds, to_internal
 
 __all__ = ["robust_least_squares", "min_pairs", "fit_with_rejection", "refine_fit"]
@@ -31,16 +31,19 @@ def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, s
 
     cache: dict = {}
 
-    def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def residual(x: np.ndarray) -> np.ndarray:  # the last point's residual: the Jacobian at it reuses it
         key = x.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = residual_and_jacobian(prob, x, params0, free, scale, loss, f_scale)
+            cache[key] = residual_at(prob, x, params0, free, scale, loss, f_scale)
         return cache[key]
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        return jacobian_at(prob, x, residual(x), params0, free, scale, loss, f_scale)
 
     lo, hi = param_bounds(prob.image_height_px)
     x0 = np.clip(to_internal(params0), lo + 1e-6, hi - 1e-6)[free]
-    sol = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo[free], hi[free]),
+    sol = least_squares(residual, x0, jac=jacobian, bounds=(lo[free], hi[free]),
                         method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
                         gtol=1e-10, max_nfev=200)
     return from_internal(sol.x[None], params0, free)[0]

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import operator
+from collections.abc import Callable
 
 import numpy as np
 
@@ -95,6 +96,11 @@ class ResidualKind:
         """Whitened components (Q, N, dof) of head errors ``e`` under each pair's error covariance ``cov``:
         the first is the component along the person over its sd, the others what remains of the error
         once that is accounted for (a Cholesky factor of the covariance in the kind's own basis)."""
+        return self.whitener(axis, cov)(e)
+
+    def whitener(self, axis: np.ndarray, cov: PairCovariance) -> Callable[[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+        """:meth:`whitened` as a function of ``e`` alone, its factors computed once for ``axis`` and ``cov`` (the
+        refinement whitens the head errors and their derivatives under one covariance)."""
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -142,14 +148,19 @@ class Full(ResidualKind):
     def along_variance(self, cov, axis):
         return cov.project(axis, axis)
 
-    def whitened(self, e, axis, cov):
+    def whitener(self, axis, cov):
         normal = np.stack([-axis[:, 1], axis[:, 0]], axis=1)  # across the person: (e_v a_u - e_u a_v)
         c_an, c_nn = cov.project(axis, normal), cov.project(normal, normal)
         sd_a = np.sqrt(self.along_variance(cov, axis))
-        along = self.along(e, axis) / sd_a
         link = c_an / sd_a  # the across error explained by the along one (Cholesky, along first)
-        across = (e[1] * axis[:, 0] - e[0] * axis[:, 1] - link * along) / np.sqrt(np.maximum(c_nn - link**2, 1e-300))
-        return np.stack([along, across], axis=-1)
+        sd_across = np.sqrt(np.maximum(c_nn - link**2, 1e-300))
+
+        def whiten(e):
+            along = self.along(e, axis) / sd_a
+            across = (e[1] * axis[:, 0] - e[0] * axis[:, 1] - link * along) / sd_across
+            return np.stack([along, across], axis=-1)
+
+        return whiten
 
 
 @register
@@ -166,8 +177,9 @@ class Vertical(ResidualKind):
     def along_variance(self, cov, axis):
         return cov.vv
 
-    def whitened(self, e, axis, cov):
-        return (self.along(e, axis) / np.sqrt(self.along_variance(cov, axis)))[..., None]
+    def whitener(self, axis, cov):
+        sd = np.sqrt(self.along_variance(cov, axis))
+        return lambda e: (self.along(e, axis) / sd)[..., None]
 
 
 RESIDUALS = tuple(RESIDUAL_KINDS)  # the names, in registration order (config choices)

@@ -25,7 +25,7 @@ from .checks import array_refusal, invalid_text
 from .pickles import load_stream
 from .streams import chunked, file_size, fill
 
-__all__ = ["load_npy", "load_npy_bytes", "parse_npy_header", "read_npy", "read_npy_header"]
+__all__ = ["load_npy", "load_npy_bytes", "parse_npy_header", "read_npy", "read_npy_data", "read_npy_header"]
 
 _MAX_NPY_HEADER = 10_000  # numpy's own default limit for .npy headers
 # The header numpy itself writes for a plain dtype (np.lib.format.header_data_from_array_1_0, keys sorted, padded
@@ -91,10 +91,18 @@ def read_npy(stream: BinaryIO, size: int, source: str, what: str, objects: bool)
     size; object arrays go through the restricted unpickler (``objects``) or are refused.
     ``what`` names the array in size messages (``path`` or ``path: member 'key'``).
     """
-    dtype, shape, fortran, offset = read_npy_header(stream, source)
-    why = array_refusal(dtype, shape)
+    header = read_npy_header(stream, source)
+    why = array_refusal(header[0], header[1])
     if why is not None:
         raise InputError(f"{what} {why}")
+    return read_npy_data(stream, size, header, source, what, objects)
+
+
+def read_npy_data(stream: BinaryIO, size: int, header: tuple[np.dtype, tuple[int, ...], bool, int], source: str,
+                  what: str, objects: bool) -> np.ndarray:
+    """The array of a ``.npy`` stream positioned after its ``header`` (:func:`read_npy_header`, already checked
+    against ``limits.max_array_mb``): as :func:`read_npy` from there."""
+    dtype, shape, fortran, offset = header
     if dtype.hasobject:
         if not objects:
             raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")

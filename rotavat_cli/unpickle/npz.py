@@ -15,9 +15,9 @@ import math
 import zipfile
 import zlib
 from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, NamedTuple
 
 import numpy as np
 
@@ -25,11 +25,12 @@ from ..settings import limits as _limits
 from ..errors import InputError
 from ..settings.limits import human_bytes
 from .checks import array_refusal
-from .npy import read_npy, read_npy_header
+from .npy import read_npy_data, read_npy_header
 
 __all__ = ["NpzArchive", "load_npz", "open_npz"]
 
 _NPZ_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, zlib.error, NotImplementedError, RuntimeError)
+_NOT_A_ZIP = "File is not a zip file"  # zipfile's BadZipFile when a file has no end-of-archive record
 _NPZ_COMPRESSION = (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)  # what np.savez / np.savez_compressed write
 
 
@@ -56,27 +57,30 @@ class NpzArchive:
                              f"({info.compress_type}; numpy writes stored or deflated members)")
         return self._archive.open(info), info
 
-    def _check(self, key: str, objects: bool) -> int:
-        """Declared sizes of one member, checked without reading its data; its uncompressed size."""
+    def _opened(self, key: str, objects: bool, stack: ExitStack) -> _Member:
+        """One member opened and its header read and checked (declared sizes, object arrays), its data not read yet.
+
+        The stream stays open on ``stack``, positioned at the data: each member is opened, and its
+        header read, once."""
+        stream, info = self._open(key)
+        stack.enter_context(stream)
+        source, what = f"{self.path} ['{key}']", f"{self.path}: member '{key}'"
+        header = read_npy_header(stream, source)
+        dtype, shape, _, offset = header
+        why = array_refusal(dtype, shape)
+        if why is not None:
+            raise InputError(f"{what} {why}")
+        if dtype.hasobject and not objects:
+            raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
         limit = _limits.current().max_file_bytes
-        with self._open(key)[0] as stream:
-            info = self.members[key]
-            source = f"{self.path} ['{key}']"
-            dtype, shape, _, offset = read_npy_header(stream, source)
-            what = f"{self.path}: member '{key}'"
-            why = array_refusal(dtype, shape)
-            if why is not None:
-                raise InputError(f"{what} {why}")
-            if dtype.hasobject and not objects:
-                raise InputError(f"{what} is an object array: cannot read without pickle (only numeric arrays are allowed here)")
-            if info.file_size > limit:
-                raise InputError(f"{what} holds {human_bytes(info.file_size)} uncompressed "
-                                 f"(limit {human_bytes(limit)}: limits.max_file_mb)")
-            nbytes = math.prod(shape) * dtype.itemsize
-            if not dtype.hasobject and offset + nbytes > info.file_size:
-                raise InputError(f"{source}: corrupt or truncated array (its header declares {nbytes:,} bytes of "
-                                 f"data, the member holds {max(0, info.file_size - offset):,})")
-        return info.file_size
+        if info.file_size > limit:
+            raise InputError(f"{what} holds {human_bytes(info.file_size)} uncompressed "
+                             f"(limit {human_bytes(limit)}: limits.max_file_mb)")
+        nbytes = math.prod(shape) * dtype.itemsize
+        if not dtype.hasobject and offset + nbytes > info.file_size:
+            raise InputError(f"{source}: corrupt or truncated array (its header declares {nbytes:,} bytes of "
+                             f"data, the member holds {max(0, info.file_size - offset):,})")
+        return _Member(stream, info.file_size, header, source, what)
 
     def read(self, keys: Iterable[str] | None = None, objects: bool = True,
              total_limit: tuple[int, str] | None = None) -> dict[str, np.ndarray]:
@@ -87,35 +91,42 @@ class NpzArchive:
         wanted = list(self.members) if keys is None else [k for k in dict.fromkeys(keys) if k in self.members]
         limit, key_name = total_limit or (_limits.current().max_file_bytes, "limits.max_file_mb")
         try:
-            total = sum(self._check(key, objects) for key in wanted)
-            if total > limit:
-                raise InputError(f"{self.path}: members total {human_bytes(total)} uncompressed "
-                                 f"(limit {human_bytes(limit)}: {key_name})")
-            out = {}
-            for key in wanted:
-                stream, info = self._open(key)
-                with stream:
-                    out[key] = read_npy(stream, info.file_size, f"{self.path} ['{key}']", f"{self.path}: member '{key}'",
-                                        objects)
-            return out
+            with ExitStack() as stack:
+                members = {key: self._opened(key, objects, stack) for key in wanted}
+                total = sum(member.size for member in members.values())
+                if total > limit:
+                    raise InputError(f"{self.path}: members total {human_bytes(total)} uncompressed "
+                                     f"(limit {human_bytes(limit)}: {key_name})")
+                return {key: read_npy_data(m.stream, m.size, m.header, m.source, m.what, objects)
+                        for key, m in members.items()}
         except _NPZ_ERRORS as exc:
             raise InputError(f"{self.path}: not a readable .npz file ({exc})") from None
         except OSError as exc:
             raise InputError(f"{self.path}: cannot read ({exc.strerror or exc})") from None
 
 
+class _Member(NamedTuple):
+    """A member opened by :meth:`NpzArchive.read`: its stream at the data, uncompressed size, header, names."""
+
+    stream: BinaryIO
+    size: int
+    header: tuple[np.dtype, tuple[int, ...], bool, int]
+    source: str
+    what: str
+
+
 @contextmanager
 def open_npz(path: str | Path) -> Iterator[NpzArchive]:
     """Open an ``.npz`` (zip directory only); InputError for missing files, non-zips, broken zips."""
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: file not found")
     if not path.is_file():
-        raise InputError(f"{path}: expected a .npz file")
+        raise InputError(f"{path}: {'expected a .npz file' if path.exists() else 'file not found'}")
     try:
-        if not zipfile.is_zipfile(path):
-            raise InputError(f"{path}: not a valid .npz file (not a zip archive)")
         archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile as exc:
+        if str(exc) == _NOT_A_ZIP:  # no end-of-archive record (what zipfile.is_zipfile looks for)
+            raise InputError(f"{path}: not a valid .npz file (not a zip archive)") from None
+        raise InputError(f"{path}: not a readable .npz file ({exc})") from None
     except _NPZ_ERRORS as exc:
         raise InputError(f"{path}: not a readable .npz file ({exc})") from None
     except OSError as exc:
