@@ -64,6 +64,7 @@ from .image_size import centre_image_size
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces, require_model
+from .row_blocks import RowBlocks, posing_block_rows
 from .smpl import joints_to_smpl24, lbs, pose_from_body, smpl_param_arrays
 
 _RESULTS = "hmr4d_results.pt"
@@ -241,19 +242,27 @@ def read_gvhmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     faces = model_faces(model, model.n_verts)
     names = frame_names([f"{i:06d}" for i in range(n_frames)], warnings)
 
-    def build(index: int, notes: FrameNotes) -> Frame:
-        pose = pose_from_body(params["global_orient"][index, None, :3], params["body_pose"][index, None, :63],
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Frames [start, stop) posed at once (one person each): vertices, SMPL-24 joints and the frame keys."""
+        pose = pose_from_body(params["global_orient"][start:stop, :3], params["body_pose"][start:stop, :63],
                               model.n_joints)
-        betas, transl = params["betas"][index][None], params["transl"][index, :3][None]
+        betas, transl = params["betas"][start:stop], params["transl"][start:stop, :3]
         vertices, joints55 = lbs(model, betas, pose, transl)
         body = smpl_param_arrays(model, betas, pose, transl, joints55)
         if world is not None:
-            body.update(world_arrays(pose[:, 0], transl, world["global_orient"][index, None],
-                                     world["transl"][index, None], joints55[:, 0]))
+            body.update(world_arrays(pose[:, 0], transl, world["global_orient"][start:stop],
+                                     world["transl"][start:stop], joints55[:, 0]))
+        return {"vertices": vertices, "joints": joints_to_smpl24(joints55)[0], **body}
+
+    posed_rows = RowBlocks(n_frames, posed, posing_block_rows(model))  # a long clip posed in batches, not frame by frame
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        body = posed_rows.rows(index, index + 1)
+        vertices, joints = body.pop("vertices"), body.pop("joints")
         extra = {} if constant else {"focal_length": np.float64(focal[index]),
                                      "principal_point": principal[index].astype(np.float64)}
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=vertices,
-                            joints=joints_to_smpl24(joints55)[0], person_ids=np.zeros(1, np.int64), faces=faces,
+                            joints=joints, person_ids=np.zeros(1, np.int64), faces=faces,
                             boxes_2d=None if boxes is None else boxes[index, None], extra=extra, body_params=body)
 
     meta = base_meta("gvhmr", path, opts, image_size, float(focal[0]) if constant else None,

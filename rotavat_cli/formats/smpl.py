@@ -53,6 +53,7 @@ __all__ = [
     "pose_to_matrices",
     "pose_from_body",
     "lbs",
+    "lbs_batch_rows",
     "posed_joints",
     "SMPLX_TO_SMPL24",
     "SMPLH_TO_SMPL24",
@@ -233,6 +234,13 @@ _LBS_BYTES_PER_VERTEX = 16 * 8
 _LBS_CHUNK_BYTES = 64 << 20  # people are posed in chunks whose transforms take at most this
 
 
+def lbs_batch_rows(model: BodyModel) -> int:
+    """How many people :func:`lbs` poses in one batch on ``model``: those whose (P, V, 4, 4) skinning transforms
+    fit in ``_LBS_CHUNK_BYTES`` (at least 1). More people are posed batch by batch, so memory stays flat; a reader
+    posing a long clip one frame at a time asks for this many rows at once (:mod:`.row_blocks`)."""
+    return max(1, _LBS_CHUNK_BYTES // (model.n_verts * _LBS_BYTES_PER_VERTEX))
+
+
 def pose_from_body(root_orient: np.ndarray, body_pose: np.ndarray, n_joints: int) -> np.ndarray:
     """Axis-angle pose (P, n_joints, 3) for a body model: root (P, 3), then the body joints (P, 3 K)
     in order (K beyond ``n_joints - 1`` ignored), every further joint (hands, face) at rest."""
@@ -281,7 +289,7 @@ def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarra
     if n_people == 0:
         return np.zeros((0, model.n_verts, 3)), np.zeros((0, model.n_joints, 3))
     check_posed_size(model, n_people)
-    chunk = max(1, _LBS_CHUNK_BYTES // (model.n_verts * _LBS_BYTES_PER_VERTEX))
+    chunk = lbs_batch_rows(model)
     if n_people > chunk:  # many people: the (P, V, 4, 4) transforms are made a few people at a time
         parts = [lbs(model, _rows(betas, n_people, s), rot[s], _rows(transl, n_people, s),
                      _rows(expression, n_people, s)) for s in (slice(i, i + chunk) for i in range(0, n_people, chunk))]
@@ -294,11 +302,11 @@ def lbs(model: BodyModel, betas: np.ndarray, pose: np.ndarray, transl: np.ndarra
         expression = np.asarray(expression, dtype=np.float64).reshape(n_people, -1)
         n_expr = min(expression.shape[1], model.shapedirs.shape[2] - 300)
         v_shaped = v_shaped + np.einsum("vcs,ps->pvc", model.shapedirs[:, :, 300:300 + n_expr], expression[:, :n_expr])
-    rest_joints = np.einsum("jv,pvc->pjc", model.J_regressor, v_shaped)  # (P, J, 3)
+    rest_joints = model.J_regressor @ v_shaped  # (P, J, 3): matrix products (BLAS), not einsum's loops
     pose_feature = (rot[:, 1:] - np.eye(3)).reshape(n_people, -1)  # (P, 9 (J-1))
     v_posed = v_shaped + (pose_feature @ model.posedirs).reshape(n_people, -1, 3)
     posed_joints, rel_transforms = _rigid_transforms(rot, rest_joints, model.parents)
-    T = np.einsum("vj,pjab->pvab", model.weights, rel_transforms)  # (P, V, 4, 4)
+    T = (model.weights @ rel_transforms.reshape(n_people, model.n_joints, 16)).reshape(n_people, -1, 4, 4)  # (P, V, 4, 4)
     verts = np.einsum("pvab,pvb->pva", T[..., :3, :3], v_posed) + T[..., :3, 3]
     if transl is not None:
         transl = np.asarray(transl, dtype=np.float64).reshape(n_people, 1, 3)

@@ -53,6 +53,7 @@ from .image_size import centre_image_size, image_size_from_header
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces, require_model
+from .row_blocks import RowBlocks, frame_offsets, posing_block_rows
 from .smpl import lbs, smpl_param_arrays
 
 _TRACK = re.compile(r"hps_track_(\d+)\.npy$")
@@ -193,15 +194,27 @@ def read_tram(src: Path, opts: ImportOptions) -> ImportedSequence:
         for row, frame in enumerate(track["frame"].tolist()):
             rows_by_frame.setdefault(frame, []).append((t, row))
 
-    def build(index: int, notes: FrameNotes) -> Frame:
-        rows = rows_by_frame.get(index, [])
+    table = [pick for index in range(len(names)) for pick in rows_by_frame.get(index, [])]  # (track, row), frame by frame
+    offsets = frame_offsets([len(rows_by_frame.get(index, [])) for index in range(len(names))])
+
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the table posed at once (frames posed in batches, not one by one)."""
+        rows = table[start:stop]
         rotmat = np.stack([tracks[t]["rotmat"][r] for t, r in rows]) if rows else np.zeros((0, 24, 3, 3))
         shape = np.stack([tracks[t]["shape"][r] for t, r in rows]) if rows else np.zeros((0, 10))
         trans = np.stack([tracks[t]["trans"][r] for t, r in rows]) if rows else np.zeros((0, 3))
         vertices, joints = lbs(model, shape, rotmat, trans)
+        return {"vertices": vertices, "joints": joints, **smpl_param_arrays(model, shape, rotmat, trans, joints)}
+
+    posed_rows = RowBlocks(len(table), posed, posing_block_rows(model))
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        rows = rows_by_frame.get(index, [])
+        body = posed_rows.rows(int(offsets[index]), int(offsets[index + 1]))
+        vertices, joints = body.pop("vertices"), body.pop("joints")
         return people_frame(names[index], f"{folder} [frame {index}]", notes.warnings, vertices=vertices, joints=joints,
                             person_ids=np.array([ids[t] for t, _ in rows], np.int64), faces=faces, n_verts=model.n_verts,
-                            body_params=smpl_param_arrays(model, shape, rotmat, trans, joints))
+                            body_params=body)
 
     meta = base_meta("tram", folder, opts, image_size, focal, (float(center[0]), float(center[1])), focal_kind=ASSUMED,
                      focal_rule=rule)

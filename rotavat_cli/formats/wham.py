@@ -57,6 +57,7 @@ from .image_size import need_image_size
 from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces
+from .row_blocks import RowBlocks, frame_offsets, posing_block_rows
 from .smpl import BodyModel, lbs, smpl_param_arrays
 
 __all__ = ["sniff", "read_wham", "READERS"]
@@ -126,16 +127,17 @@ def _rows_by_frame(tracks: dict[int, dict[str, np.ndarray]]) -> dict[int, list[t
 
 
 def _posed_joints(model: BodyModel, tracks: dict, picks: list[tuple[int, int]],
-                  verts_cam: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], float]:
-    """SMPL-24 camera-frame joints (P, 24, 3) of ``picks`` posed on ``model``, their body-model parameters
-    (:func:`.smpl.smpl_param_arrays`), and how far (m) the posed meshes lie from WHAM's own ``verts_cam``
-    (P, V, 3) at worst."""
+                  verts_cam: np.ndarray) -> dict[str, np.ndarray]:
+    """``picks`` (P rows, any frames) posed on ``model``: ``joints`` (P, 24, 3) SMPL-24 in the camera frame, their
+    body-model parameters (:func:`.smpl.smpl_param_arrays`), and ``mismatch_m`` (P,): how far (m) each posed mesh
+    lies from WHAM's own ``verts_cam`` (P, V, 3) at worst (0 for a mesh all NaN)."""
     pose = np.stack([tracks[t]["pose"][r] for t, r in picks])
     betas = np.stack([tracks[t]["betas"][r] for t, r in picks])
     trans = np.stack([tracks[t]["trans"][r] for t, r in picks])
     posed_verts, joints = lbs(model, betas, pose, trans)
     params = smpl_param_arrays(model, betas, pose, trans, joints)
-    return joints, params, float(np.nanmax(np.linalg.norm(posed_verts - verts_cam, axis=-1), initial=0.0))
+    mismatch = np.nanmax(np.linalg.norm(posed_verts - verts_cam, axis=-1), axis=1, initial=0.0)
+    return {"joints": joints, **params, "mismatch_m": mismatch}
 
 
 def _rotvec_matrices(rotvec: np.ndarray) -> np.ndarray:
@@ -196,14 +198,27 @@ def read_wham(src: Path, opts: ImportOptions) -> ImportedSequence:
         warnings.append("wham stores meshes but no joints, and no --smpl-model was given: imported meshes only "
                         "(no joints: MPJPE-type metrics are unavailable; pass the SMPL model WHAM used for SMPL-24 joints)")
 
+    table = [pick for frame_id in frame_ids for pick in rows[frame_id]]  # every (track, row), frame by frame
+    offsets = frame_offsets([len(rows[frame_id]) for frame_id in frame_ids])
+
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the table posed at once (frames posed in batches, not one by one)."""
+        verts = np.stack([tracks[t]["verts"][r] for t, r in table[start:stop]])
+        return {"verts": verts, **_posed_joints(model, tracks, table[start:stop], verts)}
+
+    posed_rows = None if model is None else RowBlocks(len(table), posed, posing_block_rows(model))
+
     def build(index: int, notes: FrameNotes) -> Frame:
         frame_id = frame_ids[index]
         picks = rows[frame_id]
         source = f"{src} [frame {frame_id}]"
-        verts = np.stack([tracks[t]["verts"][r] for t, r in picks])
         joints, params = None, {}
-        if model is not None:
-            joints, params, notes.facts["posed_mismatch_m"] = _posed_joints(model, tracks, picks, verts)
+        if posed_rows is None:
+            verts = np.stack([tracks[t]["verts"][r] for t, r in picks])
+        else:
+            params = posed_rows.rows(int(offsets[index]), int(offsets[index + 1]))
+            verts, joints = params.pop("verts"), params.pop("joints")
+            notes.facts["posed_mismatch_m"] = float(np.max(params.pop("mismatch_m"), initial=0.0))
         if has_world:
             pose, pose_world, trans_world = (np.stack([tracks[t][key][r] for t, r in picks])
                                              for key in ("pose", "pose_world", "trans_world"))

@@ -9,6 +9,7 @@ is read from it, see :func:`packaged_default`). Every person has the colour
 from __future__ import annotations
 
 import functools
+import threading
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -86,7 +87,7 @@ def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     by_vertex = np.ascontiguousarray(v.transpose(1, 0, 2))  # (V, P, 3): a face's corners gather whole rows
     corner = by_vertex[f[:, 0]]
     face_n = _cross(by_vertex[f[:, 1]] - corner, by_vertex[f[:, 2]] - corner)  # (F, P, 3), |n| = 2 area
-    n = (_incidence(V, f.tobytes(), f.shape[0], v.dtype.str) @ face_n.reshape(f.shape[0], P * 3)).reshape(V, P, 3)
+    n = (_incidence(V, f, v.dtype.str) @ face_n.reshape(f.shape[0], P * 3)).reshape(V, P, 3)
     norm = np.sqrt(np.einsum("vpk,vpk->vp", n, n))[..., None]
     undefined = np.broadcast_to(~(norm > 0), n.shape)  # no face, or a NaN vertex in one of its faces
     np.divide(n, norm, out=n, where=~undefined)
@@ -103,12 +104,26 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-@functools.lru_cache(maxsize=8)
-def _incidence(n_verts: int, faces: bytes, n_faces: int, dtype: str) -> csr_matrix:
-    """(V, F) vertex-face incidence of int64 ``faces`` (as bytes: one mesh topology is built once, not per frame)."""
-    f = np.frombuffer(faces, dtype=np.int64).reshape(n_faces, 3)
-    return csr_matrix((np.ones(f.size, dtype=dtype), (f.reshape(-1), np.repeat(np.arange(n_faces), 3))),
-                      shape=(n_verts, n_faces))
+# The incidence matrices of the last few topologies (faces, V, dtype, matrix), newest first: a sequence's frames
+# share one list of faces, read again with every frame, so it is compared (a memcmp), never hashed.
+_INCIDENCE: list[tuple[np.ndarray, int, str, csr_matrix]] = []
+_INCIDENCE_KEPT = 8
+_INCIDENCE_LOCK = threading.Lock()  # rotavat view computes normals on worker threads
+
+
+def _incidence(n_verts: int, faces: np.ndarray, dtype: str) -> csr_matrix:
+    """(V, F) vertex-face incidence of (F, 3) int64 ``faces``: one mesh topology is built once, not per frame."""
+    with _INCIDENCE_LOCK:
+        for kept, v, kind, matrix in _INCIDENCE:
+            if v == n_verts and kind == dtype and (kept is faces or (kept.shape == faces.shape and np.array_equal(kept, faces))):
+                return matrix
+    f = np.array(faces, dtype=np.int64)  # a copy: the caller's array may change later
+    matrix = csr_matrix((np.ones(f.size, dtype=dtype), (f.reshape(-1), np.repeat(np.arange(len(f)), 3))),
+                        shape=(n_verts, len(f)))
+    with _INCIDENCE_LOCK:
+        _INCIDENCE.insert(0, (f, n_verts, dtype, matrix))
+        del _INCIDENCE[_INCIDENCE_KEPT:]
+    return matrix
 
 
 def shade_vertices(colors: np.ndarray, normals: np.ndarray, light: np.ndarray) -> np.ndarray:

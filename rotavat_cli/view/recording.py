@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import math
 import os
 import time
@@ -390,7 +389,7 @@ class _Meshes:
 
     def __init__(self, opts: ViewOptions) -> None:
         self.opts = opts
-        self._found: dict[tuple[int, bytes], MeshReduction] = {}
+        self._found: list[tuple[int, np.ndarray, MeshReduction]] = []  # (V, faces, reduction): a few, compared not hashed
 
     def drawn(self, ready: _Ready) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """A row frame's people as drawn: (P, N, 3) points, (P, N, 3) normals or None, (F, 3) faces or None (the
@@ -398,14 +397,15 @@ class _Meshes:
         row, points = ready.row, ready.points_world
         if not len(row.person_ids) or not _reduced(row.kind, points.shape[1], self.opts):
             return points, ready.normals, None
-        faces = np.ascontiguousarray(row.faces)
-        key = (points.shape[1], hashlib.sha1(faces.tobytes()).digest() + str(faces.shape).encode())
-        if key not in self._found:
+        faces = np.asarray(row.faces)
+        reduction = next((r for n, kept, r in self._found if n == points.shape[1] and kept.shape == faces.shape
+                          and np.array_equal(kept, faces)), None)  # every frame reads its faces again: a memcmp
+        if reduction is None:
             ok = np.isfinite(points).all(axis=2, keepdims=True)  # (P, V, 1)
             spans = np.where(ok, points, -np.inf).max(axis=1) - np.where(ok, points, np.inf).min(axis=1)  # (P, 3)
             size = np.where(ok.any(axis=(1, 2)), spans.max(axis=1), 0.0)  # each body's largest side
-            self._found[key] = reduce_mesh(points[int(np.argmax(size))], faces, self.opts.mesh_vertices)
-        reduction = self._found[key]
+            reduction = reduce_mesh(points[int(np.argmax(size))], faces, self.opts.mesh_vertices)
+            self._found.append((points.shape[1], faces.copy(), reduction))
         small = reduction.apply(points)
         return small, vertex_normals(small, reduction.faces) if self.opts.normals else None, reduction.faces
 
