@@ -18,6 +18,7 @@ HERE = Path(__file__).resolve().parent
 BENCHMARKS = {
     "bench_startup.py": ([], ["--quick"]),
     "bench_calibrate.py": ([], ["--quick"]),
+    "bench_floors.py": ([], ["--quick"]),
     "bench_consistency.py": ([], ["--quick"]),
     "bench_align.py": ([], ["--frames", "200"]),
     "bench_eval.py": ([], ["--pairs", "10000", "--loop-pairs", "500"]),
@@ -28,6 +29,7 @@ BENCHMARKS = {
     "bench_stature.py": ([], ["--quick"]),
     "bench_view.py": ([], ["--quick"]),
     "bench_export.py": ([], ["--quick"]),
+    "bench_import.py": ([], ["--quick"]),
 }
 
 
