@@ -49,13 +49,15 @@ from ..plain import csv_cell
 from ..sequence import Frame, Intrinsics, Sequence
 from .fused import ENGINES, resolve_engine
 from .matching import match_agora, match_by_ids, match_hungarian
+from .points import mpjpe
 from .person_metrics import PERSON_METRIC_FAMILIES, PERSON_METRICS, MatchedPairs, concat_pairs
 from .protocols import (CONTACT_M, GVHMR_FPS, HIP_JOINTS, PROTOCOL_NAMES, SMPL_VERTICES, Protocol, aggregate, protocol,
                         root_points)
 from .scene import camera_errors
 from .temporal import TrackSeries
 
-__all__ = ["EvalOptions", "EvalResult", "evaluate", "merge_results", "parse_joints"]
+__all__ = ["EvalOptions", "EvalResult", "evaluate", "evaluate_frame", "frame_w_mpjpe", "match_frame", "merge_results",
+           "pairing_options", "parse_joints"]
 
 MATCHES = ("auto", "ids", "hungarian", "agora")  # how people are matched (docs/metrics.md)
 MAX_JOINTS = 1000  # a joint set is at most this long (SMPL-X with hands and face: 144)
@@ -207,9 +209,11 @@ def _check_joints(frame: Frame, opts: EvalOptions) -> None:
                          f"(0..{n_joints - 1})")
 
 
-def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions) -> MatchedPairs:
+def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: EvalOptions,
+                  vertices: bool = True) -> MatchedPairs:
     """The matched people's joints (the protocol's set or ``--joints``) with their roots (from all the
-    joints, so ``--joints`` never moves the root) and vertices, checked for equal point counts."""
+    joints, so ``--joints`` never moves the root) and vertices (``vertices=False``: left out, their counts
+    still checked), checked for equal point counts."""
     pj, gj = pred.get("joints"), gt.get("joints")
     pr = gr = None
     if pj is not None and gj is not None:
@@ -226,7 +230,7 @@ def _gather_pairs(pred: Frame, gt: Frame, pi: np.ndarray, gi: np.ndarray, opts: 
     pv, gv = pred.get("vertices"), gt.get("vertices")
     if pv is not None and gv is not None and pv.shape[1] != gv.shape[1]:
         raise InputError(f"{pred.source}: PVE needs equal vertex counts ({pv.shape[1]} vs {gv.shape[1]} in ground truth)")
-    if pv is not None and gv is not None and pv.shape[1] > 0:
+    if vertices and pv is not None and gv is not None and pv.shape[1] > 0:
         pv, gv = pv[pi], gv[gi]  # the matched people, gathered once
     else:
         pv = gv = None
@@ -330,6 +334,17 @@ def _track_series(proto: Protocol) -> TrackSeries | None:
                        accel_hips=proto.root == "hips")
 
 
+def pairing_options(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None) -> EvalOptions:
+    """What :func:`evaluate` checks of two sequences before reading a frame: the effective options (the protocol's
+    own matching and joint set); InputError when the two cannot be compared (no frame name in common, a protocol
+    scoring SMPL's joints by index on another layout, an uninstalled engine, clashing options)."""
+    opts = _effective(options or EvalOptions())
+    _check_frame_names(pred_seq, gt_seq, set(pred_seq.frame_names), set(gt_seq.frame_names))
+    for seq in (pred_seq, gt_seq):
+        _check_joint_order(seq, protocol(opts.protocol))
+    return opts
+
+
 def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None = None,
              progress: Callable[[], None] | None = None, frames: tuple[int, int] | None = None) -> EvalResult:
     """Score one prediction sequence against the ground truth, frame by frame (both opened:
@@ -338,12 +353,29 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
     ``frames=(start, stop)`` scores only that range of the sorted union of both sides' frame
     names; :func:`merge_results` joins the results of consecutive ranges into the whole one.
     """
-    opts = _effective(options or EvalOptions())
+    names = sorted(set(pred_seq.frame_names) | set(gt_seq.frame_names))
+    return _evaluate(pred_seq, gt_seq, options, names if frames is None else names[frames[0]:frames[1]], progress,
+                     lambda seq, name: seq.read_frame(name))
+
+
+def evaluate_frame(pred_seq: Sequence, gt_seq: Sequence, name: str, pred_frame: Frame | None = None,
+                   gt_frame: Frame | None = None, options: EvalOptions | None = None) -> EvalResult:
+    """:func:`evaluate` on frame ``name`` alone (``frames=(k, k + 1)`` of its index ``k``), from the frames the caller
+    has read already (``pred_frame``, ``gt_frame``: that frame of each side; None: read it): each frame read once."""
+    names = [name] if name in pred_seq.frame_names or name in gt_seq.frame_names else []
+
+    def read(seq: Sequence, frame_name: str) -> Frame:
+        frame = pred_frame if seq is pred_seq else gt_frame
+        return seq.read_frame(frame_name) if frame is None else frame
+    return _evaluate(pred_seq, gt_seq, options, names, None, read)
+
+
+def _evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None, names: list[str],
+              progress: Callable[[], None] | None, read: Callable[[Sequence, str], Frame]) -> EvalResult:
+    """:func:`evaluate` over the frame ``names`` (in order), each side's frame got by ``read(seq, name)``."""
+    opts = pairing_options(pred_seq, gt_seq, options)
     proto = protocol(opts.protocol)
     pred_names, gt_names = set(pred_seq.frame_names), set(gt_seq.frame_names)
-    _check_frame_names(pred_seq, gt_seq, pred_names, gt_names)
-    for seq in (pred_seq, gt_seq):
-        _check_joint_order(seq, proto)
     fps = gt_seq.meta.get("fps")
     result = EvalResult(pred_seq.label, gt_seq.label, protocol=proto.name, tracks=_track_series(proto),
                         fps=float(fps) if fps else None)
@@ -354,9 +386,8 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
         result.stature_from = scale_source(pred_seq.camera_fit)
     columns: dict[str, list] = {k: [] for k in ("frame", "pred_index", "gt_index", "person_id", *PERSON_METRICS)}
     batch = _ScoreBatch(pred_cam, gt_cam, opts, columns)
-    names = sorted(pred_names | gt_names)
-    for name in names if frames is None else names[frames[0]:frames[1]]:
-        _score_frame(name, pred_seq, gt_seq, pred_names, gt_names, opts, result, batch)
+    for name in names:
+        _score_frame(name, pred_seq, gt_seq, pred_names, gt_names, opts, result, batch, read)
         if progress:
             progress()
     batch.flush()
@@ -365,6 +396,31 @@ def evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None =
     result.per_person = columns
     _aggregate(result, columns)
     return result
+
+
+def match_frame(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions,
+                vertices: bool = True) -> tuple[np.ndarray, np.ndarray, MatchedPairs | None]:
+    """One frame's people matched and gathered as :func:`evaluate` scores them (``opts``: :func:`pairing_options`'):
+    (M,) prediction indices, (M,) ground-truth indices, the matched pairs (None when M = 0; ``vertices=False``:
+    without their vertices); InputError as :func:`evaluate` (joints missing, people not matchable, point counts)."""
+    _check_joints(pred, opts)
+    _check_joints(gt, opts)
+    if pred.n_people == 0 or gt.n_people == 0:
+        pi = gi = np.zeros(0, dtype=np.int64)
+    else:
+        pi, gi = _match(pred, gt, pred_intr, gt_intr, opts)
+    return pi, gi, _gather_pairs(pred, gt, pi, gi, opts, vertices) if len(pi) else None
+
+
+def frame_w_mpjpe(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics,
+                  opts: EvalOptions) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's W-MPJPE per matched person, the ``w_mpjpe`` column :func:`evaluate` gives under the ``paper``
+    protocol (no alignment: :func:`.points.mpjpe` with ``alignment="none"``): (M,) ground-truth person ids and (M,)
+    mm, NaN when a side has no joints; ``opts`` and errors as :func:`match_frame`."""
+    pi, gi, pairs = match_frame(pred, gt, pred_intr, gt_intr, opts, vertices=False)
+    if pairs is None or pairs.pred_joints is None:
+        return gt.person_ids[gi], np.full(len(gi), np.nan)
+    return gt.person_ids[gi], mpjpe(pairs.pred_joints, pairs.gt_joints, "none")
 
 
 _COUNTS = ("frames", "frames_pred_only", "frames_gt_only", "people_gt", "people_pred", "matched", "missed",
@@ -395,11 +451,13 @@ def merge_results(parts: Seq[EvalResult]) -> EvalResult:
 
 
 def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: set, gt_names: set,
-                 opts: EvalOptions, result: EvalResult, batch: _ScoreBatch) -> None:
-    """Match one frame into ``result`` counts and queue its matched pairs on ``batch`` for scoring."""
+                 opts: EvalOptions, result: EvalResult, batch: _ScoreBatch,
+                 read: Callable[[Sequence, str], Frame]) -> None:
+    """Match one frame (each side's got by ``read``) into ``result`` counts and queue its matched pairs on ``batch``
+    for scoring."""
     if name not in gt_names or name not in pred_names:  # unpaired: all false positives or all missed
         side = "pred" if name in pred_names else "gt"
-        n = (pred_seq if side == "pred" else gt_seq).read_frame(name).n_people
+        n = read(pred_seq if side == "pred" else gt_seq, name).n_people
         setattr(result, f"frames_{side}_only", getattr(result, f"frames_{side}_only") + 1)
         setattr(result, f"people_{side}", getattr(result, f"people_{side}") + n)
         if side == "pred" and protocol(opts.protocol).pred_only_frames_count:
@@ -407,22 +465,16 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
         elif side == "gt":
             result.missed += n
         return
-    pred, gt = pred_seq.read_frame(name), gt_seq.read_frame(name)
-    _check_joints(pred, opts)
-    _check_joints(gt, opts)
+    pred, gt = read(pred_seq, name), read(gt_seq, name)
     result.frames += 1
     result.people_pred += pred.n_people
     result.people_gt += gt.n_people
-    if pred.n_people == 0 or gt.n_people == 0:
-        pi = gi = np.zeros(0, dtype=np.int64)
-    else:
-        pi, gi = _match(pred, gt, pred_seq.frame_intrinsics(pred), gt_seq.frame_intrinsics(gt), opts)
+    pi, gi, pairs = match_frame(pred, gt, pred_seq.frame_intrinsics(pred), gt_seq.frame_intrinsics(gt), opts)
     result.matched += len(pi)
     result.missed += gt.n_people - len(gi)
     result.false_positives += pred.n_people - len(pi)
-    if len(pi) == 0:
+    if pairs is None:
         return
-    pairs = _gather_pairs(pred, gt, pi, gi, opts)
     batch.add(name, pi, gi, gt.person_ids[gi], pairs)
     if result.tracks is not None and gt.get("person_ids") is not None and pairs.pred_joints is not None:
         _add_to_tracks(result, pred, gt, pi, gi, pairs, opts)

@@ -6,7 +6,7 @@ is placed in the world by its own camera (:func:`.rows.sequence_camera`), which 
 gate first (:func:`rotavat_cli.alignment.check_fit`: an implausible calibration is refused unless
 ``accept_camera``; the warnings go to :attr:`FigureSummary.warnings`). One row may be the
 ground truth (``gt``): the other rows' captions then give their errors against it on the frame
-shown (W-MPJPE, lean, foot height: :func:`rotavat_cli.metrics.evaluate.evaluate` on that frame),
+shown (W-MPJPE, lean, foot height: :func:`rotavat_cli.metrics.evaluate.evaluate_frame`, from the frames drawn),
 and with ``ghost="gt"`` it is drawn faintly over them (docs/render.md, "Ground truth"). An aligned
 row's people carry the flags of its ``people.csv`` (:func:`.rows.people_flags`): the side/top windows
 are fitted on the unflagged people and the flagged ones are marked (:func:`.grid.person_label`).
@@ -17,6 +17,7 @@ Defaults: the packaged configs/default.yaml, section ``render``, is their one so
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
@@ -34,17 +35,17 @@ from ..files.atomic import atomic_open
 from ..geometry.camera import Camera
 from ..settings.config import default_config, packaged_default
 from ..errors import InputError, RotavatError
-from ..metrics.evaluate import EvalOptions, evaluate
+from ..metrics.evaluate import EvalOptions, evaluate_frame
 from ..settings.option_rules import Rule, check_fields
-from ..sequence import Sequence
+from ..sequence import Frame, Sequence
 from .export import build_scene, write_glb
 from .grid import render_grid
 from .raster import RENDERERS, open_rasterizer
 from .rows import OWN, frame_names, label_stem, no_camera, people_flags, read_row, row_labels, sequence_camera_fit
 from .style import RenderStyle
 from .tracks import plot_tracks, sequence_tracks
-from .video import require_mp4, write_gif, write_mp4
-from .views import FITS, RowFrame, camera_numbers, parse_views, scene_extents, view_specs
+from .video import gif_writer, mp4_writer, require_mp4
+from .views import FITS, RowFrame, WindowBounds, camera_numbers, extents_from_bounds, parse_views, view_specs, window_bounds
 
 __all__ = ["FigureOptions", "FigureSummary", "SCALES", "GHOSTS", "render_sequences", "figure_steps", "ground_truth_row",
            "metrics_caption", "flagged_caption"]
@@ -155,16 +156,16 @@ def _fmt(value: float, text: str) -> str | None:
     return text.format(value) if value is not None and math.isfinite(value) else None
 
 
-def metrics_caption(pred: Sequence, gt: Sequence, name: str) -> str:
+def metrics_caption(pred: Sequence, gt: Sequence, name: str, pred_frame: Frame | None = None,
+                    gt_frame: Frame | None = None) -> str:
     """Errors of ``pred`` against the ground truth on frame ``name``: W-MPJPE (else W-PVE), lean, foot
-    height (means over the matched people, as ``rotavat eval`` computes them on that frame alone)."""
-    names = sorted(set(pred.frame_names) | set(gt.frame_names))
-    if name not in names:
+    height (means over the matched people, as ``rotavat eval`` computes them on that frame alone), from
+    ``pred_frame`` and ``gt_frame`` when the caller has read them (None: read)."""
+    if name not in pred.frame_names and name not in gt.frame_names:
         return ""
-    k = names.index(name)
     try:
         # numpy engine: a frame's few people are scored at once; numba's start-up (~2 s) would dominate
-        result = evaluate(pred, gt, dataclasses.replace(EvalOptions(), engine="numpy"), frames=(k, k + 1))
+        result = evaluate_frame(pred, gt, name, pred_frame, gt_frame, dataclasses.replace(EvalOptions(), engine="numpy"))
     except RotavatError as exc:
         return f"vs gt: not comparable ({exc})"
     m = result.metrics
@@ -212,7 +213,18 @@ def _save_png(path: Path, image: np.ndarray) -> None:
         Image.fromarray(image).save(handle, format="PNG", optimize=False)
 
 
-_WINDOW_POINTS = 512  # pass 1 keeps at most about this many points per person (windows need extents, not meshes)
+_WINDOW_POINTS = 512  # windows are fitted on about this many points per person (they need extents, not meshes)
+_KEEP_FRAMES_BYTES = 64 << 20  # pass 1 keeps the frames it read, up to this many bytes, for pass 2 (a short clip: read once)
+
+
+def _read_frames(seqs: list[Sequence], name: str) -> list[Frame | None]:
+    """Frame ``name`` of each sequence (None where it has none: :func:`.rows.read_row` says so)."""
+    return [s.read_frame(name) if name in s.frame_names else None for s in seqs]
+
+
+def _frames_bytes(frames: list[Frame | None]) -> int:
+    """The bytes of the arrays of ``frames``."""
+    return sum(int(np.asarray(a).nbytes) for f in frames if f is not None for a in f.data.values())
 
 
 def _window_row(row: RowFrame) -> RowFrame:
@@ -248,16 +260,17 @@ def flagged_caption(row: RowFrame, framed: bool = True) -> str:
     return f"{n} flagged in people.csv (outlined label: id and flag{'; not framed in side/top' if framed else ''})"
 
 
-def _captions(rows: list[RowFrame], seqs: list[Sequence], gt: int | None, name: str, framed: bool) -> list[str]:
-    """Per row: its camera's numbers, against the ground-truth row its errors on frame ``name``, and its
-    flagged people (``framed``: the side/top windows are fitted on the others)."""
+def _captions(rows: list[RowFrame], seqs: list[Sequence], gt: int | None, name: str, framed: bool,
+              frames: list[Frame | None]) -> list[str]:
+    """Per row: its camera's numbers, against the ground-truth row its errors on frame ``name`` (``frames``: each
+    row's, as read), and its flagged people (``framed``: the side/top windows are fitted on the others)."""
     out = []
     for i, (row, seq) in enumerate(zip(rows, seqs)):
         parts = ["ground truth"] if i == gt else []
         if row.camera is not None:
             parts.append("camera " + camera_numbers(row.camera))
         if gt is not None and i != gt:
-            parts.append(metrics_caption(seq, seqs[gt], name))
+            parts.append(metrics_caption(seq, seqs[gt], name, frames[i], frames[gt]))
         parts.append(flagged_caption(row, framed and bool(row.plausible.any())))  # nobody plausible: everyone framed
         out.append("   ".join(p for p in parts if p))
     return out
@@ -285,44 +298,59 @@ def render_sequences(seqs: list[Sequence], out: Path, opts: FigureOptions | None
         raise InputError("--ghost gt needs a ground-truth row: name it with --gt ROW (its label or number), "
                          "or give a sequence folder named gt")
 
-    def rows_of(name: str, image_dir: Path | None = None) -> list[RowFrame]:
-        rows = [read_row(s, name, lab, cam, image_dir, f) for s, lab, cam, f in zip(seqs, labels, cameras, flags)]
+    def rows_of(name: str, frames: list[Frame | None], image_dir: Path | None = None) -> list[RowFrame]:
+        rows = [read_row(s, name, lab, cam, image_dir, f, frame)
+                for s, lab, cam, f, frame in zip(seqs, labels, cameras, flags, frames)]
         if opts.ghost == "gt":
             rows = [r if i == gt else dataclasses.replace(r, ghost=rows[gt]) for i, r in enumerate(rows)]
         return rows
 
     start = time.perf_counter()
-    # pass 1: windows shared by every frame (per row, or by every row), so pictures compare at one scale
-    every_frame = [[_window_row(r) for r in rows_of(n)] for n in names]
+    # pass 1: windows shared by every frame (per row, or by every row), so pictures compare at one scale; of each
+    # frame only its rows' window bounds are kept (and its frames while they fit _KEEP_FRAMES_BYTES: not read again)
+    every_frame: list[list[WindowBounds]] = []
+    kept: dict[str, list[Frame | None]] = {}
+    kept_bytes = 0
+    for name in names:
+        frames = _read_frames(seqs, name)
+        every_frame.append([window_bounds(_window_row(r), opts.views, opts.fit) for r in rows_of(name, frames)])
+        kept_bytes += _frames_bytes(frames)
+        if kept_bytes <= _KEEP_FRAMES_BYTES and name not in kept:
+            kept[name] = frames
     if opts.scale == "shared":
-        extents = scene_extents([r for rows in every_frame for r in rows], opts.views, opts.size, opts.style.margin, opts.fit)
+        extents = extents_from_bounds([b for rows in every_frame for b in rows], opts.views, opts.size, opts.style.margin,
+                                      opts.fit)
     else:  # each row its own side/top windows; the camera's view shows the same part of the image in every row
-        shared = scene_extents([r for rows in every_frame for r in rows], tuple(v for v in opts.views if v not in placed),
-                               opts.size, opts.style.margin, opts.fit)
-        extents = [{**scene_extents([rows[i] for rows in every_frame], tuple(placed), opts.size, opts.style.margin, opts.fit),
-                    **shared} for i in range(len(seqs))]
+        shared = extents_from_bounds([b for rows in every_frame for b in rows], tuple(v for v in opts.views if v not in placed),
+                                     opts.size, opts.style.margin, opts.fit)
+        extents = [{**extents_from_bounds([rows[i] for rows in every_frame], tuple(placed), opts.size, opts.style.margin,
+                                          opts.fit), **shared} for i in range(len(seqs))]
     del every_frame
-    files, images, captions = [], [], {}
-    with open_rasterizer(opts.renderer) as rasterizer:
+    files, captions = [], {}
+    with contextlib.ExitStack() as stack:
+        animations = [stack.enter_context(writer(out / f"render.{ext}", opts.fps))
+                      for ext, writer, wanted in (("gif", gif_writer, opts.gif), ("mp4", mp4_writer, opts.mp4)) if wanted]
+        rasterizer = stack.enter_context(open_rasterizer(opts.renderer))
         for name in names:
-            rows = rows_of(name, opts.image_dir)
-            rows = [dataclasses.replace(r, caption=c) for r, c in zip(rows, _captions(rows, seqs, gt, name, bool(placed)))]
+            frames = kept.pop(name, None)  # a name given twice (--frames 0,0) is read again
+            frames = _read_frames(seqs, name) if frames is None else frames
+            rows = rows_of(name, frames, opts.image_dir)
+            rows = [dataclasses.replace(r, caption=c)
+                    for r, c in zip(rows, _captions(rows, seqs, gt, name, bool(placed), frames))]
+            del frames
             captions = {r.label: r.caption for r in rows}
             image = render_grid(rows, opts.views, opts.size, rasterizer.rasterize, opts.style, extents,
                                 title=f"frame {name}", labels=opts.labels)
             _save_png(out / f"{name}.png", image)
             files.append(str(out / f"{name}.png"))
-            if opts.gif or opts.mp4:
-                images.append(image)
+            for animation in animations:
+                animation.add(image)
             if opts.glb:
                 scene = build_scene(rows, rows[0].camera, opts.style.palette)
                 files.append(str(write_glb(out / f"{name}.glb", scene, rows[0].camera)))
             if progress:
                 progress()
-    if opts.gif:
-        files.append(str(write_gif(out / "render.gif", images, opts.fps)))
-    if opts.mp4:
-        files.append(str(write_mp4(out / "render.mp4", images, opts.fps)))
+    files += [str(animation.path) for animation in animations]
     if opts.plots:
         for seq, label, cam in zip(seqs, labels, cameras):
             tracks = sequence_tracks(seq, cam, label, progress)

@@ -39,7 +39,7 @@ from .geometry import (UP_WORLD, FrontCrop, OrthoExtent, PanelView, clip_from_ca
 from .style import RenderStyle, font, mix, rgb8
 
 __all__ = ["RowFrame", "Ortho", "View", "REGISTRY", "VIEWS", "FITS", "view_specs", "parse_views", "ortho_basis_world",
-           "ortho_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers", "tick_marks", "side_fov_px",
+           "ortho_bounds", "WindowBounds", "window_bounds", "extents_from_bounds", "scene_extents", "front_view", "ortho_view", "camera_numbers", "tick_marks", "side_fov_px",
            "edge_marker", "overlaps"]
 
 FITS = ("people", "camera")  # what windows are fitted on: the people, or also the camera (whole image, camera in view)
@@ -141,14 +141,17 @@ class View:
     def window(self, rows: list[RowFrame], size: tuple[int, int], margin: float, fit: str = "people") -> Any:
         """This view's window holding every row given (and its ghost): an :class:`OrthoExtent`, or for
         the camera's view a :class:`FrontCrop` (None: the whole image)."""
+        return self.window_of([window_bounds(r, (self.name,), fit) for r in rows], size, margin, fit)
+
+    def window_of(self, bounds: list["WindowBounds"], size: tuple[int, int], margin: float, fit: str = "people") -> Any:
+        """:meth:`window` from the rows' :func:`window_bounds` (which hold this view's)."""
         if self.ortho is None:
-            return _front_window(rows, size, margin, fit)
-        placed = [r for r in rows if r.camera is not None]
+            return _front_window(bounds, size, margin, fit)
+        placed = [b for b in bounds if b.placed]
         if not placed:
             raise ValueError(f"the {self.name} view needs a camera")
-        plausible_only = any(r.plausible.any() for r in placed)  # else nobody is plausible: frame everyone
-        bounds = [ortho_bounds(self.name, r.camera, _with_ghost(r, plausible_only), fit) for r in placed]
-        stacked = np.stack(bounds)
+        plausible_only = any(b.plausible for b in placed)  # else nobody is plausible: frame everyone
+        stacked = np.stack([b.ortho[self.name][0 if plausible_only else 1] for b in placed])
         union = np.stack([stacked[:, 0].min(axis=0), stacked[:, 1].max(axis=0)])
         return fit_ortho_extent(union, size, margin, self.ortho.floor_room)
 
@@ -176,23 +179,47 @@ def camera_numbers(camera: Camera) -> str:
     return f"f {p['focal_px']:.0f} px · pitch {p['pitch_deg']:.1f}° · roll {p['roll_deg']:.1f}° · height {p['height_m']:.2f} m"
 
 
+@dataclass(frozen=True)
+class WindowBounds:
+    """What one row (of one frame) adds to the views' windows (:func:`window_bounds`): a few numbers per view,
+    whatever the size of its people, so the windows of a long clip are fitted without keeping its frames."""
+
+    image_size: tuple[int, int]  # (W, H) px of the row's front image
+    placed: bool  # it has a camera (the orthographic views place it)
+    plausible: bool  # it has a plausible person (:attr:`RowFrame.plausible`)
+    front: np.ndarray | None  # (4,) x0, y0, x1, y1 px of its people's pixels; None: nobody in front of the camera
+    ortho: Mapping[str, tuple[np.ndarray, np.ndarray]]  # view -> (2, 3) :func:`ortho_bounds` of (its plausible
+    # people, every person), each with its ghost; {} when not placed
+
+
+def window_bounds(row: RowFrame, views: tuple[str, ...], fit: str = "people") -> WindowBounds:
+    """A row's :class:`WindowBounds` for the orthographic ``views`` (the camera's view's is always made)."""
+    pts = row.points_cam.reshape(-1, 3)  # not the ghost: drawn in another row's focal, it may land anywhere in the image
+    pts = pts[np.isfinite(pts).all(axis=1) & (pts[:, 2] > _NEAR_M)]
+    front = None
+    if len(pts):
+        uv = pts[:, :2] / pts[:, 2:] * row.focal_px + np.asarray(row.principal_point)
+        front = np.concatenate([uv.min(axis=0), uv.max(axis=0)])
+    ortho = {}
+    if row.camera is not None:
+        for view in view_specs(views) if views else ():
+            if view.ortho is not None:
+                ortho[view.name] = tuple(ortho_bounds(view.name, row.camera, _with_ghost(row, only), fit)
+                                         for only in (True, False))
+    return WindowBounds(row.image_size, row.camera is not None, bool(row.plausible.any()), front, ortho)
+
+
 # ---- projections -----------------------------------------------------------------------------------
-def _front_window(rows: list[RowFrame], size: tuple[int, int], margin: float, fit: str) -> FrontCrop | None:
+def _front_window(bounds: list[WindowBounds], size: tuple[int, int], margin: float, fit: str) -> FrontCrop | None:
     """The image part around every row's people (their pixels through each row's intrinsics); None =
     the whole image (``fit="camera"``, no people, or people all over it)."""
-    if fit == "camera" or not rows:
+    if fit == "camera" or not bounds:
         return None
-    boxes = []
-    for row in rows:  # not the ghosts: drawn in another row's focal, they may land anywhere in the image
-        pts = row.points_cam.reshape(-1, 3)
-        pts = pts[np.isfinite(pts).all(axis=1) & (pts[:, 2] > _NEAR_M)]
-        if len(pts):
-            uv = pts[:, :2] / pts[:, 2:] * row.focal_px + np.asarray(row.principal_point)
-            boxes.append(np.concatenate([uv.min(axis=0), uv.max(axis=0)]))
+    boxes = [b.front for b in bounds if b.front is not None]
     if not boxes:
         return None
     b = np.stack(boxes)
-    return fit_front_crop(np.concatenate([b[:, :2].min(axis=0), b[:, 2:].max(axis=0)]), rows[0].image_size, size, margin)
+    return fit_front_crop(np.concatenate([b[:, :2].min(axis=0), b[:, 2:].max(axis=0)]), bounds[0].image_size, size, margin)
 
 
 def front_view(row: RowFrame, size: tuple[int, int], crop: FrontCrop | None = None) -> PanelView:
@@ -573,4 +600,12 @@ def scene_extents(rows: list[RowFrame], views: tuple[str, ...], size: tuple[int,
     """One window per view holding every row given (and frame, when rows of several frames are given)."""
     if fit not in FITS:
         raise ValueError(f"fit must be one of {', '.join(FITS)}, got {fit!r}")
-    return {view.name: view.window(rows, size, margin, fit) for view in (view_specs(views) if views else ())}
+    return extents_from_bounds([window_bounds(r, views, fit) for r in rows], views, size, margin, fit)
+
+
+def extents_from_bounds(bounds: list[WindowBounds], views: tuple[str, ...], size: tuple[int, int], margin: float,
+                        fit: str = "people") -> dict[str, Any]:
+    """:func:`scene_extents` from the rows' :func:`window_bounds` (made for ``views``, or more)."""
+    if fit not in FITS:
+        raise ValueError(f"fit must be one of {', '.join(FITS)}, got {fit!r}")
+    return {view.name: view.window_of(bounds, size, margin, fit) for view in (view_specs(views) if views else ())}

@@ -20,12 +20,13 @@ own camera.yaml, else the ground truth's; it passes the camera gate first
   ``tool_world_*`` keys): the track's pelvis path in that world put in ours by the heading fit of
   :mod:`rotavat_cli.metrics.tool_world`, its up as an arrow and its ground as a faint square, tilted by the angle;
 - ``plots/<series>/<row>/<id>``: foot height (m), lean (deg), stature (m) of each track over time and, with a
-  ground truth, the W-MPJPE (mm) of each ground-truth person.
+  ground truth, the W-MPJPE (mm) of each ground-truth person (``rotavat eval``'s matching and values, scored from the
+  frames the recording reads: :func:`rotavat_cli.metrics.evaluate.frame_w_mpjpe`).
 
 Timelines: ``frame`` (the index in the sorted frame names of all rows) and ``time`` (seconds, when the first
 row's meta.yaml gives an ``fps``). The viewer's 3D view starts framed on the aligned rows, the truth and the camera
 (:func:`.roles.framed_rows`; every row with ``view.frame_all``). Memory stays flat in the number of frames: one frame of every row is held
-at a time, and only the tracks' small per-frame numbers are kept for the end.
+at a time, and only the tracks' small per-frame numbers are kept for the end. Each frame of every row is read once.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ from ..geometry.camera import Camera
 from ..settings.config import default_config, packaged_default
 from ..errors import InputError, RotavatError, input_errors
 from ..bodies.measure import scale_source
-from ..metrics.evaluate import EvalOptions, evaluate
+from ..metrics.evaluate import EvalOptions, frame_w_mpjpe, pairing_options
 from ..metrics.tool_world import angles_deg, heading_fit, pelvis_cam, their_up_cam
 from ..settings.option_rules import Rule, check_fields
 from ..files.outputs import RRD_APPLICATION_ID
@@ -60,7 +61,7 @@ from ..render.rows import (frame_image_path, label_stem, no_camera, people_flags
 from ..render.style import RenderStyle, person_colors, vertex_normals
 from ..render.tracks import frame_track_values
 from ..render.views import RowFrame
-from ..sequence import Sequence, read_camera_yaml
+from ..sequence import Frame, Sequence, read_camera_yaml
 from ..unpickle.streams import read_bytes
 from ..version import __version__
 from .detail import MeshReduction, reduce_mesh, thin_points, video_frame
@@ -182,20 +183,30 @@ def _scene_camera(seqs: list[Sequence], gt: Sequence | None, opts: ViewOptions) 
     return camera, fit, what, warning
 
 
-def _w_mpjpe_series(seq: Sequence, gt: Sequence, warnings: list[str]) -> dict[str, dict[int, float]]:
-    """``{frame name: {ground-truth person id: W-MPJPE mm}}`` of ``seq`` against ``gt`` (``rotavat eval``'s
-    matching, per matched pair); {} and a warning when the two cannot be compared."""
+def _w_mpjpe_options(seq: Sequence, gt: Sequence, warnings: list[str]) -> EvalOptions | None:
+    """How ``seq``'s people are matched to ``gt``'s to score their W-MPJPE (``rotavat eval``'s options, numpy
+    engine); None and a warning when the two cannot be compared (:func:`pairing_options`)."""
     try:
-        result = evaluate(seq, gt, dataclasses.replace(EvalOptions(), engine="numpy"))
+        return pairing_options(seq, gt, dataclasses.replace(EvalOptions(), engine="numpy"))
     except RotavatError as exc:
-        warnings.append(f"{seq.label}: no W-MPJPE against {gt.label} ({exc})")
-        return {}
-    out: dict[str, dict[int, float]] = {}
-    columns = result.per_person
-    for name, pid, value in zip(columns["frame"], columns["person_id"], columns["w_mpjpe"]):
-        if value is not None and math.isfinite(value):
-            out.setdefault(name, {})[int(pid)] = float(value)
-    return out
+        warnings.append(_no_w_mpjpe(seq, gt, exc))
+        return None
+
+
+def _no_w_mpjpe(seq: Sequence, gt: Sequence, exc: RotavatError) -> str:
+    """The warning for a row whose W-MPJPE against the ground truth cannot be scored."""
+    return f"{seq.label}: no W-MPJPE against {gt.label} ({exc})"
+
+
+def _frame_w_mpjpe(seq: Sequence, gt: Sequence, frame: Frame, gt_frame: Frame,
+                   opts: EvalOptions) -> dict[int, float] | RotavatError:
+    """``{ground-truth person id: W-MPJPE mm}`` of one frame's matched people (finite values only), or the error
+    that keeps ``seq`` from being compared with ``gt`` (:func:`frame_w_mpjpe`). Pure: runs on a worker thread."""
+    try:
+        ids, values = frame_w_mpjpe(frame, gt_frame, seq.frame_intrinsics(frame), gt.frame_intrinsics(gt_frame), opts)
+    except RotavatError as exc:
+        return exc
+    return {int(pid): float(v) for pid, v in zip(ids.tolist(), values.tolist()) if math.isfinite(v)}
 
 
 @dataclass
@@ -217,6 +228,7 @@ class _RowState:
     footprints: dict[int, list[tuple[int, float, float]]] = field(default_factory=dict)  # id -> (frame, x, z) on the ground
     their: dict[int, list[tuple[int, np.ndarray]]] = field(default_factory=dict)  # id -> (frame, (3, 3): ours, theirs, up)
     people: int = 0
+    w_mpjpe: EvalOptions | None = None  # how its people are matched to the ground truth's (None: not scored)
 
     def colors(self, person_ids: np.ndarray, style: RenderStyle) -> np.ndarray:
         """(P,) ids -> (P, 3) RGB in [0, 1]: the palette's colours in the row's tone."""
@@ -259,7 +271,8 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
     states = [_RowState(s, lab, label_stem(lab), people_flags(s, warnings),
                         s.camera if s.camera is not None and not s.camera.matches(camera) else None, role, framed, tone)
               for s, lab, role, framed, tone in zip(rows, labels, roles, framed_rows(roles, opts.frame_all), row_tones(roles))]
-    w_mpjpe = {i: _w_mpjpe_series(s, gt, warnings) for i, s in enumerate(seqs)} if gt is not None else {}
+    for state in states[:len(seqs)] if gt is not None else ():
+        state.w_mpjpe = _w_mpjpe_options(state.seq, gt, warnings)
     notes = [f"{state.label}: placed in the scene camera ({camera_source}), as eval compares it; its own camera "
              f"({state.seq.camera_label}) gives its ground, drawn at {WORLD}/{state.path}/ground"
              for state in states if state.own_ground is not None]
@@ -280,8 +293,9 @@ def record_sequences(seqs: list[Sequence], out: Path, gt: Sequence | None = None
                 writer.set_frame(index, fps)
                 if image is not None:
                     writer.image(*image, camera.image_size)
-                for i, (state, row) in enumerate(zip(states, ready)):
-                    _record_row_frame(writer, state, row, name, index, w_mpjpe.get(i, {}), meshes)
+                for state, row in zip(states, ready):
+                    _record_row_frame(writer, state, row, index, meshes)
+                    _keep_w_mpjpe(state, row, index, gt, warnings)
                 if progress:
                     progress()
             rec.reset_time()
@@ -315,6 +329,7 @@ class _Ready:
     track: tuple[dict[str, np.ndarray], np.ndarray] | None  # the frame's track values {key: (P,)}, mid-soles (P, 3) world
     box: np.ndarray | None  # (2, 3) world box (lo, hi) of the finite points drawn, None when there are none
     their: np.ndarray | None = None  # (P, 3, 3) a tool's world: our pelvis (world), their pelvis (theirs), their up (world)
+    w_mpjpe: dict[int, float] | RotavatError | None = None  # against the ground truth's frame: {gt id: mm}, or why not
 
 
 def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera, opts: ViewOptions
@@ -327,13 +342,20 @@ def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera, 
     (reading, placing and the normals are numpy work that releases the GIL, and overlaps Rerun's encoding): at
     most ``_AHEAD + 1`` frames are held at a time, whatever the sequence's length. A row read with ``--from``
     keeps its reader's state as it builds frames, so with one such row the frames are prepared one at a
-    time (still ahead of the logging, on one thread)."""
+    time (still ahead of the logging, on one thread). Each row's frame is read once: with a ground truth (the
+    last row), the other rows' W-MPJPE against it is scored from the same frames (:func:`_frame_w_mpjpe`)."""
     def prepare(name: str) -> tuple[tuple[bytes, str, tuple[int, int]] | None, list[_Ready | None]]:
         image = None
         if opts.image_dir is not None:
             path = frame_image_path(opts.image_dir, name)
             image = video_frame(read_bytes(path), path, opts.image_max_px)
-        return image, [_prepare(state, name, camera, opts) for state in states]
+        frames = [state.seq.read_frame(name) if name in state.seq.frame_names else None for state in states]
+        ready = [None if frame is None else _prepare(state, name, frame, camera, opts) for state, frame in zip(states, frames)]
+        truth, truth_frame = states[-1], frames[-1]
+        for state, frame, row in zip(states[:-1], frames[:-1], ready[:-1]):
+            if state.w_mpjpe is not None and row is not None and truth_frame is not None:
+                row.w_mpjpe = _frame_w_mpjpe(state.seq, truth.seq, frame, truth_frame, state.w_mpjpe)
+        return image, ready
 
     ahead = _AHEAD if all(state.seq.origin is None for state in states) else 1
     with ThreadPoolExecutor(max_workers=ahead, thread_name_prefix="rotavat-view") as pool:
@@ -345,13 +367,10 @@ def _prepared_frames(names: list[str], states: list[_RowState], camera: Camera, 
             yield ready
 
 
-def _prepare(state: _RowState, name: str, camera: Camera, opts: ViewOptions) -> _Ready | None:
-    """Row ``state``'s frame ``name`` in ``camera``'s world, or None when the row has no such frame. Pure
-    computation: nothing of ``state`` changes (it runs on the worker thread)."""
+def _prepare(state: _RowState, name: str, frame: Frame, camera: Camera, opts: ViewOptions) -> _Ready:
+    """Row ``state``'s frame ``name`` (``frame``, read) in ``camera``'s world. Pure computation: nothing of ``state``
+    changes (it runs on the worker thread)."""
     seq = state.seq
-    if name not in seq.frame_names:
-        return None
-    frame = seq.read_frame(name)
     row = read_row(seq, name, state.label, camera, None, state.flags, frame)
     P = len(row.person_ids)
     drawn = row.verts_cam if row.kind in ("mesh", "points") else row.joints_cam if row.kind == "skeleton" else None
@@ -425,9 +444,9 @@ def _their_world(seq: Sequence, data: dict, camera: Camera) -> np.ndarray | None
     return np.stack([ours, theirs, up_world], axis=1)
 
 
-def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready | None, name: str, index: int,
-                      w_mpjpe: dict[str, dict[int, float]], meshes: _Meshes) -> None:
-    """One row in frame ``name`` (``ready``: :func:`_prepare`'s, None when the row has no such frame): its people
+def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready | None, index: int,
+                      meshes: _Meshes) -> None:
+    """One row in frame ``index`` (``ready``: :func:`_prepare`'s, None when the row has no such frame): its people
     drawn (meshes reduced by ``meshes``) and labelled, their track values kept, the people gone since the previous
     frame cleared."""
     people: set[int] = set()
@@ -439,14 +458,26 @@ def _record_row_frame(writer: RecordingWriter, state: _RowState, ready: _Ready |
         if ready.their is not None:
             for pid, their in zip(ready.row.person_ids.tolist(), ready.their):
                 state.their.setdefault(int(pid), []).append((index, their))
-        for pid, value in w_mpjpe.get(name, {}).items():
-            state.add(W_MPJPE_SERIES[0], pid, index, value)
     elif state.shown:
         writer.clear(f"{WORLD}/{state.path}/labels")
     for pid in state.shown - people:
         writer.clear(f"{WORLD}/{state.path}/people/{pid}")
     state.shown = people
     state.people += len(people)
+
+
+def _keep_w_mpjpe(state: _RowState, ready: _Ready | None, index: int, gt: Sequence | None, warnings: list[str]) -> None:
+    """A row frame's W-MPJPE per ground-truth person into its series; when the row turns out not comparable with
+    the ground truth, a warning and no W-MPJPE series for it at all (as ``rotavat eval`` fails on the sequence)."""
+    if state.w_mpjpe is None or ready is None or ready.w_mpjpe is None:
+        return
+    if isinstance(ready.w_mpjpe, RotavatError):
+        warnings.append(_no_w_mpjpe(state.seq, gt, ready.w_mpjpe))
+        state.series.pop(W_MPJPE_SERIES[0], None)
+        state.w_mpjpe = None
+        return
+    for pid, value in ready.w_mpjpe.items():
+        state.add(W_MPJPE_SERIES[0], pid, index, value)
 
 
 def _draw_people(writer: RecordingWriter, state: _RowState, ready: _Ready, meshes: _Meshes) -> set[int]:
