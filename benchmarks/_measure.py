@@ -1,5 +1,5 @@
 """What several benchmarks measure the same way: CPU and wall time of a step, the bytes it wrote, the input floor,
-how to start rotavat, free disk, and a table row against a baseline. Imported by the bench_*.py scripts (run as
+how to start rotavat and time whole processes, free disk, and a table row against a baseline. Imported by the bench_*.py scripts (run as
 scripts, this folder is on their path)."""
 
 from __future__ import annotations
@@ -44,6 +44,28 @@ def read_all(seq_dir: Path) -> None:
     seq = open_sequence(seq_dir)
     for name in seq.frame_names:
         seq.read_frame(name)
+
+
+def wall_seconds(argv: list[str]) -> float:
+    """Wall seconds of one whole process; RuntimeError when it fails."""
+    start = time.perf_counter()
+    proc = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    seconds = time.perf_counter() - start
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)} exited {proc.returncode}: {proc.stderr.strip()[-300:]}")
+    return seconds
+
+
+def interleaved(commands: dict[str, list[str]], runs: int) -> dict[str, list[float]]:
+    """Each command ``runs`` times, in turn (after one warm-up each), so a machine's drift touches them alike;
+    name -> wall seconds."""
+    for argv in commands.values():
+        wall_seconds(argv)
+    times: dict[str, list[float]] = {name: [] for name in commands}
+    for _ in range(runs):
+        for name, argv in commands.items():
+            times[name].append(wall_seconds(argv))
+    return times
 
 
 def rotavat_argv() -> list[str]:

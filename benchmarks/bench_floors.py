@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -35,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _measure import rotavat_argv  # noqa: E402
+from _measure import interleaved, rotavat_argv  # noqa: E402
 from _synthetic_pairs import synthetic_pairs  # noqa: E402
 
 from rotavat_cli.sequence import open_sequence  # noqa: E402
@@ -93,27 +92,6 @@ def per_frame_read_us(seq_dir: Path, repeats: int = 5) -> tuple[float, float]:
             step()
             best[name] = min(best.get(name, float("inf")), time.perf_counter() - start)
     return best["rotavat"] / len(paths) * 1e6, best["numpy"] / len(paths) * 1e6
-
-
-def wall_seconds(argv: list[str]) -> float:
-    """Wall seconds of one whole process; RuntimeError when it fails."""
-    start = time.perf_counter()
-    proc = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    seconds = time.perf_counter() - start
-    if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(argv)} exited {proc.returncode}: {proc.stderr.strip()[-300:]}")
-    return seconds
-
-
-def interleaved(commands: dict[str, list[str]], runs: int) -> dict[str, list[float]]:
-    """Each command ``runs`` times, in turn (after one warm-up each); name -> wall seconds."""
-    for argv in commands.values():
-        wall_seconds(argv)
-    times: dict[str, list[float]] = {name: [] for name in commands}
-    for _ in range(runs):
-        for name, argv in commands.items():
-            times[name].append(wall_seconds(argv))
-    return times
 
 
 def main() -> int:

@@ -16,10 +16,8 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +30,7 @@ from _synthetic_pairs import synthetic_pairs  # noqa: E402
 from bench_calibrate import loop_baseline  # noqa: E402
 
 from rotavat_cli.calibration.grid import GridSpec  # noqa: E402
-from _measure import rotavat_argv  # noqa: E402
+from _measure import interleaved, rotavat_argv  # noqa: E402
 
 PAIRS_FRAMES, PAIRS_PEOPLE = 100, 20  # 2,000 pairs
 
@@ -48,27 +46,6 @@ def write_pairs_sequence(folder: Path, seed: int = 7) -> tuple[Path, object]:
     width, height = data.camera.image_size
     (folder / "meta.yaml").write_text(f"image_size: [{width}, {height}]\n")
     return folder, data
-
-
-def wall_seconds(argv: list[str]) -> float:
-    """Wall seconds of one whole process; RuntimeError when it fails."""
-    start = time.perf_counter()
-    proc = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    seconds = time.perf_counter() - start
-    if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(argv)} exited {proc.returncode}: {proc.stderr.strip()[-300:]}")
-    return seconds
-
-
-def interleaved(commands: dict[str, list[str]], runs: int) -> dict[str, list[float]]:
-    """Each command ``runs`` times, in turn (after one warm-up each); name -> wall seconds."""
-    for argv in commands.values():
-        wall_seconds(argv)
-    times: dict[str, list[float]] = {name: [] for name in commands}
-    for _ in range(runs):
-        for name, argv in commands.items():
-            times[name].append(wall_seconds(argv))
-    return times
 
 
 def main() -> None:

@@ -69,17 +69,21 @@ def _executor(workers: int, processes: bool) -> Executor:
 
 
 def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int = 2, window: int | None = None,
-                processes: bool = False) -> Iterator[R]:
+                processes: bool = False, meanwhile: Callable[[], None] | None = None) -> Iterator[R]:
     """Yield ``fn(item)`` in input order, at most ``window`` items in flight (default 2 x workers).
 
     ``workers <= 1`` runs inline. With ``processes`` the work runs in worker processes (``fn`` and
     items must pickle): true parallelism for numpy code that holds the GIL between small calls.
     An exception in ``fn`` is raised when its result is reached; pending work is cancelled.
+    ``meanwhile``: run in this thread once the first window of items is in flight (inline: first), e.g.
+    imports the caller needs next; with fork the workers are all started by then, so it may import freely.
 
     >>> list(ordered_map(lambda x: x * x, range(5), workers=2))
     [0, 1, 4, 9, 16]
     """
     if workers <= 1:
+        if meanwhile is not None:
+            meanwhile()
         yield from map(fn, items)
         return
     window = window or 2 * workers
@@ -89,7 +93,12 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int = 2, wind
             for item in items:
                 pending.append(pool.submit(fn, item))
                 if len(pending) >= window:
+                    if meanwhile is not None:
+                        meanwhile, run = None, meanwhile
+                        run()
                     yield pending.popleft().result()
+            if meanwhile is not None:
+                meanwhile()
             while pending:
                 yield pending.popleft().result()
         finally:

@@ -89,15 +89,52 @@ def _frame_transform(frame: Frame, camera: Camera, upright: str, stature_by_id: 
     """Transforms for a frame's people and their points before (``elevation_m`` (P,): feet off the ground).
     People whose foot or crown pixel, as their tool drew it, is not seen whole are left unchanged
     (``cut_by_border``): no one is re-seated by an invisible foot."""
-    people = _frame_people(frame, camera, mesh)
+    (transform,), (people,) = _frames_transforms([frame], camera, upright, stature_by_id, [mesh], [elevation_m])
+    return transform, people
+
+
+def _frames_transforms(frames: list[Frame], camera: Camera, upright: str, stature_by_id: dict[int, float] | None,
+                       meshes: list[MeshIntrinsics], elevations: list[np.ndarray | None]
+                       ) -> tuple[list[AlignTransform], list[_FramePeople]]:
+    """:func:`_frame_transform` of several frames (frames with people), their people's transforms computed at once:
+    row by row, the same numbers as frame by frame, for one call's overhead instead of one per frame."""
+    if not frames:
+        return [], []
+    people = [_frame_people(frame, camera, mesh) for frame, mesh in zip(frames, meshes)]
+    seen = []
+    for group, mesh in zip(people, meshes):
+        drawn = [project_cam_to_px(p, mesh.focal_px, mesh.principal_point) for p in (group.feet_cam, group.heads_cam)]
+        seen.append(in_view(drawn[0], camera.image_size) & in_view(drawn[1], camera.image_size))
     stature = None
     if stature_by_id is not None:
-        stature = np.array([stature_by_id.get(int(i), np.nan) for i in frame.person_ids])
-    drawn = [project_cam_to_px(p, mesh.focal_px, mesh.principal_point) for p in (people.feet_cam, people.heads_cam)]
-    seen = in_view(drawn[0], camera.image_size) & in_view(drawn[1], camera.image_size)
-    transform = rotavat_transforms(people.feet_cam, people.heads_cam, camera.up_cam, camera.ground_offset_m, upright,
-                                   stature, people.foot_rays_cam, people.head_rays_cam, elevation_m, seen)
-    return transform, people
+        stature = np.array([stature_by_id.get(int(i), np.nan) for frame in frames for i in frame.person_ids])
+    elevation = None
+    if any(e is not None for e in elevations):  # NaN: on the ground, as no elevation at all
+        elevation = np.concatenate([np.full(frame.n_people, np.nan) if e is None else np.asarray(e, np.float64)
+                                    for frame, e in zip(frames, elevations)])
+    joined = [np.concatenate([getattr(group, name) for group in people])
+              for name in ("feet_cam", "heads_cam", "foot_rays_cam", "head_rays_cam")]
+    transform = rotavat_transforms(joined[0], joined[1], camera.up_cam, camera.ground_offset_m, upright, stature,
+                                   joined[2], joined[3], elevation, np.concatenate(seen))
+    bounds = np.cumsum([0] + [frame.n_people for frame in frames])
+    return [transform.rows(slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:])], people
+
+
+def _frames_postures(frames: list[Frame], joints_layout: str | None) -> list[np.ndarray | None]:
+    """Each frame's postures (:func:`rotavat_cli.bodies.posture.postures`, None without joints or for a layout
+    without them), the frames whose joints share one shape classified at once."""
+    out: list[np.ndarray | None] = [None] * len(frames)
+    with_joints = [i for i, frame in enumerate(frames) if frame.get("joints") is not None]
+    shapes = {frames[i].data["joints"].shape[1:] for i in with_joints}
+    if len(shapes) > 1:  # joints of several layouts: frame by frame
+        return [None if i not in with_joints else postures(frames[i].data["joints"], joints_layout)
+                for i in range(len(frames))]
+    if with_joints:
+        names = postures(np.concatenate([frames[i].data["joints"] for i in with_joints]), joints_layout)
+        bounds = np.cumsum([0] + [frames[i].n_people for i in with_joints])
+        for i, a, b in zip(with_joints, bounds[:-1], bounds[1:]):
+            out[i] = None if names is None else names[a:b]
+    return out
 
 
 def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, mesh_focal_px: np.ndarray, focal_px: float,
@@ -180,17 +217,17 @@ def output_dtype(points: np.ndarray) -> np.dtype:
     return points.dtype if points.dtype.kind == "f" else np.dtype(np.float64)
 
 
-def _person_flags(transform: AlignTransform, frame: Frame, joints_layout: str | None,
-                  stature_range_m: tuple[float, float], elevation_m: np.ndarray | None) -> np.ndarray:
+def _person_flags(transform: AlignTransform, posture: np.ndarray | None, stature_range_m: tuple[float, float],
+                  elevation_m: np.ndarray | None) -> np.ndarray:
     """(P,) people.csv flags (object): why a person was left unchanged (:data:`FLAGS`); else ``flight`` for the
-    people placed in the air (``elevation_m`` (P,) finite), their posture for those whose joints say they do not
-    stand, ``implausible_stature`` for a stature outside ``stature_range_m``, "" for everyone else."""
+    people placed in the air (``elevation_m`` (P,) finite), their posture (``posture`` (P,), None: unknown) for
+    those whose joints say they do not stand, ``implausible_stature`` for a stature outside ``stature_range_m``,
+    "" for everyone else."""
     ok = transform.ok
     flags = np.array([FLAGS[int(c)] for c in transform.flag], dtype=object)
     with np.errstate(invalid="ignore"):
         implausible = ok & ((transform.stature_m < stature_range_m[0]) | (transform.stature_m > stature_range_m[1]))
     flags[implausible] = IMPLAUSIBLE_STATURE
-    posture = None if frame.get("joints") is None else postures(frame.data["joints"], joints_layout)
     if posture is not None:
         seated = ok & np.isin(posture, NOT_STANDING)
         flags[seated] = posture[seated]
@@ -221,15 +258,39 @@ def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = Non
     are left unchanged (``cut_by_border``).
     """
     options = AlignOptions() if options is None else options
-    upright, stature_range_m = options.upright, options.stature_range_m
-    intrinsics = frame.intrinsics if intrinsics is None else intrinsics
+    (aligned,) = _align_frames([frame], camera, options, stature_by_id, [intrinsics], joints_layout, [elevation_m],
+                               stature_from)
+    return aligned
+
+
+def _align_frames(frames: list[Frame], camera: Camera, options: AlignOptions, stature_by_id: dict[int, float] | None,
+                  intrinsics: list[Intrinsics | None], joints_layout: str | None,
+                  elevations: list[np.ndarray | None], stature_from: str) -> list[tuple[Frame, dict[str, np.ndarray]]]:
+    """:func:`align_frame` of several frames (arguments per frame in lists): their people's transforms and postures
+    computed at once (:func:`_frames_transforms`, :func:`_frames_postures`), the same numbers as frame by frame."""
+    intrinsics = [frame.intrinsics if given is None else given for frame, given in zip(frames, intrinsics)]
+    busy = [i for i, frame in enumerate(frames) if frame.n_people]
+    meshes = {i: MeshIntrinsics.of_frame(frames[i], intrinsics[i], camera) for i in busy}
+    transforms, people = _frames_transforms([frames[i] for i in busy], camera, options.upright, stature_by_id,
+                                            [meshes[i] for i in busy], [elevations[i] for i in busy])
+    posture = _frames_postures([frames[i] for i in busy], joints_layout)
+    prepared = {i: (transforms[k], people[k], posture[k]) for k, i in enumerate(busy)}
+    return [_align_prepared(frame, camera, options, meshes[i], *prepared[i], elevations[i], stature_from)
+            if i in prepared else _no_one(frame, camera) for i, frame in enumerate(frames)]
+
+
+def _no_one(frame: Frame, camera: Camera) -> tuple[Frame, dict[str, np.ndarray]]:
+    """:func:`align_frame` of a frame without people: its intrinsics the camera's, empty columns."""
+    empty = {c: np.zeros(0, dtype=object if c in ("frame", "flag", "stature_from") else np.float64)
+             for c in PEOPLE_COLUMNS}
+    return _in_camera(frame, camera), {**empty, "foot_ray_cam": np.zeros((0, 3)), "head_ray_cam": np.zeros((0, 3))}
+
+
+def _align_prepared(frame: Frame, camera: Camera, options: AlignOptions, mesh: MeshIntrinsics,
+                    transform: AlignTransform, people: _FramePeople, posture: np.ndarray | None,
+                    elevation_m: np.ndarray | None, stature_from: str) -> tuple[Frame, dict[str, np.ndarray]]:
+    """:func:`align_frame` of a frame with people, its transforms, points and postures given."""
     P = frame.n_people
-    if P == 0:
-        empty = {c: np.zeros(0, dtype=object if c in ("frame", "flag", "stature_from") else np.float64)
-                 for c in PEOPLE_COLUMNS}
-        return _in_camera(frame, camera), {**empty, "foot_ray_cam": np.zeros((0, 3)), "head_ray_cam": np.zeros((0, 3))}
-    mesh = MeshIntrinsics.of_frame(frame, intrinsics, camera)
-    transform, people = _frame_transform(frame, camera, upright, stature_by_id, mesh, elevation_m)
     heads_cam = people.heads_cam
     if frame.get("vertices") is not None:
         new_verts, drift_mean, drift_max = _align_points(frame.data["vertices"], transform, mesh, camera)
@@ -258,7 +319,7 @@ def align_frame(frame: Frame, camera: Camera, options: AlignOptions | None = Non
         "drift_mean_px": drift_mean,
         "drift_max_px": drift_max,
         "head_drift_px": np.linalg.norm(camera.project(new_heads) - heads_drawn_px, axis=-1),
-        "flag": _person_flags(transform, frame, joints_layout, stature_range_m, elevation_m),
+        "flag": _person_flags(transform, posture, options.stature_range_m, elevation_m),
         "stature_from": np.full(P, stature_from, dtype=object),
         "foot_ray_cam": people.foot_rays_cam,
         "head_ray_cam": people.head_rays_cam,
@@ -314,12 +375,13 @@ def _align_chunk(task: tuple) -> tuple[list[tuple[int, dict[str, np.ndarray], st
     carries track ids; and what reading them found (``Sequence.frame_notes``: an imported sequence's
     warnings, from a worker). ``flight``: elevations of frames known to be in flight (:func:`flight_plan`)."""
     seq, names, camera, out, options, stature_by_id, flight, stature_from = task
-    results = []
-    for name in names:
-        frame = seq.read_frame(name)
+    frames = [seq.read_frame(name) for name in names]  # a chunk of frames (_CHUNK_FRAMES) is held at once
+    for frame in frames:
         seq.require_static_frame(frame, camera.image_size)
-        new_frame, cols = align_frame(frame, camera, options, stature_by_id, seq.frame_intrinsics(frame),
-                                      seq.joints_layout, (flight or {}).get(name), stature_from)
+    aligned = _align_frames(frames, camera, options, stature_by_id, [seq.frame_intrinsics(f) for f in frames],
+                            seq.joints_layout, [(flight or {}).get(name) for name in names], stature_from)
+    results = []
+    for frame, (new_frame, cols) in zip(frames, aligned):
         write_frame(out, new_frame, seq.form)
         results.append((frame.n_people, cols, _csv_rows(cols), frame.get("person_ids") is not None))
     return results, seq.frame_notes(names)
@@ -392,7 +454,8 @@ def flight_plan(seq: Sequence, camera: Camera, options: AlignOptions | None = No
             return {}
         mesh = MeshIntrinsics.of_frame(frame, seq.frame_intrinsics(frame), camera)
         transform, people = _frame_transform(frame, camera, options.upright, stature_by_id, mesh)
-        flags = _person_flags(transform, frame, seq.joints_layout, options.stature_range_m, None)
+        posture = None if frame.get("joints") is None else postures(frame.data["joints"], seq.joints_layout)
+        flags = _person_flags(transform, posture, options.stature_range_m, None)
         per_frame.append(_track_columns(index, frame.person_ids, flags, transform.stature_m, people.foot_rays_cam,
                                         people.head_rays_cam))
     return _elevations(per_frame, seq.frame_names, camera) if per_frame else {}

@@ -33,6 +33,7 @@ standing foot on the ground.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -80,6 +81,10 @@ class AlignTransform:
     def ok(self) -> np.ndarray:
         """(P,) people that were aligned."""
         return self.flag == 0
+
+    def rows(self, people: slice) -> "AlignTransform":
+        """The transforms of some people (a slice of the P)."""
+        return AlignTransform(**{f.name: getattr(self, f.name)[people] for f in dataclasses.fields(self)})
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

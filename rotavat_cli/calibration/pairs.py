@@ -19,7 +19,9 @@ the mark, and calibration leaves it out with a note (:func:`rotavat_cli.calibrat
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,7 +30,8 @@ from ..bodies.frame_points import MeshIntrinsics, beyond_border_px, edge_margin_
 from ..errors import InputError
 from ..bodies.landmarks import foot_head_points
 from ..bodies.posture import postures
-from ..sequence import Frame, Intrinsics, Sequence, can_align, people_not_placed
+from ..parallel import cap_workers, ordered_map
+from ..sequence import DirectorySource, Frame, Intrinsics, Sequence, can_align, people_not_placed
 
 __all__ = ["FootHeadPairs", "frame_foot_head_px", "gather_pairs"]
 
@@ -76,43 +79,80 @@ def frame_foot_head_px(frame: Frame, intrinsics: Intrinsics) -> tuple[np.ndarray
             project_cam_to_px(heads_cam, focals, intrinsics.principal_point), "mesh")
 
 
-def gather_pairs(seq: Sequence) -> FootHeadPairs:
-    """Pool every frame's foot/head pixel pairs (non-finite pairs dropped), one frame at a time.
+class _FramePairs(NamedTuple):
+    """One frame's pairs before pooling (:func:`_frame_pairs`): (P, ...) arrays each."""
+
+    feet_px: np.ndarray
+    heads_px: np.ndarray
+    person_ids: np.ndarray  # frame-local 0..P-1 when the frame has no track ids
+    tracked: bool  # no people, or track ids
+    axes_cam: np.ndarray
+    postures: np.ndarray
+    source: str
+    not_in_front: int
+
+
+def _frame_pairs(seq: Sequence, frame: Frame) -> _FramePairs:
+    """A frame's foot/head pixels, track ids, body axes and postures; meshes not placed in the camera frame NaN."""
+    seq.require_static_frame(frame)
+    intrinsics = seq.frame_intrinsics(frame)
+    f, h, src = frame_foot_head_px(frame, intrinsics)
+    not_in_front = 0
+    if src == "mesh":  # a mesh that is not where the camera saw it projects to meaningless pixels
+        off = np.logical_or(*people_not_placed(frame))
+        f[off], h[off] = np.nan, np.nan
+        not_in_front = int(off.sum())
+    return _FramePairs(f, h, frame.person_ids, frame.n_people == 0 or frame.get("person_ids") is not None,
+                       _body_axes_cam(frame, intrinsics, f, h), _postures(frame, seq.joints_layout), src, not_in_front)
+
+
+def _chunk_pairs(task: tuple[Sequence, tuple[str, ...]]) -> list[_FramePairs]:
+    """:func:`_frame_pairs` of the frames ``names`` of ``seq`` (a worker's share)."""
+    seq, names = task
+    return [_frame_pairs(seq, seq.read_frame(name)) for name in names]
+
+
+_PARALLEL_MIN_FRAMES = 400  # fewer frames are read in this process: starting workers costs more than it saves
+
+
+def _all_frame_pairs(seq: Sequence, meanwhile: Callable[[], None] | None) -> list[_FramePairs]:
+    """:func:`_frame_pairs` of every frame, in order: a long sequence directory's frames read by worker processes
+    (one per core; the pairs are small to send back), ``meanwhile`` run here while they read."""
+    names = seq.frame_names
+    workers = cap_workers(0, len(names) // _PARALLEL_MIN_FRAMES)
+    if workers <= 1 or not isinstance(seq.frame_source, DirectorySource):  # an importer's source may hold a whole file
+        if meanwhile is not None:
+            meanwhile()
+        return [_frame_pairs(seq, frame) for frame in seq.frames()]
+    size = -(-len(names) // (2 * workers))  # two chunks per worker: every chunk in flight at once
+    chunks = [(seq, names[i:i + size]) for i in range(0, len(names), size)]
+    return [pairs for part in ordered_map(_chunk_pairs, chunks, workers, window=len(chunks), processes=True,
+                                          meanwhile=meanwhile) for pairs in part]
+
+
+def gather_pairs(seq: Sequence, meanwhile: Callable[[], None] | None = None) -> FootHeadPairs:
+    """Pool every frame's foot/head pixel pairs (non-finite pairs dropped).
 
     Meshes that are root-centred or behind the camera (never placed in the camera frame) give no
-    pair; ``not_in_front`` counts them, so a refusal can say why.
+    pair; ``not_in_front`` counts them, so a refusal can say why. A long sequence directory is read by
+    worker processes; ``meanwhile`` is run in this process while they read (the refinement's imports).
     """
-    feet, heads, index, ids, axes, poses, sources = [], [], [], [], [], [], set()
-    layout = seq.joints_layout
+    parts = _all_frame_pairs(seq, meanwhile)
     size = seq.image_size
-    tracked = True
-    not_in_front = 0
-    for i, frame in enumerate(seq.frames()):
-        seq.require_static_frame(frame)
-        tracked &= frame.n_people == 0 or frame.get("person_ids") is not None
-        intrinsics = seq.frame_intrinsics(frame)
-        f, h, src = frame_foot_head_px(frame, intrinsics)
-        if src == "mesh":  # a mesh that is not where the camera saw it projects to meaningless pixels
-            off = np.logical_or(*people_not_placed(frame))
-            f[off], h[off] = np.nan, np.nan
-            not_in_front += int(off.sum())
-        axes.append(_body_axes_cam(frame, intrinsics, f, h))
-        poses.append(_postures(frame, layout))
-        if len(f):
-            sources.add(src)
-        feet.append(f)
-        heads.append(h)
-        index.append(np.full(len(f), i, dtype=np.int64))
-        ids.append(frame.person_ids)
-    feet_px = np.concatenate(feet) if feet else np.zeros((0, 2))
-    heads_px = np.concatenate(heads) if heads else np.zeros((0, 2))
+    tracked = all(part.tracked for part in parts)
+    sources = {part.source for part in parts if len(part.feet_px)}
+    feet_px = np.concatenate([part.feet_px for part in parts]) if parts else np.zeros((0, 2))
+    heads_px = np.concatenate([part.heads_px for part in parts]) if parts else np.zeros((0, 2))
     keep = np.all(np.isfinite(feet_px), axis=1) & np.all(np.isfinite(heads_px), axis=1)
     source = sources.pop() if len(sources) == 1 else ("mixed" if sources else "none")
     beyond = _cut_beyond_px(feet_px, heads_px, size)[keep]  # over every pair at once, not frame by frame
+    index = [np.full(len(part.feet_px), i, dtype=np.int64) for i, part in enumerate(parts)]
+    ids = [part.person_ids for part in parts]
     return FootHeadPairs(feet_px[keep], heads_px[keep], np.concatenate(index)[keep] if index else np.zeros(0, np.int64),
                          np.concatenate(ids)[keep] if ids else np.zeros(0, np.int64), tracked, len(seq), source,
-                         not_in_front, np.concatenate(axes)[keep] if axes else np.zeros((0, 3)),
-                         np.concatenate(poses)[keep] if poses else np.zeros(0, "<U8"),
+                         sum(part.not_in_front for part in parts),
+                         np.concatenate([part.axes_cam for part in parts])[keep] if parts else np.zeros((0, 3)),
+                         np.concatenate([part.postures for part in parts])[keep] if parts else np.zeros(0, "<U8"),
                          None if size is None else beyond > -edge_margin_px(size), None if size is None else beyond)
 
 

@@ -18,7 +18,7 @@ from .grid import GridSpec, seed_params
 from .objective import Problem, body_rows, jacobian_at, pair_chi2, prior_rows, residual_at, robust_scale
 from .params import FOCAL, from_internal, param_bounds, to_internal
 
-__all__ = ["MANY_PAIRS", "robust_least_squares", "min_pairs", "fit_with_rejection", "refine_fit"]
+__all__ = ["MANY_PAIRS", "import_least_squares", "robust_least_squares", "min_pairs", "fit_with_rejection", "refine_fit"]
 
 _SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
 # A least-squares fit stops when a step changes the parameters or the cost by less than this (relative). With more
@@ -27,6 +27,11 @@ _SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
 # 143, the fit 1.9 s -> 0.8 s, every parameter within 1% of its std of the tighter fit's; docs/performance.md).
 _TOL, _TOL_MANY, MANY_PAIRS = 1e-10, 1e-6, 4000
 _FULL_START_WIDEN = 4.0  # the full fit starts from the pairs within 4x the 99% chi-square of the best start
+
+
+def import_least_squares() -> None:
+    """Import what the refinement needs (scipy.optimize: ~0.25 s), e.g. while worker processes read the frames."""
+    import scipy.optimize  # lazy: ~0.25 s to import, what this function is for  # noqa: F401
 
 
 def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, scale: float, loss: str,

@@ -36,6 +36,7 @@ from .fit import CalibrationResult, fit_camera, fit_per_frame
 from .objective import BodyAxes
 from .options import CalibrateOptions
 from .pairs import FootHeadPairs, gather_pairs
+from .refine import import_least_squares
 
 __all__ = ["FOCAL_POLICIES", "SequenceCalibration", "declared_focal", "calibrate_sequence", "fit_pooled_pairs",
            "still_people_as_one", "whole_people"]
@@ -95,7 +96,7 @@ def calibrate_sequence(seq: Sequence, options: CalibrateOptions) -> SequenceCali
         raise TypeError(f"options must be a CalibrateOptions (CalibrateOptions.from_config(section) for a config "
                         f"section), got {type(options).__name__}")
     image_size = seq.require_image_size()
-    pairs = gather_pairs(seq)
+    pairs = gather_pairs(seq, meanwhile=import_least_squares if options.method == "refine" else None)
     notes: list[str] = []
     if options.tracks is not None:
         pairs = _chosen_tracks(seq, pairs, options.tracks)
