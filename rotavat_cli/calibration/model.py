@@ -146,13 +146,14 @@ def head_gain(rel_feet: np.ndarray, params: np.ndarray, stature_m: float | np.nd
     c = k / z
     dd = (-nx / f, -ny / f)  # d d / d (u, v), (Q, 1) each
     a = (f * nx - nz * u, f * ny - nz * v)  # M / d, (Q, N) each
-    gain = np.empty(np.broadcast(u, c).shape + (2, 2))
+    gain = np.empty((2, 2) + np.broadcast(u, c).shape)  # components first: each written whole, not strided
+    d_nz = d * nz
     for i in range(2):  # head row (u, v)
-        m_i = (m_u, m_v)[i]
+        m_c2_nz = (m_u, m_v)[i] * c * c * nz  # the same products, in the same order, as m_i * c * c * nz * dd[j]
         for j in range(2):  # foot column (u, v)
-            dm = a[i] * dd[j] - (d * nz if i == j else 0.0)
-            gain[..., i, j] = (1.0 if i == j else 0.0) - m_i * c * c * nz * dd[j] + c * dm
-    return gain
+            dm = a[i] * dd[j] - (d_nz if i == j else 0.0)
+            gain[i, j] = (1.0 if i == j else 0.0) - m_c2_nz * dd[j] + c * dm
+    return np.moveaxis(gain, (0, 1), (-2, -1))  # (Q, N, 2, 2), a view
 
 
 def _box_k(u: np.ndarray, v: np.ndarray, f: np.ndarray, h: np.ndarray, d: np.ndarray, box: np.ndarray,

@@ -25,7 +25,7 @@ from ..geometry.camera import up_vector_cam
 from .model import CameraTerms, camera_terms, head_errors, head_gain
 from .params import PITCH, ROLL, from_internal, to_internal
 from .priors import Priors
-from .residuals import PairCovariance, ResidualKind
+from .residuals import PairCovariance, ResidualKind, component_sum
 
 __all__ = ["MIN_NOISE_PX", "BodyAxes", "Problem", "make_problem", "foot_gain", "pair_covariance", "profiled", "whitened",
            "prior_rows", "body_rows", "ROBUST_LOSSES", "robust_rows", "model_residual", "residual_and_jacobian", "residual_at", "jacobian_at", "pair_chi2", "robust_scale",
@@ -194,8 +194,8 @@ def profiled(prob: Problem, params: np.ndarray, scale: float = 1.0, effective: b
             r = whiten(e) / scale
             j = whiten(de) / scale
             w = (valid & tracked) / (1.0 + (r[..., 0] / 3.0) ** 2)
-            num = np.bincount(flat, (w * np.sum(j * r, axis=-1)).ravel(), Q * T).reshape(Q, T) + delta * prec
-            den = np.bincount(flat, (w * np.sum(j * j, axis=-1)).ravel(), Q * T).reshape(Q, T) + prec
+            num = np.bincount(flat, (w * component_sum(j * r)).ravel(), Q * T).reshape(Q, T) + delta * prec
+            den = np.bincount(flat, (w * component_sum(j * j)).ravel(), Q * T).reshape(Q, T) + prec
             delta = delta - num / den
             stature = prob.person_height_m + np.where(tracked, delta[:, np.maximum(prob.track, 0)], 0.0)
             e, de, valid = head_errors(prob.rel_feet, prob.diff, params, stature, prob.radius_px, terms=terms)
@@ -297,7 +297,7 @@ def jacobian_at(prob: Problem, x: np.ndarray, r0: np.ndarray, full0: np.ndarray,
 def pair_chi2(prob: Problem, params: np.ndarray, scale: float = 1.0) -> np.ndarray:
     """(N,) squared whitened residual norm per pair at params (6,) (not divided by scale); inf if invalid."""
     r, _, valid = whitened(prob, params[None], scale)
-    chi2 = np.sum((r[0] * scale) ** 2, axis=-1)
+    chi2 = component_sum((r[0] * scale) ** 2)
     return np.where(valid[0], chi2, np.inf)
 
 

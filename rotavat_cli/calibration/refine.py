@@ -35,8 +35,9 @@ def import_least_squares() -> None:
 
 
 def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, scale: float, loss: str,
-                         f_scale: float) -> np.ndarray:
-    """Robust least squares over the free slots from params0 (6,); returns the params (6,)."""
+                         f_scale: float, many: bool | None = None) -> np.ndarray:
+    """Robust least squares over the free slots from params0 (6,); returns the params (6,). ``many``: stop at the
+    tolerance of a fit of many pairs (default: when ``prob`` has more than ``MANY_PAIRS``)."""
     from scipy.optimize import least_squares  # lazy: ~0.5 s to import; calibrate --method grid never refines
 
     cache: dict = {}
@@ -53,7 +54,7 @@ def robust_least_squares(prob: Problem, params0: np.ndarray, free: np.ndarray, s
 
     lo, hi = param_bounds(prob.image_height_px)
     x0 = np.clip(to_internal(params0), lo + 1e-6, hi - 1e-6)[free]
-    tol = _TOL if len(prob.rel_feet) <= MANY_PAIRS else _TOL_MANY
+    tol = _TOL_MANY if (len(prob.rel_feet) > MANY_PAIRS if many is None else many) else _TOL
     sol = least_squares(residual, x0, jac=jacobian, bounds=(lo[free], hi[free]),
                         method="trf", x_scale="jac", xtol=tol, ftol=tol, gtol=tol, max_nfev=200)
     return from_internal(sol.x[None], params0, free)[0]
@@ -68,9 +69,9 @@ def min_pairs(prob: Problem, free: np.ndarray) -> int:
 
 
 def fit_with_rejection(prob: Problem, params0: np.ndarray, free: np.ndarray, mask0: np.ndarray,
-                       max_rounds: int) -> tuple[np.ndarray, np.ndarray, float]:
+                       max_rounds: int, many: bool | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Alternate robust fits and chi-square rejection from params0 (6,) on pairs mask0 (N,);
-    returns (params (6,), inlier mask (N,), scale)."""
+    returns (params (6,), inlier mask (N,), scale). ``many``: as :func:`robust_least_squares`."""
     need = min_pairs(prob, free)
     params, mask = params0, mask0.copy()
     scale = robust_scale(pair_chi2(prob, params)[mask], prob)
@@ -79,7 +80,7 @@ def fit_with_rejection(prob: Problem, params0: np.ndarray, free: np.ndarray, mas
     for round_ in range(max_rounds):
         sub = prob.subset(np.flatnonzero(mask))
         loss, f_scale = ("cauchy", 2.0) if round_ == 0 else ("soft_l1", 3.0)
-        params = robust_least_squares(sub, params, free, scale, loss, f_scale)
+        params = robust_least_squares(sub, params, free, scale, loss, f_scale, many)
         chi2 = pair_chi2(prob, params, scale)
         scale = robust_scale(chi2[mask], prob)
         new_mask = chi2 <= thr * scale**2
@@ -113,7 +114,8 @@ def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarra
         mask0 = np.isfinite(chi2)
         if mask0.sum() < need:
             continue
-        params, mask, scale = fit_with_rejection(sub, seed, free, mask0, max_rounds=_SEED_ROUNDS)
+        # a start of a fit of many pairs only has to be near: its fits stop at that fit's tolerance
+        params, mask, scale = fit_with_rejection(sub, seed, free, mask0, _SEED_ROUNDS, len(prob.rel_feet) > MANY_PAIRS)
         best = _better(sub, free, best, (params, mask, scale, seed))
     if best is None:
         raise DegenerateSceneError("no camera explains the pairs: every start put the feet above the horizon "
