@@ -17,11 +17,13 @@ the square root of its *design effect* ``deff`` (:func:`design_effect`; 1 for in
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..geometry.camera import up_vector_cam
+from ..parallel import cpu_count
 from .model import CameraTerms, camera_terms, head_errors, head_gain
 from .params import PITCH, ROLL, from_internal, to_internal
 from .priors import Priors
@@ -34,6 +36,7 @@ __all__ = ["MIN_NOISE_PX", "BodyAxes", "Problem", "make_problem", "foot_gain", "
 _FD_STEP = 1e-6  # finite-difference step in the internal parameters (log f, rad, rad, log h, ...)
 _FOOT_STEP_PX = 0.5  # finite-difference step of the foot pixel (the model is smooth over a pixel)
 MIN_NOISE_PX = 0.5  # floor of the residual scale in pixels: annotation is never better than this
+_THREAD_ROWS = 40_000  # pairs x parameter sets from which a Jacobian's sets are split over two threads
 _DEFF_MIN_RHO = 0.05  # autocorrelations below this end the design effect's sum (they are noise)
 
 
@@ -290,7 +293,15 @@ def jacobian_at(prob: Problem, x: np.ndarray, r0: np.ndarray, full0: np.ndarray,
                 loss: str = "linear", f_scale: float = 1.0) -> np.ndarray:
     """The Jacobian (M, n_free) of :func:`residual_and_jacobian` given its residual ``r0 (M,)`` at ``x``: a
     least-squares step that is rejected then costs one parameter set, not ``1 + n_free``."""
-    r = model_residual(prob, from_internal(x + _FD_STEP * np.eye(len(x)), full0, free), free, scale, loss, f_scale)
+    params = from_internal(x + _FD_STEP * np.eye(len(x)), full0, free)
+    if len(prob.rel_feet) * len(params) < _THREAD_ROWS or len(params) < 2 or cpu_count() < 2:
+        r = model_residual(prob, params, free, scale, loss, f_scale)
+    else:  # many pairs: two halves of the parameter sets on two threads (each set's rows are computed on their own)
+        half = len(params) // 2
+        with ThreadPoolExecutor(2) as pool:
+            parts = pool.map(lambda part: model_residual(prob, part, free, scale, loss, f_scale),
+                             (params[:half], params[half:]))
+            r = np.concatenate(list(parts))
     return ((r - r0) / _FD_STEP).T
 
 
