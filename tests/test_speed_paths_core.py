@@ -183,3 +183,54 @@ def test_a_chunk_aligned_at_once_equals_each_frame_alone(scene):
             assert value.dtype == other.dtype and (np.array_equal(value, other, equal_nan=value.dtype.kind == "f")
                                                    if value.dtype.kind != "O" else list(value) == list(other)), (k, key)
     assert together[2][1]["flag"].size == 0 and together[3][1]["flag"][1] == "flight"
+
+
+# ---- calibrate: the paper grid's pruning, the threads ----------------------------------------------------------------
+@pytest.fixture(scope="module")
+def many_pairs():
+    return synthetic_pairs(np.random.default_rng(12), frames=300, people=10, outlier_fraction=0.1)
+
+
+def test_the_pruned_paper_grid_finds_the_unpruned_best_cell(many_pairs, monkeypatch):
+    from rotavat_cli.calibration import grid as G
+
+    data, spec = many_pairs, G.GridSpec()
+    width, height = data.camera.image_size
+    args = (data.feet_px, data.heads_px, (width / 2, height / 2), spec.focal_values_px(height),
+            spec.pitch_values_rad(), spec.height_values_m(), 1.7)
+    assert len(data.feet_px) >= G._PRUNE_MIN_PAIRS
+    pruned = G.paper_grid_search(*args)
+    monkeypatch.setattr(G, "_PRUNE_MIN_PAIRS", 10**9)
+    full = G.paper_grid_search(*args)
+    assert (pruned.index, pruned.cost, pruned.focal_px, pruned.height_m) == (full.index, full.cost, full.focal_px,
+                                                                             full.height_m)
+    scored = np.isfinite(pruned.costs)
+    assert scored.sum() < 0.2 * np.isfinite(full.costs).sum()  # most valid cells were never scored in full
+    assert np.array_equal(pruned.costs[scored], full.costs[scored])  # the scored ones as the full scan scores them
+
+
+def test_threads_give_the_same_seeding_grid_and_jacobian(many_pairs, monkeypatch):
+    from rotavat_cli.calibration import grid as G
+    from rotavat_cli.calibration import objective as O
+    from rotavat_cli.calibration.params import from_internal, to_internal
+    from rotavat_cli.calibration.residuals import residual_kind
+
+    data = many_pairs
+    width, height = data.camera.image_size
+    spec = G.GridSpec()
+    robust = (data.feet_px[:700], data.heads_px[:700], (width / 2, height / 2), np.geomspace(200, 6000, 40),
+              spec.pitch_values_rad(), np.geomspace(0.5, 40, 30), 1.7)
+    threaded = G.robust_grid_costs(*robust)
+    prob = O.make_problem(data.feet_px, data.heads_px, np.array([width / 2, height / 2]), 1.7, 0.07, 2.0,
+                          residual_kind("full"), (width, height), None, data.track_id)
+    params = np.array([1400.0, 0.35, 0.01, 6.0, 0.0, 0.0])
+    free = np.array([True, True, True, True, False, False])
+    x = to_internal(params)[free]
+    r0 = O.residual_at(prob, x, params, free, 1.2, "cauchy", 2.0)
+    monkeypatch.setattr(O, "_THREAD_ROWS", 0)  # the parameter sets on two threads whatever the size
+    jac_threads = O.jacobian_at(prob, x, r0, params, free, 1.2, "cauchy", 2.0)
+    monkeypatch.setattr(G, "_workers", lambda *args: 1)
+    monkeypatch.setattr(O, "_THREAD_ROWS", 10**12)
+    assert np.array_equal(threaded, G.robust_grid_costs(*robust))
+    assert np.array_equal(jac_threads, O.jacobian_at(prob, x, r0, params, free, 1.2, "cauchy", 2.0))
+    assert np.array_equal(from_internal(x[None], params, free)[0], params)
