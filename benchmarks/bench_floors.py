@@ -4,7 +4,7 @@
     python benchmarks/bench_floors.py --quick    # the same sequence, 3 runs
 
 Writes a 2D sequence of ``--frames`` npz frames of ``--people`` walkers (feet_2d, heads_2d, person_ids;
-``tests/_synthetic_pairs.py``, 2 px noise, 10% outliers: 20,000 foot/head pairs by default) and times:
+``tests/_synthetic_pairs.py`` through ``bench_startup.write_pairs_sequence``, 2 px noise, 10% outliers: 20,000 foot/head pairs by default) and times:
 
 - in this process, reading every frame: ``Sequence.read_frame`` (rotavat's reader: every declared size
   and header checked, the frame validated) against ``np.load`` of the same arrays (the floor), best of 5;
@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _measure import interleaved, rotavat_argv  # noqa: E402
-from _synthetic_pairs import synthetic_pairs  # noqa: E402
+from bench_startup import write_pairs_sequence  # noqa: E402
 
 from rotavat_cli.sequence import open_sequence  # noqa: E402
 
@@ -53,19 +53,6 @@ for path in sorted(Path(sys.argv[1]).glob("*.npz")):
         feet.append(npz["feet_2d"]); heads.append(npz["heads_2d"]); ids.append(npz["person_ids"])
 print(len(np.concatenate(feet)), len(np.concatenate(heads)), len(np.concatenate(ids)))
 """
-
-
-def write_pairs(folder: Path, frames: int, people: int, seed: int = 34) -> int:
-    """A 2D sequence of walkers' foot/head pixels, one npz per frame; the number of pairs."""
-    data = synthetic_pairs(np.random.default_rng(seed), frames=frames, people=people, outlier_fraction=0.1)
-    folder.mkdir(parents=True, exist_ok=True)
-    for t in range(frames):
-        sel = data.frame_index == t
-        np.savez(folder / f"{t:06d}.npz", feet_2d=data.feet_px[sel], heads_2d=data.heads_px[sel],
-                 person_ids=data.track_id[sel])
-    width, height = data.camera.image_size
-    (folder / "meta.yaml").write_text(f"image_size: [{width}, {height}]\n")
-    return len(data.feet_px)
 
 
 def per_frame_read_us(seq_dir: Path, repeats: int = 5) -> tuple[float, float]:
@@ -105,7 +92,7 @@ def main() -> int:
     rotavat = rotavat_argv()
     with tempfile.TemporaryDirectory(prefix="rotavat-bench-floors-") as tmp:
         seq = Path(tmp) / "pairs"
-        n_pairs = write_pairs(seq, args.frames, args.people)
+        n_pairs = len(write_pairs_sequence(seq, 34, args.frames, args.people)[1].feet_px)
         ours_us, numpy_us = per_frame_read_us(seq)
         out = str(Path(tmp) / "camera.yaml")
         commands = {

@@ -35,11 +35,13 @@ from _measure import interleaved, rotavat_argv  # noqa: E402
 PAIRS_FRAMES, PAIRS_PEOPLE = 100, 20  # 2,000 pairs
 
 
-def write_pairs_sequence(folder: Path, seed: int = 7) -> tuple[Path, object]:
-    """A 2D-only sequence of 2,000 foot/head pairs (100 frames x 20 people, 10% outliers); its data."""
-    data = synthetic_pairs(np.random.default_rng(seed), frames=PAIRS_FRAMES, people=PAIRS_PEOPLE, outlier_fraction=0.1)
+def write_pairs_sequence(folder: Path, seed: int = 7, frames: int = PAIRS_FRAMES,
+                         people: int = PAIRS_PEOPLE) -> tuple[Path, object]:
+    """A 2D-only sequence of ``frames`` npz frames of ``people`` walkers' foot/head pixels, 10% outliers (default
+    2,000 pairs: 100 frames x 20 people); its data."""
+    data = synthetic_pairs(np.random.default_rng(seed), frames=frames, people=people, outlier_fraction=0.1)
     folder.mkdir(parents=True, exist_ok=True)
-    for t in range(PAIRS_FRAMES):
+    for t in range(frames):
         sel = data.frame_index == t
         np.savez(folder / f"{t:06d}.npz", feet_2d=data.feet_px[sel], heads_2d=data.heads_px[sel],
                  person_ids=data.track_id[sel])
