@@ -167,6 +167,8 @@ def test_a_chunk_aligned_at_once_equals_each_frame_alone(scene):
                                      if k in ("vertices", "joints", "person_ids", "feet_2d", "heads_2d")})  # nobody
     frames[4] = frames[4].replace(**{k: v[:2] for k, v in frames[4].data.items()
                                      if k in ("vertices", "joints", "person_ids", "feet_2d", "heads_2d")})  # two people
+    frames[5] = frames[5].replace(**{k: v[:1] for k, v in frames[5].data.items()
+                                     if k in ("vertices", "joints", "person_ids", "feet_2d", "heads_2d")})  # one person
     elevations = [None] * len(frames)
     elevations[3] = np.where(np.arange(frames[3].n_people) == 1, 0.4, np.nan)  # one person in the air
     statures = {int(i): 1.6 + 0.05 * k for k, i in enumerate(frames[0].person_ids)}
@@ -233,3 +235,20 @@ def test_threads_give_the_same_seeding_grid_and_jacobian(many_pairs, monkeypatch
     monkeypatch.setattr(O, "_THREAD_ROWS", 10**12)
     assert np.array_equal(threaded, G.robust_grid_costs(*robust))
     assert np.array_equal(jac_threads, O.jacobian_at(prob, x, r0, params, free, 1.2, "cauchy", 2.0))
+
+
+def test_a_persons_transform_does_not_depend_on_who_else_is_computed():
+    """numpy's matrix-vector product rounds a lone row by another kernel: one person alone, or among 63 others (a
+    chunk of frames), gets the same transform to the last bit."""
+    from rotavat_cli.alignment.transform import rotavat_transforms
+
+    rng = np.random.default_rng(3)
+    feet = np.column_stack([rng.uniform(-3, 3, 64), rng.uniform(1.0, 2.0, 64), rng.uniform(4, 15, 64)])
+    heads = feet + np.column_stack([rng.normal(0, 0.1, 64), rng.uniform(-1.8, -1.5, 64), rng.normal(0, 0.1, 64)])
+    up = np.array([0.0, -0.95, -0.3]) / np.linalg.norm([0.0, -0.95, -0.3])
+    together = rotavat_transforms(feet, heads, up, 4.0, foot_rays_cam=feet * 1.01, head_rays_cam=heads * 0.99)
+    for i in range(64):
+        alone = rotavat_transforms(feet[i:i + 1], heads[i:i + 1], up, 4.0, foot_rays_cam=feet[i:i + 1] * 1.01,
+                                   head_rays_cam=heads[i:i + 1] * 0.99)
+        for field in dataclasses.fields(alone):
+            assert np.array_equal(getattr(alone, field.name), getattr(together, field.name)[i:i + 1]), (i, field.name)

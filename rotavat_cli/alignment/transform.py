@@ -93,6 +93,15 @@ def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.divide(v, norm[..., None], out=np.zeros_like(v), where=norm[..., None] > 0), norm
 
 
+def _rows_dot(rows: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(P,) ``rows (P, 3) @ v (3,)`` by one kernel whatever P. numpy's matrix-vector product takes another BLAS kernel
+    for a single row, which rounds differently; a lone row is computed beside a copy of itself, so a person's
+    transform does not depend on how many people it is computed with (a frame, or align's chunk of frames)."""
+    if len(rows) == 1:
+        return (np.concatenate([rows, rows]) @ v)[:1]
+    return rows @ v
+
+
 def closest_scale_on_line(origin: np.ndarray, direction: np.ndarray, ray: np.ndarray) -> np.ndarray:
     """k (P,) such that ``origin + k direction`` is closest to the line through 0 along ``ray``."""
     d = direction
@@ -154,7 +163,7 @@ def rotavat_transforms(
 
     # (i) onto the ground (or ``elevation`` above it) along the foot's ray: F1 = t rF with n . F1 + h = elevation
     elevation = np.zeros(P) if elevation_m is None else np.nan_to_num(np.asarray(elevation_m, dtype=np.float64))
-    nr = rF @ n
+    nr = _rows_dot(rF, n)
     ray_len = np.linalg.norm(rF, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (elevation - ground_offset_m) / nr
@@ -168,7 +177,7 @@ def rotavat_transforms(
     degenerate = ~finite | (length <= _EPS * scale_ref)
     same_ray = m_norm <= _EPS * np.linalg.norm(F1, axis=-1) * np.maximum(np.linalg.norm(rH, axis=-1), 1e-12)
     if upright == "paper":
-        target, _ = _unit(n - (m @ n)[:, None] * m)
+        target, _ = _unit(n - _rows_dot(m, n)[:, None] * m)
     else:
         target = np.broadcast_to(n, F.shape).copy()
     rot_axis, sin_a = _unit(cross3(axis, target))
