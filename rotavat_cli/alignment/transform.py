@@ -270,11 +270,13 @@ def _affine_coords_first(coords: np.ndarray, A: np.ndarray, b: np.ndarray, dtype
     """``A X + b`` per person on coordinates-first points (p, 3, N) of any float dtype -> (p, 3, N) ``dtype``.
 
     Each output coordinate is a float64 row of three products and sums over whole input rows,
-    then stored as ``dtype``; two float64 rows are reused, so the temporaries stay small. (A
-    float64 BLAS matmul spends more on zeroing and packing 3x3 operands than on the products;
-    a mixed-dtype matmul falls back to a slow casting loop.)
+    then stored as ``dtype``; two float64 rows are reused, so the temporaries stay small. The input
+    is made float64 once (exact), not cast again by each of the nine products. (A float64 BLAS matmul
+    spends more on zeroing and packing 3x3 operands than on the products; a mixed-dtype matmul falls
+    back to a slow casting loop.)
     """
     moved = np.empty(coords.shape, dtype=dtype)
+    coords = coords.astype(np.float64, copy=False)
     row = np.empty(coords[:, 0].shape, dtype=np.float64)
     term = np.empty_like(row)
     for i in range(3):
