@@ -189,3 +189,14 @@ def test_vertex_normals_of_another_topology_are_not_the_cached_ones():
     faces[:] = 0  # the caller's array changing later does not change what was kept
     assert np.array_equal(vertex_normals(verts, kept), first)
     assert np.array_equal(vertex_normals(verts, other), fresh)
+
+
+def test_row_blocks_give_an_empty_first_frame_its_empty_arrays():
+    """A clip whose first frame has no one: rows [0, 0) are empty arrays of the block's shapes (it was a KeyError)."""
+    from rotavat_cli.formats.row_blocks import RowBlocks
+
+    blocks = RowBlocks(4, lambda a, b: {"x": np.arange(a, b, dtype=np.float32)[:, None] * np.ones((1, 3))}, 2)
+    empty = blocks.rows(0, 0)
+    assert empty["x"].shape == (0, 3) and empty["x"].dtype == np.float64
+    assert blocks.rows(0, 2)["x"][:, 0].tolist() == [0.0, 1.0]
+    assert RowBlocks(0, lambda a, b: {"x": np.zeros((b - a, 3))}, 8).rows(0, 0)["x"].shape == (0, 3)

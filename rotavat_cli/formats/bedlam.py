@@ -39,6 +39,7 @@ from .frames import people_frame
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces
+from .row_blocks import RowBlocks, frame_offsets, posing_block_rows
 from .smpl import joints_to_smpl24, lbs, smpl_param_arrays
 
 _KEYS = {"imgname", "pose_cam", "shape", "trans_cam", "cam_int", "cam_ext"}
@@ -102,18 +103,32 @@ def read_bedlam(src: Path, opts: ImportOptions) -> ImportedSequence:
     faces = model_faces(model, None if model is None else model.n_verts)
     kp_layout = layout_by_count(gtkps.shape[1]) if gtkps is not None else None
 
+    image_index = {image: i for i, image in enumerate(images)}
+    row_image = np.array([image_index[name] for name in imgname], np.int64)  # (N,) each row's frame
+    table = np.argsort(row_image, kind="stable")  # the rows image by image, each image's in file order
+    offsets = frame_offsets(np.bincount(row_image, minlength=len(images)))  # image i: table[offsets[i]:offsets[i + 1]]
+
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the table posed at once (images posed in batches, not one by one): vertices, SMPL-24
+        joints and the parameter keys."""
+        rows = table[start:stop]
+        transl = trans[rows] + cam_ext[rows, :3, 3]
+        vertices, joints55 = lbs(model, betas[rows], pose[rows], transl)
+        return {"vertices": vertices, "joints": joints_to_smpl24(joints55)[0],
+                **smpl_param_arrays(model, betas[rows], pose[rows], transl, joints55)}
+
+    posed_rows = None if model is None else RowBlocks(len(table), posed, posing_block_rows(model))
+
     def build(index: int, notes: FrameNotes) -> Frame:
         image = images[index]
-        rows = np.flatnonzero(imgname == image)
+        rows = table[offsets[index]:offsets[index + 1]]
         ids = np.array([sub_ids[0][sub_ids[1][r]] for r in rows], dtype=np.int64) if sub_ids else None
         extra = {} if constant_focal else {"focal_length": np.float64(fx[rows[0]])}
         kp = gtkps[rows][..., :2] if gtkps is not None else None
         vertices = joints = params = None
-        if model is not None:  # posed here, one image's people at a time: memory stays that of the file
-            transl = trans[rows] + cam_ext[rows, :3, 3]
-            vertices, joints55 = lbs(model, betas[rows], pose[rows], transl)
-            joints = joints_to_smpl24(joints55)[0]
-            params = smpl_param_arrays(model, betas[rows], pose[rows], transl, joints55)
+        if posed_rows is not None:  # posed a block of rows at a time (one block kept: memory stays flat)
+            params = posed_rows.rows(int(offsets[index]), int(offsets[index + 1]))
+            vertices, joints = params.pop("vertices"), params.pop("joints")
         return people_frame(names[index], f"{path} [{image}]", notes.warnings, vertices=vertices, joints=joints,
                             keypoints_2d=kp, person_ids=ids, faces=faces, extra=extra, keypoints_layout=kp_layout,
                             body_params=params)

@@ -41,6 +41,7 @@ from .image_size import image_size_from_header
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces, no_model_warning
+from .row_blocks import RowBlocks, frame_offsets, posing_block_rows
 from .smpl import joints_to_smpl24, lbs, pose_to_matrices, posed_joints, smpl_param_arrays
 
 _KEYS = {"imgname", "pose", "shape", "global_t", "pred_joints", "focal_l", "detection_all"}
@@ -98,7 +99,7 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)
 
     model = opts.body_model
-    rot = betas = None  # per detection row: SMPL pose as rotation matrices, shape (posed frame by frame)
+    rot = betas = None  # per detection row: SMPL pose as rotation matrices, shape (posed a block of rows at a time)
     joints = None
     layout = "smpl24"
     n_params = 0
@@ -135,16 +136,30 @@ def read_cliff(src: Path, opts: ImportOptions) -> ImportedSequence:
     faces = model_faces(model, None if model is None else model.n_verts)
     names = frame_names([Path(str(n)).stem for n in imgnames], warnings)
 
+    table = np.argsort(frame_index[:n_rows], kind="stable")  # the rows image by image, each image's in file order
+    offsets = frame_offsets(np.bincount(frame_index[:n_rows], minlength=len(imgnames)))  # image i: its table rows
+
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the table posed at once (images posed in batches, not one by one)."""
+        rows = table[start:stop]
+        try:
+            vertices, frame_joints = lbs(model, betas[rows], rot[rows], global_t[rows])
+        except ValueError as exc:
+            raise file_error(path, str(exc)) from None
+        return {"vertices": vertices, "joints": frame_joints,
+                **smpl_param_arrays(model, betas[rows], rot[rows], global_t[rows], frame_joints)}
+
+    posed_rows = None if model is None else RowBlocks(len(table), posed, posing_block_rows(model))
+
     def build(i: int, notes: FrameNotes) -> Frame:
-        rows = np.flatnonzero(frame_index[:n_rows] == i)
-        if model is not None:  # posed here, one frame's people at a time: memory stays that of the file
-            try:
-                vertices, frame_joints = lbs(model, betas[rows], rot[rows], global_t[rows])
-            except ValueError as exc:
-                raise file_error(path, str(exc)) from None
+        rows = table[offsets[i]:offsets[i + 1]]
+        params = None
+        if posed_rows is not None:  # posed a block of rows at a time (one block kept: memory stays flat)
+            start, stop = int(offsets[i]), int(offsets[i + 1])
+            params = posed_rows.rows(start, stop)
+            vertices, frame_joints = params.pop("vertices"), params.pop("joints")
         else:
             vertices, frame_joints = None, joints[rows]
-        params = None if model is None else smpl_param_arrays(model, betas[rows], rot[rows], global_t[rows], frame_joints)
         keypoints = None if model is not None else project_cam_to_px(pred_joints[rows], focal, principal_point)
         return people_frame(
             names[i], f"{path} [image {i}]", notes.warnings, vertices=vertices, joints=frame_joints,

@@ -51,6 +51,7 @@ from .image_size import need_image_size
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces, require_model
+from .row_blocks import RowBlocks, posing_block_rows
 from .smpl import lbs, smpl_param_arrays
 
 __all__ = ["sniff", "read_comotion", "READERS"]
@@ -134,14 +135,22 @@ def read_comotion(src: Path, opts: ImportOptions) -> ImportedSequence:
     names = frame_names(stems, warnings)
     faces = model_faces(model, model.n_verts)
 
-    def build(index: int, notes: FrameNotes) -> Frame:
-        picks = order[starts[index]:starts[index + 1]]
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the frame-by-frame table ``order`` posed at once (frames in batches, not one by one)."""
+        picks = order[start:stop]
         betas, pose, trans = rows["betas"][picks], rows["pose"][picks], rows["trans"][picks]
         vertices, joints = lbs(model, betas, pose, trans)
-        ids = None if rows["ids"] is None else rows["ids"][picks]
+        return {"vertices": vertices, "joints": joints, **smpl_param_arrays(model, betas, pose, trans, joints)}
+
+    posed_rows = RowBlocks(len(order), posed, posing_block_rows(model))
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        start, stop = int(starts[index]), int(starts[index + 1])
+        body = posed_rows.rows(start, stop)
+        vertices, joints = body.pop("vertices"), body.pop("joints")
+        ids = None if rows["ids"] is None else rows["ids"][order[start:stop]]
         return people_frame(names[index], f"{src} [frame {index}]", notes.warnings, vertices=vertices, joints=joints,
-                            person_ids=ids, faces=faces, n_verts=model.n_verts,
-                            body_params=smpl_param_arrays(model, betas, pose, trans, joints))
+                            person_ids=ids, faces=faces, n_verts=model.n_verts, body_params=body)
 
     focal = focal_from_rule("comotion", image_size)
     principal_point = (image_size[0] / 2.0, image_size[1] / 2.0)

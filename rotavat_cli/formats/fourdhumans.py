@@ -44,6 +44,7 @@ from .image_size import padded_square
 from .imported import Conclusion, FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import check_model_kind, model_faces, no_model_warning
+from .row_blocks import RowBlocks, frame_offsets, posing_block_rows
 from .smpl import lbs, smpl_param_arrays
 
 _KEYPOINTS_LAYOUT = "phalp44 (OpenPose-25 + 19 extra)"
@@ -67,6 +68,22 @@ def _frame_order(data: Mapping, source: Path) -> list[str]:
         if not isinstance(value, Mapping):
             raise file_error(source, f"frame {key!r} is not a dict")
     return sorted(data, key=lambda k: (data[k].get("time", 0) if isinstance(data[k].get("time", 0), (int, np.integer)) else 0, str(k)))
+
+
+def _detections(frame: Mapping, source: str) -> list[int]:
+    """The indices of a frame's per-track lists detected there (``tracked_time`` 0): PHALP repeats a track's last
+    state, not a detection, where ``tracked_time`` > 0."""
+    tids = list(get(frame, "tid", source))
+    tracked = frame.get("tracked_time")
+    tracked = [0] * len(tids) if tracked is None else list(tracked)
+    if len(tracked) != len(tids):
+        raise file_error(source, "'tracked_time' and 'tid' differ in length")
+    return [i for i, t in enumerate(tracked) if t == 0]
+
+
+def _camera(frame: Mapping, i: int, source: str) -> np.ndarray:
+    """(3,) detection ``i``'s ``camera``: SMPL's translation in the camera frame (metres)."""
+    return as_array(frame["camera"][i], "camera", source).reshape(3)
 
 
 def _image_size(data: Mapping, order: list[str], opts: ImportOptions, source: Path, warnings: list[str]) -> tuple[int, int]:
@@ -104,46 +121,56 @@ def read_fourdhumans(src: Path, opts: ImportOptions) -> ImportedSequence:
         warnings.append(no_model_warning("4D-Humans/PHALP"))
     check_model_kind(model, src, "4D-Humans", "smpl")
 
-    def people(frame: Mapping, source: str) -> dict[str, Any]:
-        tids = list(get(frame, "tid", source))
-        tracked = frame.get("tracked_time")
-        tracked = [0] * len(tids) if tracked is None else list(tracked)
-        if len(tracked) != len(tids):
-            raise file_error(source, "'tracked_time' and 'tid' differ in length")
-        keep = [i for i, t in enumerate(tracked) if t == 0]
+    def people(frame: Mapping, source: str, keep: list[int]) -> dict[str, Any]:
+        """A frame's detections ``keep`` (indices into its per-track lists): ids, 2D keypoints and, without a model,
+        the file's joints (with a model the table's blocks pose them)."""
         n = len(keep)
-        cams = np.stack([as_array(frame["camera"][i], "camera", source).reshape(3) for i in keep]) if n else np.zeros((0, 3))
+        tids = list(get(frame, "tid", source))
         out: dict[str, Any] = {"person_ids": np.asarray([tids[i] for i in keep], dtype=np.int64)}
         kp = [as_array(frame["2d_joints"][i], "2d_joints", source).reshape(-1, 2) for i in keep] if "2d_joints" in frame else []
         out["keypoints_2d"] = (np.stack(kp)[:, :44] * side - np.array([left, top])) if n and kp else None
-        if model is not None:
-            smpl = [get(frame, "smpl", source)[i] for i in keep]
-            rot = np.stack([np.concatenate([as_array(get(s, "global_orient", source), "global_orient", source).reshape(1, 3, 3),
-                                            as_array(get(s, "body_pose", source), "body_pose", source).reshape(23, 3, 3)])
-                            for s in smpl]) if n else np.zeros((0, 24, 3, 3))
-            betas = np.stack([as_array(get(s, "betas", source), "betas", source).reshape(-1) for s in smpl]) if n else np.zeros((0, 10))
-            out["vertices"], out["joints"] = lbs(model, betas, rot, cams)
-            out["params"] = smpl_param_arrays(model, betas, rot, cams, out["joints"])
-        else:
+        if model is None:
+            cams = np.stack([_camera(frame, i, source) for i in keep]) if n else np.zeros((0, 3))
             j3d = [as_array(frame["3d_joints"][i], "3d_joints", source, ndim=2, last=(3,)) for i in keep]
-            out["vertices"] = None
             out["joints"] = np.stack(j3d)[:, :44] + cams[:, None] if n else np.zeros((0, 44, 3))
         return out
 
     names = frame_names([Path(str(k)).stem for k in order], warnings)
+    sources = [f"{src} [{key}]" for key in order]
+    kept = [_detections(data[key], source) for key, source in zip(order, sources)]  # tracked_time == 0
+    table = [(index, i) for index, keep in enumerate(kept) for i in keep]  # (frame, detection), frame by frame
+    offsets = frame_offsets([len(keep) for keep in kept])
+
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the table posed at once (frames posed in batches, not one by one)."""
+        picks = [(data[order[index]], i, sources[index]) for index, i in table[start:stop]]
+        cams = np.stack([_camera(frame, i, source) for frame, i, source in picks]) if picks else np.zeros((0, 3))
+        smpl = [(get(frame, "smpl", source)[i], source) for frame, i, source in picks]
+        rot = np.stack([np.concatenate([as_array(get(s, "global_orient", source), "global_orient", source).reshape(1, 3, 3),
+                                        as_array(get(s, "body_pose", source), "body_pose", source).reshape(23, 3, 3)])
+                        for s, source in smpl]) if picks else np.zeros((0, 24, 3, 3))
+        betas = np.stack([as_array(get(s, "betas", source), "betas", source).reshape(-1) for s, source in smpl]) \
+            if picks else np.zeros((0, 10))
+        vertices, joints = lbs(model, betas, rot, cams)
+        return {"vertices": vertices, "joints": joints, **smpl_param_arrays(model, betas, rot, cams, joints)}
+
+    posed_rows = None if model is None else RowBlocks(len(table), posed, posing_block_rows(model))
 
     def build(index: int, notes: FrameNotes) -> Frame:
-        key = order[index]
-        source = f"{src} [{key}]"
-        p = people(data[key], source)
+        key, source = order[index], sources[index]
+        p = people(data[key], source, kept[index])
         if not len(p["person_ids"]):  # why nobody: only tracks carried on without a detection, or no track at all
             notes.facts["empty"] = "carried" if len(data[key].get("tid") or ()) else "none"
-        verts = p["vertices"]
+        verts = params = None
+        if posed_rows is not None:  # posed a block of rows at a time (one block kept: memory stays flat)
+            start, stop = int(offsets[index]), int(offsets[index + 1])
+            params = posed_rows.rows(start, stop)
+            verts, p["joints"] = params.pop("vertices"), params.pop("joints")
         return people_frame(names[index], source, notes.warnings, vertices=verts, joints=p["joints"],
                             keypoints_2d=p["keypoints_2d"], person_ids=p["person_ids"],
                             faces=model_faces(model, None if verts is None else verts.shape[1]),
                             n_verts=None if model is None else model.n_verts, keypoints_layout=_KEYPOINTS_LAYOUT,
-                            joints_layout=_KEYPOINTS_LAYOUT if model is None else "smpl24", body_params=p.get("params"))
+                            joints_layout=_KEYPOINTS_LAYOUT if model is None else "smpl24", body_params=params)
 
     meta = base_meta("4dhumans", src, opts, image_size, focal, principal_point, focal_kind=ASSUMED, focal_rule="4dhumans")
     meta["import"].update({

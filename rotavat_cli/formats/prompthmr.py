@@ -60,6 +60,7 @@ from .image_size import centre_image_size
 from .imported import FrameNotes, ImportedSequence, ImportOptions
 from .meta import base_meta, feet_heads_from
 from .model_checks import model_faces, require_model
+from .row_blocks import RowBlocks, frame_offsets, posing_block_rows
 from .smpl import BodyModel, joints_to_smpl24, lbs, pose_from_body, smpl_param_arrays
 
 __all__ = ["sniff", "read_prompthmr", "world_arrays", "tool_world_meta", "READERS"]
@@ -294,25 +295,42 @@ def read_prompthmr(src: Path, opts: ImportOptions) -> ImportedSequence:
     width = max(6, len(str(n_frames - 1)))
     names = frame_names([f"{i:0{width}d}" for i in range(n_frames)], warnings)
 
-    def build(index: int, notes: FrameNotes) -> Frame:
-        picks = rows_by_frame.get(index, [])
-        cam_pose = np.stack([tracks[t]["cam"]["pose"][r] for t, r in picks]) if picks else np.zeros((0, 66))
-        betas = np.stack([tracks[t]["cam"]["shape"][r] for t, r in picks]) if picks else np.zeros((0, 10))
-        transl = np.stack([tracks[t]["cam"]["trans"][r] for t, r in picks]) if picks else np.zeros((0, 3))
+    table = [pick for index in range(n_frames) for pick in rows_by_frame.get(index, [])]  # (track, row), frame by frame
+    offsets = frame_offsets([len(rows_by_frame.get(index, [])) for index in range(n_frames)])
+
+    def stacked(picks: list[tuple[int, int]], group: str, key: str, width: int) -> np.ndarray:
+        """``tracks[t][group][key][r]`` of each (t, r) in ``picks``, stacked: (len(picks), ...)."""
+        return np.stack([tracks[t][group][key][r] for t, r in picks]) if picks else np.zeros((0, width))
+
+    def posed(start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) of the table posed at once (frames posed in batches, not one by one): vertices,
+        SMPL-24 joints and the SMPL-X parameter keys."""
+        picks = table[start:stop]
+        cam_pose = stacked(picks, "cam", "pose", 66)
+        betas, transl = stacked(picks, "cam", "shape", 10), stacked(picks, "cam", "trans", 3)
         pose = pose_from_body(cam_pose[:, :3], cam_pose[:, 3:66], model.n_joints)
         vertices, joints55 = lbs(model, betas, pose, transl)
-        body = smpl_param_arrays(model, betas, pose, transl, joints55)
+        return {"vertices": vertices, "joints": joints_to_smpl24(joints55)[0],
+                **smpl_param_arrays(model, betas, pose, transl, joints55)}
+
+    posed_rows = RowBlocks(len(table), posed, posing_block_rows(model))
+
+    def build(index: int, notes: FrameNotes) -> Frame:
+        picks = rows_by_frame.get(index, [])
+        start, stop = int(offsets[index]), int(offsets[index + 1])
+        body = posed_rows.rows(start, stop)
+        vertices, joints = body.pop("vertices"), body.pop("joints")
         if has_world:
-            world = {key: np.stack([tracks[t]["world"][key][r] for t, r in picks]) if picks else np.zeros((0, 3))
-                     for key in ("pose", "shape", "trans")}
+            world = {key: stacked(picks, "world", key, 3) for key in ("pose", "shape", "trans")}
             n_shape = min(world["shape"].shape[1], root_dirs.shape[1])
             pelvis = root_template + world["shape"][:, :n_shape] @ root_dirs[:, :n_shape].T + world["trans"]
-            body.update(world_arrays(cam_pose[:, :3], world["pose"][:, :3], world["trans"], pelvis))
+            body.update(world_arrays(stacked(picks, "cam", "pose", 66)[:, :3], world["pose"][:, :3], world["trans"],
+                                     pelvis))
         boxes = None
         if has_boxes:
             boxes = np.stack([tracks[t]["boxes"][r] for t, r in picks]) * scale if picks else np.zeros((0, 4))
         return people_frame(names[index], f"{path} [frame {index}]", notes.warnings, vertices=vertices,
-                            joints=joints_to_smpl24(joints55)[0], person_ids=np.array([t for t, _ in picks], np.int64),
+                            joints=joints, person_ids=np.array([t for t, _ in picks], np.int64),
                             faces=faces, n_verts=model.n_verts, boxes_2d=boxes, body_params=body)
 
     meta = base_meta("prompthmr", path, opts, image_size, focal, (float(principal[0]), float(principal[1])),

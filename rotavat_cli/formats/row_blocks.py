@@ -33,7 +33,7 @@ class RowBlocks:
 
     def __init__(self, n_rows: int, compute: Callable[[int, int], dict[str, np.ndarray]], block: int) -> None:
         self.n_rows, self.compute, self.block = int(n_rows), compute, max(1, int(block))
-        self._span = (0, 0)
+        self._span = (0, -1)  # nothing kept: even rows [0, 0) (an empty first frame) compute the first block
         self._kept: dict[str, np.ndarray] = {}
 
     def rows(self, start: int, stop: int) -> dict[str, np.ndarray]:
