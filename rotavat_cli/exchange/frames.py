@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.camera import Camera
+from ..geometry.camera import Camera, world_points_f32
 from ..errors import InputError
 from ..render.rows import read_row
 from ..render.style import RGB
@@ -34,13 +34,6 @@ __all__ = ["FramesPlan", "plan_frames", "world_points_f32"]
 _MODES = {"mesh": TRIANGLES, "skeleton": LINES, "points": POINTS}
 # STEP keyframe values of the visibility trick: hidden, shown, hidden (scale x, y, z)
 _VISIBILITY = np.array([[0.0] * 3, [1.0] * 3, [0.0] * 3], dtype=np.float32)
-
-
-def world_points_f32(camera: Camera, points_cam: np.ndarray) -> np.ndarray:
-    """Camera-frame points (..., 3) -> world frame, float32 (what glTF stores: 0.1 mm at 1 km)."""
-    R = np.asarray(camera.R_cam_from_world, dtype=np.float32)
-    t = np.asarray(camera.t_cam_from_world, dtype=np.float32)
-    return (np.asarray(points_cam, dtype=np.float32) - t) @ R
 
 
 @dataclass

@@ -38,6 +38,7 @@ import numpy as np
 
 __all__ = [
     "Camera",
+    "world_points_f32",
     "up_vector_cam",
     "pitch_roll_from_up",
     "intrinsics_matrix",
@@ -331,7 +332,7 @@ class Camera:
         return world_to_cam(points_world, self.R_cam_from_world, self.t_cam_from_world)
 
     def world_from_cam(self, points_cam: np.ndarray) -> np.ndarray:
-        """Camera-frame points (..., 3) -> world frame."""
+        """Camera-frame points (..., 3) -> world frame (float64; :func:`world_points_f32` for meshes stored as float32)."""
         return (np.asarray(points_cam, dtype=np.float64) - self.t_cam_from_world) @ self.R_cam_from_world
 
     def horizon_v_px(self, u_px: np.ndarray | float) -> np.ndarray:
@@ -460,3 +461,11 @@ def check_camera_bounds(cam: Camera) -> None:
         raise ValueError(f"key 'principal_point' [{cx:g}, {cy:g}] is far outside the {W}x{H} image")
     if cam.height_m > MAX_HEIGHT_M:
         raise ValueError(f"key 'height_m' {cam.height_m:g} is beyond {MAX_HEIGHT_M:g} m")
+
+
+def world_points_f32(camera: Camera, points_cam: np.ndarray) -> np.ndarray:
+    """Camera-frame points (..., 3) -> world frame in float32, what a recording or a glTF stores (0.1 mm at 1 km):
+    about twice as fast as :meth:`Camera.world_from_cam` on a crowd's meshes."""
+    R = np.asarray(camera.R_cam_from_world, dtype=np.float32)
+    t = np.asarray(camera.t_cam_from_world, dtype=np.float32)
+    return (np.asarray(points_cam, dtype=np.float32) - t) @ R

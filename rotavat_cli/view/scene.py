@@ -19,7 +19,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..geometry.camera import Camera
+from ..geometry.camera import Camera, world_points_f32
 
 __all__ = ["GRID_MARGIN_M", "MAX_GRID_LINES", "ground_extent_m", "grid_step_m", "grid_lines_world", "grid_ticks_world",
            "plane_quad_world", "uncertainty_cameras", "camera_label", "track_strips", "EYE_FOV_Y_DEG", "eye_world",
@@ -241,14 +241,6 @@ def eye_world(points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         seen = across / (distance - toward)[:, None]  # (N, 2) on the view at unit depth
         target = target + distance * (0.5 * (seen.min(axis=0) + seen.max(axis=0))) @ np.stack([right, up])
     return target + distance * _EYE_FROM, target
-
-
-def world_points_f32(camera: Camera, points_cam: np.ndarray) -> np.ndarray:
-    """Camera-frame points (..., 3) -> world frame, float32 (what a recording stores: 0.1 mm at 1 km; twice as fast
-    as :meth:`Camera.world_from_cam` on a crowd's meshes)."""
-    R = np.asarray(camera.R_cam_from_world, dtype=np.float32)
-    t = np.asarray(camera.t_cam_from_world, dtype=np.float32)
-    return (np.asarray(points_cam, dtype=np.float32) - t) @ R
 
 
 _ANCHOR_POINTS = 256  # a label's place is found from about this many of a person's points
