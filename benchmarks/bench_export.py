@@ -9,7 +9,7 @@ every run starts from the page cache, then times in the same run (interleaved, b
 
 - read: ``open_sequence(gt).read_frame(name)`` for every frame (the input floor);
 - npz, the baseline: the same reading, the world transform the export applies
-  (:func:`rotavat_cli.exchange.frames.world_points_f32`, float32) and the same vertex bytes written with
+  (:func:`rotavat_cli.geometry.camera.world_points_f32`, float32) and the same vertex bytes written with
   ``np.savez`` (uncompressed), one file per frame;
 - ``export_animated`` (what ``rotavat export SEQ --out X.glb`` runs): both passes, per-frame meshes;
 - the whole command ``rotavat export GT --out X.glb --quiet`` in a fresh process, once.
@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rotavat_cli.exchange.animated import export_animated  # noqa: E402
-from rotavat_cli.exchange.frames import world_points_f32  # noqa: E402
+from rotavat_cli.geometry.camera import world_points_f32  # noqa: E402
 from rotavat_cli.sequence import open_sequence  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402
 from _measure import (PEAK_KB_SOURCE, check_disk, read_all, rotavat_argv, row, run_or_exit,  # noqa: E402

@@ -9,7 +9,7 @@ temporary folder, reads it once so every run starts from the page cache, then ti
 
 - read: ``open_sequence(pred).read_frame(name)`` for every frame (the input floor);
 - npz, the baseline: the same reading, the same world transform the recording applies
-  (:func:`rotavat_cli.view.scene.world_points_f32`, float32) and the same vertex bytes written with
+  (:func:`rotavat_cli.geometry.camera.world_points_f32`, float32) and the same vertex bytes written with
   ``np.savez`` (uncompressed), one file per frame: a recording minus Rerun (and minus the normals);
 - npz with ``Camera.world_from_cam(v).astype(np.float32)`` (float64 temporaries), for reference only: the
   ratios are against the row above. Its extra cost is mostly page faults of fresh 3 MB temporaries, so it
@@ -52,7 +52,7 @@ sys.path.insert(0, str(ROOT))
 from rotavat_cli.sequence import open_sequence, read_camera_yaml  # noqa: E402
 from rotavat_cli.synth import SynthOptions, write_synth_scene  # noqa: E402
 from rotavat_cli.view import ViewOptions, record_sequences, require_rerun  # noqa: E402
-from rotavat_cli.view.scene import world_points_f32  # noqa: E402
+from rotavat_cli.geometry.camera import world_points_f32  # noqa: E402
 from _measure import (PEAK_KB_SOURCE, check_disk, read_all, rotavat_argv, row, run_or_exit,  # noqa: E402
                       scene_args, size_bytes, timed)
 
