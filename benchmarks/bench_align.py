@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -31,6 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from rotavat_cli.allocator import keep_freed_memory  # noqa: E402
 from rotavat_cli.alignment.align import align_sequence  # noqa: E402
 from rotavat_cli.sequence import Frame, open_sequence, write_frame, write_meta  # noqa: E402
 from rotavat_cli.synth import SynthOptions, synth_frames  # noqa: E402
@@ -77,6 +79,8 @@ def time_align(seq_path: Path, out: Path, camera) -> tuple[float, float]:
 _CHILD = """
 import json, resource, sys
 sys.path.insert(0, {root!r})
+from rotavat_cli.allocator import keep_freed_memory
+keep_freed_memory()
 from rotavat_cli.alignment.align import align_sequence
 from rotavat_cli.sequence import open_sequence, Sequence
 from rotavat_cli.geometry.camera import camera_from_yaml_dict
@@ -106,6 +110,7 @@ def main() -> int:
     parser.add_argument("--workdir", type=Path, default=None)
     parser.add_argument("--keep", action="store_true")
     args = parser.parse_args()
+    keep_freed_memory()  # as the command line does (rotavat_cli/cli/__init__.py): floor and align alike
     work = Path(args.workdir or tempfile.mkdtemp(prefix="rotavat-bench-align-"))
     try:
         seq = work / "seq"
@@ -116,7 +121,9 @@ def main() -> int:
         shutil.rmtree(work / "warm")
         floors, aligns = [], []
         for i in range(args.repeats):  # interleaved, so the machine's drift (page cache, writeback) touches both
+            os.sync()  # each run starts without the kernel writing back an earlier run's (or the input's) frames
             floors.append(io_floor(seq, work / f"floor{i}"))
+            os.sync()
             aligns.append(time_align(seq, work / f"aligned{i}", camera))
             shutil.rmtree(work / f"floor{i}")
             shutil.rmtree(work / f"aligned{i}")

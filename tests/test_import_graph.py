@@ -277,4 +277,5 @@ def test_version_and_help_import_none_of_the_api(argv):
     loaded = set(proc.stderr.split())
     assert proc.returncode == 0 and "rotavat" in proc.stdout
     assert loaded <= {"rotavat_cli", "rotavat_cli.version", "rotavat_cli.lazy", "rotavat_cli.errors", "rotavat_cli.cli",
-                      "rotavat_cli.cli.group", "rotavat_cli.cli.commands", "rotavat_cli.cli._run"}, loaded
+                      "rotavat_cli.cli.group", "rotavat_cli.cli.commands", "rotavat_cli.cli._run",
+                      "rotavat_cli.allocator"}, loaded

@@ -17,6 +17,10 @@ for _blas_threads in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from typing import Annotated  # noqa: E402
 
+from ..allocator import keep_freed_memory  # noqa: E402
+
+keep_freed_memory()  # frames' arrays are reused, not faulted in again page by page (rotavat_cli.allocator)
+
 import typer  # noqa: E402
 
 from ..version import WRITTEN_BY
