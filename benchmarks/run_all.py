@@ -27,6 +27,7 @@ BENCHMARKS = {
     "bench_focal.py": ([], ["--quick"]),
     "bench_onedepth.py": ([], ["--quick"]),
     "bench_stature.py": ([], ["--quick"]),
+    "bench_reference.py": ([], ["--quick"]),
     "bench_view.py": ([], ["--quick"]),
     "bench_export.py": ([], ["--quick"]),
     "bench_import.py": ([], ["--quick"]),

@@ -170,7 +170,8 @@ def test_measure_json_and_an_explicit_camera_and_csv(seq, tmp_path, runner):
     assert summary["pairs"] == summary["measured"] == 13
     assert {t["id"]: t["median_m"] for t in summary["tracks"]} == pytest.approx(STATURES, abs=1e-6)
     assert summary["median_of_tracks_m"] == pytest.approx(1.71, abs=1e-6)
-    assert out.read_text().splitlines()[0] == "track_id,pairs,median_stature_m,spread_m,stature_from"
+    assert out.read_text().splitlines()[0] == ("track_id,pairs,median_stature_m,spread_m,stature_from,std_m,std_camera_m,"
+                                               "std_pixels_m,extrapolated")
     assert summary["stature_from"] == "prior" and "prior given back" in summary["stature_provenance"]
     assert result.stderr == ""  # --json: diagnostics quiet too
     warned = invoke(runner, "measure", seq, "--camera", other, "--out", out)  # its own CSV: replaced freely

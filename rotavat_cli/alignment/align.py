@@ -17,6 +17,15 @@ person); the output lives in the camera (the calibrated or given one) and says s
 ``focal_length``/``K``/``principal_point`` and its meta.yaml are the camera's, with
 ``focal_kind: camera``. Each person keeps the foot and crown pixels the method drew
 (:func:`rotavat_cli.alignment.transform.method_rays_cam`).
+
+A camera with a lens (camera.yaml's ``distortion``): the method drew its people in the (distorted)
+image with its own pinhole, so each person's foot and crown rays are the camera's rays through
+those pixels, the lens removed (:meth:`rotavat_cli.geometry.camera.Camera.pixel_rays_cam`), and
+the drifts are measured in the image (:meth:`~rotavat_cli.geometry.camera.Camera.project`). The
+body itself stays rigid: only its foot and crown pixels are kept exactly; its other points move
+with the lens's local stretch (a pinhole mesh cannot bend). The output frames'
+``focal_length``/``K``/``principal_point`` are the camera's pinhole; the lens is in the output's
+camera.yaml (``distortion``) only.
 """
 
 from __future__ import annotations
@@ -75,10 +84,14 @@ class _FramePeople:
 
 
 def _frame_people(frame: Frame, camera: Camera, mesh: MeshIntrinsics) -> _FramePeople:
-    """Foot and crown points of a frame's people and the rays they keep in ``camera``."""
+    """Foot and crown points of a frame's people and the rays they keep in ``camera``: the camera's rays
+    (its lens included) through the pixels the method drew with its own pinhole."""
     feet_cam, heads_cam = frame_foot_head_cam(frame, mesh)
     rays = (feet_cam, heads_cam)
-    if not mesh.same_as(camera):
+    if camera.distortion != 0.0:
+        rays = tuple(camera.pixel_rays_cam(project_cam_to_px(points, mesh.focal_px, mesh.principal_point))
+                     for points in (feet_cam, heads_cam))
+    elif not mesh.same_as(camera):
         rays = tuple(method_rays_cam(points, mesh.focal_px, mesh.principal_point, camera.focal_px,
                                      camera.principal_point) for points in (feet_cam, heads_cam))
     return _FramePeople(feet_cam, heads_cam, *rays)
@@ -161,6 +174,16 @@ def _pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, mesh_focal_px
     return _hypot_f32(du, dv)
 
 
+def _lens_pixel_drift_px(before_cam: np.ndarray, after_cam: np.ndarray, mesh_focal_px: np.ndarray,
+                         mesh_principal_point: tuple[float, float], camera: Camera) -> np.ndarray:
+    """:func:`_pixel_drift_px` through a camera with a lens (p, N) px: the pixels the method drew (its pinhole)
+    against the camera's image pixels (:meth:`Camera.project`, the distortion applied); coordinates first (p, 3, N)."""
+    before = np.moveaxis(np.asarray(before_cam, dtype=np.float64), 1, -1)  # (p, N, 3)
+    after = np.moveaxis(np.asarray(after_cam, dtype=np.float64), 1, -1)
+    drawn = project_cam_to_px(before, np.asarray(mesh_focal_px, dtype=np.float64)[:, None], mesh_principal_point)
+    return np.linalg.norm(camera.project(after) - drawn, axis=-1).astype(np.float32)
+
+
 def _hypot_f32(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """``np.hypot`` of float32 arrays (...,) -> float32 (...,), bit for bit, several times faster.
 
@@ -205,7 +228,9 @@ def _align_points(verts_cam: np.ndarray, transform: AlignTransform, mesh: MeshIn
     for before, after in transformed_blocks(verts_cam, transform, dtype):  # (p, 3, V) each
         focal = mesh.focal_px[start:start + len(before)]
         start += len(before)
-        mean, peak = _nan_mean_max(_pixel_drift_px(before, after, focal, camera.focal_px, shift))
+        drift = (_pixel_drift_px(before, after, focal, camera.focal_px, shift) if camera.distortion == 0.0
+                 else _lens_pixel_drift_px(before, after, focal, mesh.principal_point, camera))
+        mean, peak = _nan_mean_max(drift)
         moved.append(after)
         means.append(mean)
         peaks.append(peak)

@@ -74,8 +74,11 @@ class MeshIntrinsics:
                    camera.principal_point if pp is None else pp)
 
     def same_as(self, camera: Camera) -> bool:
-        """True when every person's mesh was made in the camera's own intrinsics."""
-        return bool(np.all(self.focal_px == camera.focal_px)) and tuple(self.principal_point) == tuple(camera.principal_point)
+        """True when every person's mesh was made in the camera's own intrinsics: its focal, its principal point
+        and no lens (a method's camera is a pinhole: through a camera with ``distortion`` the pixels it drew see
+        other rays, :meth:`Camera.pixel_rays_cam`)."""
+        return (camera.distortion == 0.0 and bool(np.all(self.focal_px == camera.focal_px))
+                and tuple(self.principal_point) == tuple(camera.principal_point))
 
 
 _FOOT_JOINTS_RADIUS = 0.15  # joints drawn within this fraction of the foot-crown pixel distance are the foot's

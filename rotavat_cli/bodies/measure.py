@@ -63,17 +63,27 @@ _EPS = 1e-12  # a vertical whose image is a point (|d|^2 below this; the camera 
 def statures_from_camera_m(feet_px: np.ndarray, heads_px: np.ndarray, camera: Camera) -> np.ndarray:
     """Stature (m) of each upright person, from its foot and head pixels and a known camera.
 
-    feet_px, heads_px: (..., 2) px, mid-sole and crown (broadcast together); camera: the static
-    camera (no lens distortion). Returns (...) float64 metres: the height above the ground of the
-    point of the person's vertical whose pixel is nearest to the head pixel (module docstring).
-    NaN where the foot ray misses the ground (foot on or above the horizon), where the nearest
-    point is behind the camera or at the vertical vanishing point, or where a pixel is not finite.
+    feet_px, heads_px: (..., 2) px of the image, mid-sole and crown (broadcast together); camera: the
+    static camera. Its lens distortion (``camera.distortion``) is removed from both pixels first
+    (:meth:`Camera.undistort_px`); the closed form then runs on the pinhole's pixels, where the
+    vertical's image is a straight line. Returns (...) float64 metres: the height above the ground of
+    the point of the person's vertical whose (undistorted) pixel is nearest to the head's (module
+    docstring). NaN where the foot ray misses the ground (foot on or above the horizon), where the
+    nearest point is behind the camera or at the vertical vanishing point, or where a pixel is not
+    finite or beyond the lens's reach.
+
+    >>> lens = Camera((640, 480), 500.0, None, np.deg2rad(30.0), 0.0, 5.0, distortion=-0.25)
+    >>> feet_cam = lens.backproject_px_to_ground(np.array([[20.0, 460.0], [600.0, 300.0]]))
+    >>> feet_px, heads_px = lens.project(feet_cam), lens.project(feet_cam + 1.75 * lens.up_cam)
+    >>> statures_from_camera_m(feet_px, heads_px, lens).round(9).tolist()
+    [1.75, 1.75]
     """
     feet = np.asarray(feet_px, dtype=np.float64)
     heads = np.asarray(heads_px, dtype=np.float64)
     if feet.shape[-1:] != (2,) or heads.shape[-1:] != (2,):
         raise ValueError(f"feet_px and heads_px must be (..., 2) pixels, got {feet.shape} and {heads.shape}")
-    feet, heads = np.broadcast_arrays(feet, heads)
+    feet, heads = np.broadcast_arrays(camera.undistort_px(feet), camera.undistort_px(heads))
+    camera = camera.pinhole  # the pixels are the pinhole's now
     a = camera.backproject_px_to_ground(feet) @ camera.K.T  # (..., 3) homogeneous foot pixel; a_z = depth, m
     b = camera.K @ camera.up_cam  # (3,) homogeneous image of world up (the vertical vanishing point)
     a_z = a[..., 2]

@@ -47,6 +47,7 @@ import numpy as np
 from ..geometry.camera import Camera, camera_parameters, horizon_v_px
 from ..errors import DegenerateSceneError
 from .flat_ground import ground_findings
+from .footprint import ParameterCovariance, footprint_polygon_px, report_covariance
 from .grid import paper_grid_search
 from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
 from .objective import MIN_NOISE_PX, BodyAxes, Problem, design_effect, make_problem, profiled
@@ -54,7 +55,8 @@ from .options import CalibrateOptions
 from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, SLOT_LABELS, describe,
                      param_bounds, param_vector, to_internal)
 from .plausibility import implausible_findings
-from .refine import fit_with_rejection, refine_fit
+from .priors import LEAN_SD_DEG, MOUNTED_ROLL_SD_DEG
+from .refine import FEW_PAIRS, fit_soft, fit_with_rejection, refine_fit
 from .uncertainty import Systematics, covariances, fit_warnings, moved_by_data, std_and_corr
 
 __all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "fit_per_frame"]
@@ -96,6 +98,8 @@ class CalibrationResult:
     design_effect: float = 1.0  # how many tracked pairs one independent pair is worth (objective.design_effect)
     body_axes: int = 0  # standing people whose own vertical axis entered the fit (0: not used)
     focal_prior: str = "none"  # the focal's prior: "lens", "fov" (the user's) or "none"
+    covariance: ParameterCovariance | None = None  # the estimated camera parameters', report units (.footprint)
+    footprint_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (V, 2) px: the inliers' feet hull
 
     @property
     def horizon_v_px(self) -> float:
@@ -129,6 +133,9 @@ class CalibrationResult:
             "points": self.points,
             **({"distortion": float(self.distortion)} if math.isfinite(self.distortion) else {}),
             **({"box_depth_m": float(self.box_depth_m)} if self.points == "boxes" else {}),
+            **({"covariance": self.covariance.to_dict()} if self.covariance is not None and self.covariance.names
+               else {}),
+            **({"footprint_px": [[float(u), float(v)] for u, v in self.footprint_px]} if len(self.footprint_px) else {}),
         }
 
 
@@ -207,10 +214,17 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
                     _refuse_bounds(params, free, inp.size[1])
             else:
                 frames_u = None if inp.frames is None else inp.frames[idx]
-                prob, params, mask_u, scale = _weigh_correlated_pairs(prob, params, free, mask_u, scale, frames_u)
+                tracks_u = None if inp.tracks is None else inp.tracks[idx]
+                refit = fit_with_rejection
+                if options.few_pairs and len(idx) < FEW_PAIRS:
+                    refit = fit_soft
+                    prob, params, mask_u, scale = _few_pairs_policy(prob, params, free, scale, tracks_u, options,
+                                                                    notes)
+                prob, params, mask_u, scale = _weigh_correlated_pairs(prob, params, free, mask_u, scale, frames_u,
+                                                                      refit)
                 if body is not None and options.body_axes and free[PITCH]:
                     prob, params, mask_u, scale = _with_bodies(prob, params, free, mask_u, scale, body, options,
-                                                               None if inp.tracks is None else inp.tracks[idx])
+                                                               tracks_u, refit)
         if method == "grid":
             params, mask_u, free, scale, prob = _grid_fit(inp, idx, options, workers, prob)
         result = _result(inp, idx, options, method, points, notes, extra, prob, params, free, mask_u, scale,
@@ -363,30 +377,83 @@ def _seed_grid(options: CalibrateOptions):
     return replace(options.grid, pitch_range_deg=(options.pitch_deg, options.pitch_deg), steps=(steps[0], 1, steps[2]))
 
 
+def _few_pairs_policy(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, tracks: np.ndarray | None,
+                      options: CalibrateOptions, notes: list[str]) -> tuple[Problem, np.ndarray, np.ndarray, float]:
+    """The fit of fewer than :data:`.refine.FEW_PAIRS` usable pairs (``prob``; from the hard-rejection fit
+    ``params`` (6,)), each decision added to ``notes``:
+
+    - every pair kept under a soft (Cauchy) loss instead of hard rejection (:func:`.refine.fit_soft`: the
+      robust scale of few pairs is too noisy to reject by);
+    - the roll held near 0 by the mounting prior (``priors.MOUNTED_ROLL_SD_DEG``) when the pairs cannot
+      determine it (:func:`_roll_undetermined`); a prior, not a fixed 0, so that pairs which do determine
+      the roll still move it.
+    """
+    n = len(prob.rel_feet)
+    mask = np.ones(n, bool)
+    params, mask, scale = fit_soft(prob, params, free, mask, options.max_rounds)
+    notes.append(f"few pairs ({n} usable < {FEW_PAIRS}): a soft robust loss (Cauchy) on every pair instead of "
+                 "rejecting outliers")
+    if not free[ROLL] or prob.priors is None:
+        return prob, params, mask, scale
+    roll_sd_deg, people = _roll_sd_deg(prob, params, free, mask, scale, tracks)
+    if not _roll_undetermined(roll_sd_deg):
+        return prob, params, mask, scale
+    prob = replace(prob, priors=prob.priors.with_sd(ROLL, math.radians(MOUNTED_ROLL_SD_DEG)))
+    params, mask, scale = fit_soft(prob, params, free, mask, options.max_rounds)
+    notes.append(f"roll held near 0 (prior sd {MOUNTED_ROLL_SD_DEG:g}°): {n} pairs of {people} "
+                 f"{'person' if people == 1 else 'people'} cannot determine it (its std {roll_sd_deg:.1f}° with "
+                 f"a {LEAN_SD_DEG:g}° lean per person > {0.5 * MOUNTED_ROLL_SD_DEG:g}°)")
+    return prob, params, mask, scale
+
+
+def _roll_sd_deg(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
+                 tracks: np.ndarray | None) -> tuple[float, int]:
+    """The roll's std (deg) the pairs ``mask`` (N,) give with the default priors, and the people they come from
+    (tracks; untracked pairs count one person each): the fit's statistical std combined with the people's
+    lean (``priors.LEAN_SD_DEG / sqrt(people)``), which the head columns of one person share."""
+    inl = prob.subset(np.flatnonzero(mask))
+    clusters = None if tracks is None else tracks[mask]
+    _, cov, _, _ = covariances(inl, params, free, scale, clusters, Systematics(0.0, 0.0, 0.0, 0.0), False)
+    people = int(mask.sum()) if tracks is None else len(np.unique(tracks[mask]))
+    stat_deg = math.degrees(math.sqrt(max(cov[ROLL, ROLL], 0.0)))
+    return math.hypot(stat_deg, LEAN_SD_DEG / math.sqrt(max(people, 1))), people
+
+
+def _roll_undetermined(roll_sd_deg: float) -> bool:
+    """True when the pairs' roll std (deg) exceeds half the mounting prior's sd: the prior would then carry at
+    least a fifth of the roll's information (its weight ``sd^2 / (sd^2 + prior_sd^2)`` >= 0.2), so the pairs
+    do not determine the roll by themselves. One person always does (the lean alone is 1.0 deg); from four
+    people, only when their clicks leave the roll uncertain."""
+    return roll_sd_deg > 0.5 * MOUNTED_ROLL_SD_DEG
+
+
 def _weigh_correlated_pairs(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
-                            frames: np.ndarray | None) -> tuple[Problem, np.ndarray, np.ndarray, float]:
-    """Refit with each tracked pair weighted by its design effect (:func:`.objective.design_effect`),
-    measured on the inliers of a first fit; unchanged when the pairs are independent."""
+                            frames: np.ndarray | None, refit=fit_with_rejection
+                            ) -> tuple[Problem, np.ndarray, np.ndarray, float]:
+    """Refit (``refit``: :func:`.refine.fit_with_rejection`, or :func:`.refine.fit_soft` for few pairs) with
+    each tracked pair weighted by its design effect (:func:`.objective.design_effect`), measured on the
+    inliers of a first fit; unchanged when the pairs are independent."""
     inliers = np.flatnonzero(mask)
     deff = design_effect(prob.subset(inliers), params, scale, None if frames is None else frames[inliers])
     if deff <= 1.0:
         return prob, params, mask, scale
     prob = replace(prob, deff=np.where(prob.track >= 0, deff, 1.0))
-    return (prob, *fit_with_rejection(prob, params, free, mask, _REWEIGHT_ROUNDS))
+    return (prob, *refit(prob, params, free, mask, _REWEIGHT_ROUNDS))
 
 
 def _with_bodies(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
-                 body: BodyAxes, options: CalibrateOptions, tracks: np.ndarray | None
+                 body: BodyAxes, options: CalibrateOptions, tracks: np.ndarray | None, refit=fit_with_rejection
                  ) -> tuple[Problem, np.ndarray, np.ndarray, float]:
-    """Refit with the standing bodies' own vertical when the pairs (with the priors) leave the pitch's
-    std above ``options.body_engage_pitch_sd_deg``; unchanged otherwise."""
+    """Refit (``refit``, as :func:`_weigh_correlated_pairs`) with the standing bodies' own vertical when the
+    pairs (with the priors) leave the pitch's std above ``options.body_engage_pitch_sd_deg``; unchanged
+    otherwise."""
     inl = prob.subset(np.flatnonzero(mask))
     clusters = None if tracks is None else tracks[mask]
     _, cov, _, _ = covariances(inl, params, free, scale, clusters, Systematics(0.0, 0.0, 0.0, 0.0), False)
     if not math.degrees(math.sqrt(max(cov[PITCH, PITCH], 0.0))) > options.body_engage_pitch_sd_deg:
         return prob, params, mask, scale
     prob = replace(prob, body=replace(body, sd_rad=math.radians(options.body_axis_sd_deg)))
-    return (prob, *fit_with_rejection(prob, params, free, mask, _REWEIGHT_ROUNDS))
+    return (prob, *refit(prob, params, free, mask, _REWEIGHT_ROUNDS))
 
 
 def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, workers: int | None, prob: Problem
@@ -426,7 +493,8 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
         params[FOCAL] = options.focal_px  # exactly as given (no log/exp round trip)
     if options.pitch_deg is not None and method == "refine":
         params[PITCH] = math.radians(options.pitch_deg)
-    camera = Camera(inp.size, params[FOCAL], tuple(inp.pp), params[PITCH], params[ROLL], params[HEIGHT])
+    camera = Camera(inp.size, params[FOCAL], tuple(inp.pp), params[PITCH], params[ROLL], params[HEIGHT],
+                    distortion=params[DISTORTION] if options.distortion else 0.0)
     inlier_mask = np.zeros(len(inp.feet), bool)
     inlier_mask[idx[mask_u]] = True
     clusters = inp.tracks if inp.tracks is not None else inp.frames
@@ -491,4 +559,6 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
                              float(params[DISTORTION]) if options.distortion else math.nan,
                              float(params[BOX_DEPTH]), fixed, tuple(notes), height_known, stature_sd,
                              determined, implausible, 1.0 if inl.deff is None else float(np.max(inl.deff)),
-                             0 if prob.body is None else prob.body.people, focal_prior)
+                             0 if prob.body is None else prob.body.people, focal_prior,
+                             covariance=report_covariance(params, cov, free, held, height_known),
+                             footprint_px=footprint_polygon_px(inp.feet[inlier_mask]))

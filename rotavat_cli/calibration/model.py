@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.camera import up_vector_cam
+from ..geometry.lens import undistort_rel_px
 from .params import BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, slot
 
 __all__ = ["RAY_EPS", "Z_MIN", "CameraTerms", "camera_terms", "foot_ray_d", "foot_terms", "undistort", "head_errors", "head_gain", "predict_heads_px"]
@@ -61,15 +62,13 @@ def foot_ray_d(u: np.ndarray, v: np.ndarray, f: np.ndarray, nx, ny, nz) -> np.nd
 
 def undistort(rel_feet: np.ndarray, diff: np.ndarray, lam: np.ndarray, radius_px: float
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Division-model undistortion ``p / (1 + lam |p|^2 / R^2)`` of feet and heads -> (Q, N, 2) each.
+    """Division-model undistortion (:func:`rotavat_cli.geometry.lens.undistort_rel_px`) of feet and heads -> (Q, N, 2) each.
 
     rel_feet, diff: (N, 2) px about the principal point; lam: (Q, 1); radius_px: R, the half-diagonal.
+    Returns the undistorted feet and ``feet - heads``, both undistorted.
     """
-    def one(p: np.ndarray) -> np.ndarray:
-        return p / (1.0 + lam[..., None] * (np.sum(p * p, axis=-1) / radius_px**2)[None, :, None])
-
-    feet = one(rel_feet)
-    return feet, feet - one(rel_feet - diff)
+    feet = undistort_rel_px(rel_feet, lam, radius_px)
+    return feet, feet - undistort_rel_px(rel_feet - diff, lam, radius_px)
 
 
 @dataclass(frozen=True)

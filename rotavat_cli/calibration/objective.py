@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry.camera import up_vector_cam
+from ..geometry.lens import lens_radius_px
 from ..parallel import cpu_count
 from .model import CameraTerms, camera_terms, head_errors, head_gain
 from .params import PITCH, ROLL, from_internal, to_internal
@@ -123,7 +124,7 @@ def make_problem(feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, person_hei
         n_tracks = len(labels)
     spread = np.where(track >= 0, 0.0, length * person_height_sd_m / person_height_m)
     return Problem(feet - pp, diff, axis, spread, float(noise_px), person_height_m, person_height_sd_m, track,
-                   n_tracks, residual, float(image_size[1]), priors, 0.5 * math.hypot(*image_size),
+                   n_tracks, residual, float(image_size[1]), priors, lens_radius_px(image_size),
                    foot_noise=bool(foot_noise))
 
 

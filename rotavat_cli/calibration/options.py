@@ -94,6 +94,11 @@ class CalibrateOptions:
     # The foot's pixel noise carried into each head's error (objective.pair_covariance: errors in variables);
     # False gives the weights of earlier versions (benchmarks/bench_consistency.py shows what that costs).
     errors_in_variables: bool = field(default=True, metadata=_NOT_IN_CONFIG)
+    # The few-pairs policy (fit._few_pairs_policy): with few pairs a soft robust loss instead of hard rejection, and
+    # the roll held near 0 when the pairs cannot determine it (benchmarks/bench_reference.py compares it with the
+    # fits of earlier versions). Off by default for now: the sample's calibration (20 pairs of 5 people) is itself
+    # "few pairs", and the policy changes it (tests/test_golden_outputs.py); turning it on is issue 35's decision.
+    few_pairs: bool = field(default=False, metadata=_NOT_IN_CONFIG)
 
     RULES: ClassVar[dict[str, Rule]] = {  # every option's bounds and names (rotavat_cli/settings/option_rules.py)
         "method": Rule(names=METHODS), "residual": Rule(names=RESIDUALS), "points": Rule(names=POINTS),
@@ -153,7 +158,7 @@ class CalibrateOptions:
             raise ValueError(f"max_rounds must be a positive integer, got {self.max_rounds!r}")
         object.__setattr__(self, "max_rounds", int(self.max_rounds))
         for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes",
-                     "errors_in_variables"):
+                     "errors_in_variables", "few_pairs"):
             object.__setattr__(self, name, bool(getattr(self, name)))
 
     def given_focal_px(self, image_size: tuple[int, int]) -> float | None:

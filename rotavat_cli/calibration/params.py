@@ -30,6 +30,8 @@ import math
 
 import numpy as np
 
+from ..geometry.lens import MAX_DISTORTION  # the bound a Camera's lens is held to as well
+
 __all__ = ["FOCAL", "PITCH", "ROLL", "HEIGHT", "DISTORTION", "BOX_DEPTH", "N_PARAMS", "SLOT_LABELS", "PARAM_NAMES",
            "MODEL_NAMES", "param_vector", "slot", "describe", "to_internal", "from_internal", "param_bounds"]
 
@@ -82,7 +84,7 @@ def param_bounds(image_height_px: float) -> tuple[np.ndarray, np.ndarray]:
     """Internal-form bounds ``(6,)`` each: focal 0.02-50 H, pitch -80..89.9 deg, roll +-45 deg, height
     0.05-1000 m, distortion +-0.5 (corner displacement over the half-diagonal), box depth -1..2 m."""
     lo = param_vector(focal=math.log(0.02 * image_height_px), pitch=np.deg2rad(-80.0), roll=np.deg2rad(-45.0),
-                      height=math.log(0.05), distortion=-0.5, box_depth=-1.0)
+                      height=math.log(0.05), distortion=-MAX_DISTORTION, box_depth=-1.0)
     hi = param_vector(focal=math.log(50.0 * image_height_px), pitch=np.deg2rad(89.9), roll=np.deg2rad(45.0),
-                      height=math.log(1000.0), distortion=0.5, box_depth=2.0)
+                      height=math.log(1000.0), distortion=MAX_DISTORTION, box_depth=2.0)
     return lo, hi

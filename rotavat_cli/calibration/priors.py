@@ -19,7 +19,9 @@ The priors, on the internal parameters:
   view, 4D-Humans' focal rule, is +10 sd: an HPS tool's rule is never a prior;
 - pitch: N(15 deg, 25 deg). Handheld cameras look about level (-5..15 deg), surveillance cameras
   down (10-60 deg): a bound, not an opinion;
-- roll: N(0 deg, 10 deg). Cameras are mounted and held nearly level;
+- roll: N(0 deg, 10 deg). Cameras are mounted and held nearly level. Where few pairs cannot determine the
+  roll (:func:`~.fit.fit_camera`'s few-pairs policy), N(0, 2 deg): a mounted camera levelled by eye, the
+  mounting's tolerance (``MOUNTED_ROLL_SD_DEG``);
 - height: ``log h`` ~ N(log 3 m, 0.8). Handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m).
 
 With ``--camera-height M`` the height is known and the people's mean stature ``S`` is estimated
@@ -48,7 +50,7 @@ import numpy as np
 from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal  # noqa: F401 (to_internal: the doctest)
 
 __all__ = ["FOCAL_PRIORS", "LENS_FOCAL_OVER_DIAGONAL", "LENS_LOG_SD", "LENS_DOF", "student_row", "PITCH_PRIOR_DEG", "ROLL_PRIOR_SD_DEG",
-           "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
+           "MOUNTED_ROLL_SD_DEG", "LEAN_SD_DEG", "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
 
 FOCAL_PRIORS = ("lens", "none")  # calibrate.focal_prior: the lens prior, or none (the people alone)
 LENS_FOCAL_OVER_DIAGONAL = 0.75  # median focal of real lenses / image diagonal (table above)
@@ -56,6 +58,14 @@ LENS_LOG_SD = 0.30  # sd of log(f / D) (the curvature at the median; the lens pr
 LENS_DOF = 3.0  # its degrees of freedom: heavy tails, so people who determine a wide or long lens are not pulled back
 PITCH_PRIOR_DEG = (15.0, 25.0)  # mean, sd
 ROLL_PRIOR_SD_DEG = 10.0  # mean 0
+# The few-pairs policy's roll prior: a camera mounted and levelled by eye sits within about 2 deg of level (a 2 deg
+# roll tilts a doorframe 3.5 cm per metre, which an installer sees); "hold roll at 0" is this prior's limit sd -> 0,
+# and the prior, unlike holding, lets pairs that do determine the roll override it.
+MOUNTED_ROLL_SD_DEG = 2.0
+# A walking person's crown is off their mid-sole's vertical by a few cm (a lean of the whole person that persists over
+# a walk, and the sway of each step): 3 cm over a 1.7 m stature, 1.0 deg. The head columns of one person's clicks
+# share that lean, so however many clicks there are, their roll is no better than it; P people average it to 1/sqrt(P).
+LEAN_SD_DEG = 1.0
 HEIGHT_PRIOR_M = 3.0  # median camera height
 HEIGHT_LOG_SD = 0.8  # sd of log h
 MEAN_STATURE_SD_M = 0.10  # the people's mean stature, when the camera height is given
@@ -94,6 +104,12 @@ class Priors:
         """True when every free camera slot (focal, pitch, roll, height; ``free`` (6,) bool) has a prior: the
         posterior then has a mode whatever the pairs are, and one usable pair is enough."""
         return bool(np.all(np.isfinite(self.sd[np.asarray(free, bool) & _CAMERA_SLOTS])))
+
+    def with_sd(self, slot: int, sd: float) -> "Priors":
+        """The same priors with the sd of ``slot`` (internal units) replaced."""
+        sd_all = self.sd.copy()
+        sd_all[slot] = sd
+        return Priors(self.mean, sd_all, self.focal_kind, self.height_kind)
 
     def without_focal(self) -> "Priors":
         """The same priors with none on the focal."""

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry.camera import Camera, horizon_v_px
+from ..geometry.camera import Camera
 from .chi_square import chi2_99
 from .grid import order_invariant_subset
 from .model import undistort
@@ -340,8 +340,7 @@ def fit_warnings(camera: Camera, std: dict[str, float], corr: float, inliers: in
     out = []
     determined = determined or {}
     lost = [k for k, v in std.items() if v == math.inf]
-    horizon = float(horizon_v_px(camera.image_size[0] / 2.0, camera.focal_px, camera.principal_point,
-                                 camera.up_cam))
+    horizon = float(camera.horizon_v_px(camera.image_size[0] / 2.0))  # the image's row (with the lens)
     if lost:
         out.append(f"the pairs cannot determine {', '.join(lost)}: their values are arbitrary (the horizon, "
                    f"row {horizon:.0f} at the centre, may still be right); give the focal length (--focal PX or --focal-mm MM) or "

@@ -16,13 +16,15 @@ from ..calibration.pairs import gather_pairs
 from ..geometry.camera import Camera
 from ..errors import InputError
 from ..bodies.measure import TrackStatures, scale_source, stature_provenance, statures_by_track, statures_from_camera_m
+from ..bodies.stature_error import StatureErrors, stature_errors
 from ..files.outputs import check_output_file
 from ..plain import csv_cell
 from ..sequence import Sequence, read_camera_yaml
 from ._common import (ForceOpt, FromOpt, ImageSizeOpt, JsonOpt, QuietOpt, SmplModelOpt, console, default_output,
                       input_sequence, print_json, report)
 
-CSV_COLUMNS = ("track_id", "pairs", "median_stature_m", "spread_m", "stature_from")
+CSV_COLUMNS = ("track_id", "pairs", "median_stature_m", "spread_m", "stature_from", "std_m", "std_camera_m",
+               "std_pixels_m", "extrapolated")
 # How every CSV this command writes starts (the overwrite check): the columns of its first version, which later
 # columns follow, so that an earlier version's file is still recognised as rotavat's.
 CSV_SIGNATURE = ",".join(CSV_COLUMNS[:4])
@@ -50,20 +52,30 @@ def measure(
     cut = np.zeros(len(statures_m), bool) if pairs.cut is None else pairs.cut
     statures_m[cut] = np.nan  # a person cut by the border has no seen foot or crown: nothing to measure
     ids = pairs.person_ids if pairs.tracked else np.full(len(statures_m), UNTRACKED, np.int64)
-    tracks = statures_by_track(statures_m, np.where(ids < 0, UNTRACKED, ids))
+    ids = np.where(ids < 0, UNTRACKED, ids)
+    tracks = statures_by_track(statures_m, ids)
+    try:
+        errors = stature_errors(pairs.feet_px, pairs.heads_px, statures_m, ids, cam, fit, pairs.frame_index)
+    except ValueError as exc:
+        raise InputError(f"{origin}: {exc}") from None
     source = scale_source(fit)
-    _write_csv(out, tracks, source)
+    _write_csv(out, tracks, source, errors)
     _warn(fit, origin, pairs.tracked, statures_m, quiet_notes, int(cut.sum()))
+    _note_unknowns(errors, origin, quiet_notes)
     finite = statures_m[np.isfinite(statures_m)]
     people = tracks.median_m[(tracks.ids != UNTRACKED) & (tracks.pairs > 0)]
     summary = {"camera": origin, "csv": str(out), "pairs": len(statures_m), "measured": len(finite),
                "tracked": pairs.tracked, "median_stature_m": float(np.median(finite)) if len(finite) else None,
-               "median_of_tracks_m": float(np.median(people)) if len(people) else None, "tracks": tracks.rows(),
+               "median_of_tracks_m": float(np.median(people)) if len(people) else None,
+               "tracks": _track_rows(tracks, errors),
+               "camera_uncertainty": "covariance" if errors.camera_known else "unknown",
+               "footprint": "known" if errors.footprint_known else "unknown",
+               "design_effect": errors.design_effect,
                "stature_from": source, "stature_provenance": stature_provenance(fit), "cut_pairs": int(cut.sum())}
     if as_json:
         print_json(summary)
         return
-    report(_table(tracks, summary), quiet)
+    report(_table(tracks, errors, summary), quiet)
     report(f"camera: {origin}; wrote {out}", quiet)
 
 
@@ -113,27 +125,55 @@ def _warn(fit: dict, origin: str, tracked: bool, statures_m: np.ndarray, quiet: 
               "head behind the camera)", quiet)
 
 
-def _write_csv(path: Path, tracks: TrackStatures, source: str) -> None:
+def _note_unknowns(errors: StatureErrors, origin: str, quiet: bool) -> None:
+    """One line when the camera carries no covariance or no footprint (a given camera, an older calibration)."""
+    missing = [key for key, known in (("fit.covariance", errors.camera_known), ("fit.footprint_px",
+                                                                               errors.footprint_known)) if not known]
+    if not missing:
+        return
+    what = []
+    if not errors.camera_known:
+        what.append("each std is the pixel part only (the camera's own uncertainty is unknown)")
+    if not errors.footprint_known:
+        what.append("whether a person stands outside what the calibration saw is unknown (none marked extrapolated)")
+    _note(f"note: {escape(origin)} has no {' nor '.join(missing)} (a given camera or an older calibration): "
+          f"{'; '.join(what)}", quiet)
+
+
+def _track_rows(tracks: TrackStatures, errors: StatureErrors) -> list[dict]:
+    """One plain dict per track: :meth:`TrackStatures.rows` plus std_m, std_camera_m, std_pixels_m, extrapolated."""
+    return [{**row, "std_m": float(total), "std_camera_m": float(cam), "std_pixels_m": float(pix),
+             "extrapolated": bool(ex)}
+            for row, total, cam, pix, ex in zip(tracks.rows(), errors.std_m, errors.std_camera_m, errors.std_pixels_m,
+                                               errors.extrapolated)]
+
+
+def _write_csv(path: Path, tracks: TrackStatures, source: str, errors: StatureErrors) -> None:
     """One row per track (atomic): track_id, pairs, median_stature_m, spread_m (half the IQR), stature_from (where
-    the camera's scale comes from: rotavat_cli.bodies.measure.SCALE_SOURCES)."""
+    the camera's scale comes from: rotavat_cli.bodies.measure.SCALE_SOURCES), std_m (the median's standard
+    deviation) with its camera and pixel parts, extrapolated (true/false: rotavat_cli.bodies.stature_error)."""
     with atomic_open(path, "w") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(CSV_COLUMNS)
-        for row in tracks.rows():
-            writer.writerow([row["id"], row["pairs"], csv_cell(row["median_m"]), csv_cell(row["spread_m"]), source])
+        for row in _track_rows(tracks, errors):
+            writer.writerow([row["id"], row["pairs"], csv_cell(row["median_m"]), csv_cell(row["spread_m"]), source,
+                             csv_cell(row["std_m"]), csv_cell(row["std_camera_m"]), csv_cell(row["std_pixels_m"]),
+                             "true" if row["extrapolated"] else "false"])
 
 
-def _table(tracks: TrackStatures, summary: dict) -> Table:
-    """Rich table: one row per track, the overall medians in the caption."""
+def _table(tracks: TrackStatures, errors: StatureErrors, summary: dict) -> Table:
+    """Rich table: one row per track (``*``: extrapolated), the overall medians in the caption."""
     table = Table(title="statures (sole to crown)")
-    for col in ("track", "pairs", "median m", "spread m (½ IQR)"):
+    for col in ("track", "pairs", "median m", "± std m", "spread m (½ IQR)"):
         table.add_column(col, justify="right")
-    for row in tracks.rows():
-        label = "untracked" if row["id"] == UNTRACKED else str(row["id"])
-        table.add_row(label, str(row["pairs"]), _metres(row["median_m"]), _metres(row["spread_m"]))
+    for row in _track_rows(tracks, errors):
+        label = ("untracked" if row["id"] == UNTRACKED else str(row["id"])) + (" *" if row["extrapolated"] else "")
+        table.add_row(label, str(row["pairs"]), _metres(row["median_m"]), _metres(row["std_m"]),
+                      _metres(row["spread_m"]))
+    extrapolated = " * extrapolated: standing outside what the calibration saw;" if errors.extrapolated.any() else ""
     table.caption = (f"overall median {_metres(summary['median_stature_m'])} m over {summary['measured']} of "
                      f"{summary['pairs']} pairs; median of the tracks' medians "
-                     f"{_metres(summary['median_of_tracks_m'])} m; statures {summary['stature_provenance']}")
+                     f"{_metres(summary['median_of_tracks_m'])} m;{extrapolated} statures {summary['stature_provenance']}")
     return table
 
 

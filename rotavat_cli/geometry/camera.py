@@ -1,4 +1,4 @@
-"""Static pinhole camera over a ground plane (conventions: docs/conventions.md).
+"""Static camera over a ground plane: a pinhole and an optional lens distortion (conventions: docs/conventions.md).
 
 Frames
 ------
@@ -11,6 +11,14 @@ The camera pose is three scene parameters: ``pitch`` (downward tilt, + = looking
 (about the optical axis) and ``height`` (camera centre above the ground). World up in the camera
 frame is ``n = (-sin(roll) cos(pitch), -cos(roll) cos(pitch), -sin(pitch))`` and the ground is
 ``n . X + h = 0``.
+
+The lens (``Camera.distortion``, 0 = a pinhole) is the one-parameter division model of
+:mod:`.lens` about the principal point: the camera's pixels ``px`` are distorted pixels (those of
+the image), the pinhole's are undistorted. :meth:`Camera.project` applies the distortion after the
+pinhole, :meth:`Camera.pixel_rays_cam` and :meth:`Camera.backproject_px_to_ground` remove it first;
+the module-level functions (``project_cam_to_px``, ``pixel_rays_cam``, ...) are the bare pinhole
+(also what an HPS method's own camera is). With ``distortion == 0`` every method returns what the
+pinhole functions return, bit for bit.
 
 Every array function broadcasts over leading dimensions, so the calibration grid can pass
 parameter arrays of shape ``(G, 1)`` against points of shape ``(1, N, 2)``.
@@ -35,6 +43,8 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
+
+from .lens import check_distortion, distort_px, lens_radius_px, undistort_px
 
 __all__ = [
     "Camera",
@@ -154,13 +164,36 @@ def R_cam_from_world_from_up(up_cam: np.ndarray) -> np.ndarray:
     return np.stack([x_axis, y_axis, z_axis], axis=1)
 
 
-def horizon_v_px(u_px: np.ndarray | float, focal_px: float, principal_point: tuple[float, float], up_cam: np.ndarray) -> np.ndarray:
-    """Image row of the horizon (vanishing line of the ground) at columns ``u_px``."""
+def horizon_v_px(u_px: np.ndarray | float, focal_px: float, principal_point: tuple[float, float], up_cam: np.ndarray,
+                 distortion: float = 0.0, radius_px: float = 1.0) -> np.ndarray:
+    """Image row (px) of the horizon (vanishing line of the ground) at columns ``u_px`` (...,) px.
+
+    A pinhole's horizon is the line ``n . ((p - pp) / f, 1) = 0``. With a division-model lens
+    (``distortion`` lam, ``radius_px`` R: :mod:`.lens`) a distorted pixel ``x = p - pp`` is on it when
+    ``n_x x_u + n_y y_u + n_z f (1 + lam |x|^2 / R^2) = 0``: a circle, solved exactly for the row (its root
+    continuous at lam = 0; NaN where the column does not meet it).
+
+    >>> n = up_vector_cam(0.3, 0.05)
+    >>> u = np.array([0.0, 320.0, 640.0])
+    >>> v = horizon_v_px(u, 500.0, (320.0, 240.0), n, -0.2, 400.0)   # barrel: the horizon bends
+    >>> from .lens import undistort_px
+    >>> rays = pixel_rays_cam(undistort_px(np.stack([u, v], -1), -0.2, (320.0, 240.0), 400.0), 500.0, (320.0, 240.0))
+    >>> bool(np.allclose(rays @ n, 0.0, atol=1e-12))   # each pixel's ray is level
+    True
+    """
     n = np.asarray(up_cam, dtype=np.float64)
     cx, cy = principal_point
     u = np.asarray(u_px, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return cy - (n[0] * (u - cx) + n[2] * focal_px) / n[1]
+        if distortion == 0.0:
+            return cy - (n[0] * (u - cx) + n[2] * focal_px) / n[1]
+        # a y^2 + b y + c = 0 in y = v - cy, with x = u - cx
+        x = u - cx
+        a = n[2] * focal_px * distortion / radius_px**2
+        c = a * x * x + n[0] * x + n[2] * focal_px
+        b = n[1]
+        root = np.sqrt(b * b - 4.0 * a * c)
+        return cy + 2.0 * c / (-b - np.copysign(root, b))
 
 
 def reexpress_cam(points_cam: np.ndarray, roots_cam: np.ndarray, focal_from_px: np.ndarray | float,
@@ -227,7 +260,8 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Camera:
-    """Static pinhole camera over a ground plane; angles in radians, lengths in metres."""
+    """Static camera over a ground plane: a pinhole and a division-model lens (``distortion``, 0 = none;
+    :mod:`.lens`); angles in radians, lengths in metres, pixels of the (distorted) image."""
 
     image_size: tuple[int, int]  # (W, H) px
     focal_px: float
@@ -235,6 +269,7 @@ class Camera:
     pitch_rad: float = 0.0  # + = looking down
     roll_rad: float = 0.0
     height_m: float = 1.0  # camera centre above the ground
+    distortion: float = 0.0  # division-model coefficient lam (0 = pinhole; |lam| <= 0.5; geometry/lens.py)
 
     def __post_init__(self) -> None:
         w, h = (int(v) for v in self.image_size)
@@ -247,6 +282,7 @@ class Camera:
             raise ValueError("camera parameters must be finite")
         if self.focal_px <= 0:
             raise ValueError(f"focal_px must be > 0, got {self.focal_px}")
+        object.__setattr__(self, "distortion", check_distortion(self.distortion))
         if w <= 0 or h <= 0:
             raise ValueError(f"image_size must be positive, got {self.image_size}")
 
@@ -288,18 +324,29 @@ class Camera:
         return np.array([0.0, self.height_m, 0.0])
 
     @property
+    def lens_radius_px(self) -> float:
+        """The lens distortion's unit radius R (px): the image half-diagonal (:func:`.lens.lens_radius_px`)."""
+        return lens_radius_px(self.image_size)
+
+    @property
+    def pinhole(self) -> "Camera":
+        """This camera without its lens (itself when ``distortion`` is 0): the camera whose pixels are this
+        one's undistorted pixels (:meth:`undistort_px`)."""
+        return self if self.distortion == 0.0 else self.replace(distortion=0.0)
+
+    @property
     def horizontal_fov_rad(self) -> float:
-        """Full horizontal field of view."""
+        """Full horizontal field of view of the pinhole (the undistorted image's: ``2 atan(W / 2f)``, lens ignored)."""
         return 2.0 * math.atan(self.image_size[0] / (2.0 * self.focal_px))
 
     @property
     def vertical_fov_rad(self) -> float:
-        """Full vertical field of view."""
+        """Full vertical field of view of the pinhole (the undistorted image's: ``2 atan(H / 2f)``, lens ignored)."""
         return 2.0 * math.atan(self.image_size[1] / (2.0 * self.focal_px))
 
     def matches(self, other: object, tol: float = SAME_CAMERA_TOL) -> bool:
         """True when ``other`` is this camera up to float noise: the same image size, and focal, principal point
-        and height within ``tol`` relative, pitch and roll within ``tol`` rad. Two cameras equal but for the
+        and height within ``tol`` relative, pitch, roll within ``tol`` rad and the lens distortion within ``tol``. Two cameras equal but for the
         last bits (one read back from YAML, one re-derived through its matrices) are one camera; ``==`` says
         they differ.
 
@@ -312,16 +359,36 @@ class Camera:
         relative = [(self.focal_px, other.focal_px), (self.height_m, other.height_m),
                     *zip(self.principal_point, other.principal_point)]
         return all(math.isclose(a, b, rel_tol=tol, abs_tol=tol) for a, b in relative) and all(
-            abs(a - b) <= tol for a, b in ((self.pitch_rad, other.pitch_rad), (self.roll_rad, other.roll_rad)))
+            abs(a - b) <= tol for a, b in ((self.pitch_rad, other.pitch_rad), (self.roll_rad, other.roll_rad),
+                                           (self.distortion, other.distortion)))
 
     # ---- geometry -------------------------------------------------------------------------
     def project(self, points_cam: np.ndarray) -> np.ndarray:
-        """Camera-frame points (..., 3) -> pixels (..., 2); NaN behind the camera."""
-        return project_cam_to_px(points_cam, self.focal_px, self.principal_point)
+        """Camera-frame points (..., 3) -> image pixels (..., 2): the pinhole, then the lens distortion.
+        NaN behind the camera, and where the lens has no image of the pinhole pixel (:func:`.lens.distort_px`)."""
+        return self.distort_px(project_cam_to_px(points_cam, self.focal_px, self.principal_point))
+
+    def undistort_px(self, points_px: np.ndarray) -> np.ndarray:
+        """Image pixels (..., 2) -> the pinhole's (undistorted) pixels (..., 2) float64; unchanged without a lens."""
+        if self.distortion == 0.0:
+            return np.asarray(points_px, dtype=np.float64)
+        return undistort_px(points_px, self.distortion, self.principal_point, self.lens_radius_px)
+
+    def distort_px(self, points_px: np.ndarray) -> np.ndarray:
+        """The pinhole's (undistorted) pixels (..., 2) -> image pixels (..., 2) float64; unchanged without a lens."""
+        if self.distortion == 0.0:
+            return np.asarray(points_px, dtype=np.float64)
+        return distort_px(points_px, self.distortion, self.principal_point, self.lens_radius_px)
+
+    def pixel_rays_cam(self, points_px: np.ndarray) -> np.ndarray:
+        """Viewing rays (..., 3), camera frame with z = 1, through image pixels (..., 2) (the lens removed first)."""
+        return pixel_rays_cam(self.undistort_px(points_px), self.focal_px, self.principal_point)
 
     def backproject_px_to_ground(self, points_px: np.ndarray, plane_height_m: float | np.ndarray = 0.0) -> np.ndarray:
-        """Pixels (..., 2) -> camera-frame points (..., 3) on the plane at that height; NaN if missed."""
-        return backproject_px_to_plane(points_px, self.focal_px, self.principal_point, self.up_cam, self.height_m, plane_height_m)
+        """Image pixels (..., 2) -> camera-frame points (..., 3) on the plane at that height (the lens removed
+        first); NaN if missed."""
+        return backproject_px_to_plane(self.undistort_px(points_px), self.focal_px, self.principal_point, self.up_cam,
+                                       self.height_m, plane_height_m)
 
     def height_above_ground(self, points_cam: np.ndarray) -> np.ndarray:
         """Signed height (...,) of camera-frame points above the ground."""
@@ -336,8 +403,8 @@ class Camera:
         return (np.asarray(points_cam, dtype=np.float64) - self.t_cam_from_world) @ self.R_cam_from_world
 
     def horizon_v_px(self, u_px: np.ndarray | float) -> np.ndarray:
-        """Image row of the horizon at columns ``u_px``."""
-        return horizon_v_px(u_px, self.focal_px, self.principal_point, self.up_cam)
+        """Image row (px) of the horizon at image columns ``u_px``, exact with the lens (:func:`horizon_v_px`)."""
+        return horizon_v_px(u_px, self.focal_px, self.principal_point, self.up_cam, self.distortion, self.lens_radius_px)
 
     # ---- construction ---------------------------------------------------------------------
     @classmethod
@@ -378,7 +445,12 @@ def camera_parameters(camera: Camera) -> dict[str, float]:
 
 
 def camera_to_yaml_dict(camera: Camera, fit: dict | None = None) -> dict:
-    """Plain-typed dict in the ``camera.yaml`` schema of docs/conventions.md (degrees, metres, lists)."""
+    """Plain-typed dict in the ``camera.yaml`` schema of docs/conventions.md (degrees, metres, lists); the lens's
+    ``distortion`` only when it is not 0 (a pinhole's file is what it always was).
+
+    >>> list(camera_to_yaml_dict(Camera((640, 480), 500.0, None, 0.3, 0.0, 3.0, distortion=-0.1)))[-2:]
+    ['t_world_to_cam', 'distortion']
+    """
     params = camera_parameters(camera)
     d: dict[str, Any] = {
         "image_size": [int(v) for v in camera.image_size],
@@ -392,6 +464,8 @@ def camera_to_yaml_dict(camera: Camera, fit: dict | None = None) -> dict:
         "R_world_to_cam": [[float(v) for v in row] for row in camera.R_cam_from_world],
         "t_world_to_cam": [float(v) for v in camera.t_cam_from_world],
     }
+    if camera.distortion != 0.0:
+        d["distortion"] = float(camera.distortion)
     if fit:
         d["fit"] = fit
     return d
@@ -411,9 +485,14 @@ def _floats(value: Any, shape: tuple[int, ...], key: str) -> np.ndarray:
 
 
 def camera_from_yaml_dict(d: dict, image_size: tuple[int, int] | None = None) -> Camera:
-    """Camera from a ``camera.yaml`` dict: pitch/roll/height, else up_cam/ground_offset_m, else R/t.
+    """Camera from a ``camera.yaml`` dict: pitch/roll/height, else up_cam/ground_offset_m, else R/t; the lens from
+    ``distortion``, else (a file of an earlier version) the fitted ``fit.distortion``, else none.
 
-    Raises ValueError naming the key when something is missing, misshaped or inconsistent.
+    Raises ValueError naming the key when something is missing, misshaped, inconsistent or out of range.
+
+    >>> camera_from_yaml_dict({"image_size": [640, 480], "focal_px": 500.0, "pitch_deg": 10.0, "height_m": 3.0,
+    ...                        "fit": {"distortion": -0.05}}).distortion
+    -0.05
     """
     if not isinstance(d, dict):
         raise ValueError("camera file must hold a mapping")
@@ -445,7 +524,23 @@ def camera_from_yaml_dict(d: dict, image_size: tuple[int, int] | None = None) ->
     if cam.height_m <= 0:
         raise ValueError(f"camera height must be > 0 (camera above the ground), got {cam.height_m}")
     check_camera_bounds(cam)
-    return cam
+    distortion = _yaml_distortion(d)
+    return cam if distortion == 0.0 else cam.replace(distortion=distortion)
+
+
+def _yaml_distortion(d: dict) -> float:
+    """The lens coefficient of a camera.yaml dict: ``distortion``, else the legacy ``fit.distortion`` (calibrate
+    wrote only that before the camera carried its lens; null there: not fitted), else 0. ValueError naming the key
+    when it is not a finite number within +-0.5. A mapping under ``distortion`` describes another lens model (the
+    real-data answer keys carry an OpenCV ``{model: opencv_k1_k2_p1_p2, params: ...}``): not read, a pinhole."""
+    if isinstance(d.get("distortion"), dict):
+        return 0.0
+    if d.get("distortion") is not None:
+        return check_distortion(d["distortion"], "distortion")
+    fit = d.get("fit")
+    if isinstance(fit, dict) and fit.get("distortion") is not None:
+        return check_distortion(fit["distortion"], "fit.distortion")
+    return 0.0
 
 
 def check_camera_bounds(cam: Camera) -> None:

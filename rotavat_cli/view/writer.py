@@ -54,7 +54,10 @@ class RecordingWriter:
             self.rec.set_time("time", duration=index / fps)
 
     def scene(self, camera: Camera, label: str, image_plane_m: float) -> None:
-        """The world's axes and the camera: its pose (world from camera), its label, its pinhole."""
+        """The world's axes and the camera: its pose (world from camera), its label, its pinhole. A camera's lens
+        (``camera.distortion``) is not drawn: rerun's Pinhole has no lens model, so with one the video frame on the
+        image plane is the distorted image (off the pinhole's rays by the lens's displacement, a few percent at
+        the corners) while the people and the ground are where the camera, lens included, put them."""
         rr = self.rr
         self.rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Y_UP, static=True)
         self.rec.log(f"{WORLD}/camera", rr.Transform3D(translation=camera.center_world, mat3x3=camera.R_cam_from_world.T),
