@@ -98,17 +98,18 @@ def _coverage(seeds: range, **changes) -> tuple[float, float, float]:
 
 
 def test_two_std_cover_the_true_statures_of_people_measured_against_one_reference():
-    """20 scenes x 10 walkers (measured: coverage 1.00, mean |error| 2.9 cm, rms z 0.36). The std is cautious:
-    calibrate's covariance carries the assumed principal point's sd (2% of the image side, 38 px) and the people's
-    mean stature's (4 cm), which these scenes (principal point at the centre, a tape-measured reference) lack."""
+    """20 scenes x 10 walkers (measured: coverage 0.975, mean |error| 3.3 cm, rms z 0.64). The assumed principal
+    point (sd 2% of the image side) enters with its direct effect on the stature and its shift of the fitted
+    camera, which largely cancel, and a tape-measured reference's stature with its own sd: before both, the std
+    was 2.5x the error (rms z 0.36) and this test's lower bound failed."""
     covered, mean_abs, z = _coverage(range(20))
     assert covered >= 0.90
-    assert mean_abs < 0.04 and 0.2 < z < 1.0
+    assert mean_abs < 0.04 and 0.5 < z < 1.2
 
 
 def test_without_the_assumptions_the_scenes_lack_the_std_is_still_covering_and_tighter():
     """The same scenes with the principal point's and the mean stature's assumed sd at what the scenes have (0 and
-    the reference's 1 cm): coverage 0.985, rms z 0.69 (measured)."""
+    the reference's 1 cm): coverage 0.965, rms z 0.70 (measured)."""
     covered, mean_abs, z = _coverage(range(20), principal_point_sd_px=0.0, person_height_mean_sd_m=REFERENCE_SD_M)
     assert covered >= 0.90 and mean_abs < 0.04 and 0.4 < z < 1.2
 
@@ -118,8 +119,12 @@ def test_calibrate_records_the_covariance_and_the_footprint_it_saw():
     scene, ref, res = _reference_fit(3)
     fit = res.fit_dict()
     names, matrix = fit["covariance"]["names"], np.array(fit["covariance"]["matrix"])
-    assert names == ["focal_px", "pitch_deg", "roll_deg", "height_m"] and matrix.shape == (4, 4)
-    np.testing.assert_allclose(np.sqrt(np.diag(matrix)), [fit["std"][k] for k in names], rtol=1e-12)
+    assert names == ["focal_px", "pitch_deg", "roll_deg", "height_m", "cx_px", "cy_px", "distortion"]
+    assert matrix.shape == (7, 7)
+    np.testing.assert_allclose(np.sqrt(np.diag(matrix))[:4], [fit["std"][k] for k in names[:4]], rtol=1e-12)
+    side = max(scene.camera.image_size)
+    np.testing.assert_allclose(np.sqrt(np.diag(matrix))[4:], [0.02 * side, 0.02 * side, 0.01])  # the assumed sds
+    assert np.all(np.abs(matrix[:4, 4]) > 0) and matrix[4, 5] == 0.0  # each moves the fit; they are independent
     np.testing.assert_allclose(matrix, matrix.T, atol=1e-12)
     polygon = np.array(fit["footprint_px"])
     assert 3 <= len(polygon) <= FOOTPRINT_MAX_VERTICES

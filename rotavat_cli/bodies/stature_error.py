@@ -58,6 +58,8 @@ CAMERA_PARAMETERS = {
     "roll_deg": ("roll_rad", math.pi / 180.0, 1e-3, False),
     "height_m": ("height_m", 1.0, 1e-4, True),
     "distortion": ("distortion", 1.0, 1e-5, False),
+    "cx_px": ("principal_point", 0, 1e-2, False),  # the principal point's components (the field is a pair)
+    "cy_px": ("principal_point", 1, 1e-2, False),
 }
 CLICK_NOISE_PX = 2.0  # the click noise when nothing says better (calibrate's default noise_px)
 MIN_SCATTER_PAIRS = 8  # a track with this many measured pairs estimates its own click noise from its scatter
@@ -114,10 +116,17 @@ def camera_jacobian_m(feet_px: np.ndarray, heads_px: np.ndarray, camera: Camera,
         field_name, to_field, step, relative = CAMERA_PARAMETERS[name]
         if field_name not in have:
             continue
-        value = float(getattr(camera, field_name))
-        h = step * (abs(value / to_field) if relative else 1.0)
-        plus = camera.replace(**{field_name: value + h * to_field})
-        minus = camera.replace(**{field_name: value - h * to_field})
+        if field_name == "principal_point":  # to_field: which component
+            h = step
+            moved = [list(camera.principal_point), list(camera.principal_point)]
+            moved[0][to_field] += h
+            moved[1][to_field] -= h
+            plus, minus = (camera.replace(principal_point=tuple(pp)) for pp in moved)
+        else:
+            value = float(getattr(camera, field_name))
+            h = step * (abs(value / to_field) if relative else 1.0)
+            plus = camera.replace(**{field_name: value + h * to_field})
+            minus = camera.replace(**{field_name: value - h * to_field})
         out[:, k] = (statures_from_camera_m(feet_px, heads_px, plus)
                      - statures_from_camera_m(feet_px, heads_px, minus)) / (2.0 * h)
     return out

@@ -44,9 +44,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..geometry.camera import Camera, camera_parameters, horizon_v_px
+from ..geometry.camera import Camera, camera_parameters
 from ..errors import DegenerateSceneError
 from .flat_ground import ground_findings
+from .given_lens import fit_through_lens
 from .footprint import ParameterCovariance, footprint_polygon_px, report_covariance
 from .grid import paper_grid_search
 from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
@@ -100,12 +101,13 @@ class CalibrationResult:
     focal_prior: str = "none"  # the focal's prior: "lens", "fov" (the user's) or "none"
     covariance: ParameterCovariance | None = None  # the estimated camera parameters', report units (.footprint)
     footprint_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (V, 2) px: the inliers' feet hull
+    lens: dict | None = None  # a given lens (.given_lens): from ("given", "lines FILE"), distortion, sd
 
     @property
     def horizon_v_px(self) -> float:
         """Image row of the horizon at the image's centre column."""
         cam = self.camera
-        return float(horizon_v_px(cam.image_size[0] / 2.0, cam.focal_px, cam.principal_point, cam.up_cam))
+        return float(cam.horizon_v_px(cam.image_size[0] / 2.0))
 
     def fit_dict(self) -> dict:
         """Plain-typed ``fit:`` block of camera.yaml (docs/conventions.md); NaN becomes None."""
@@ -136,6 +138,7 @@ class CalibrationResult:
             **({"covariance": self.covariance.to_dict()} if self.covariance is not None and self.covariance.names
                else {}),
             **({"footprint_px": [[float(u), float(v)] for u, v in self.footprint_px]} if len(self.footprint_px) else {}),
+            **({"lens": dict(self.lens)} if self.lens else {}),
         }
 
 
@@ -183,6 +186,9 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
     Raises ValueError for malformed input and DegenerateSceneError when no camera can be given.
     """
     options = _focal_in_px(_with_changes(options, changes), image_size)
+    if options.lens_distortion is not None:  # a known lens: undistort, fit the pinhole, give the camera the lens
+        return fit_through_lens(fit_camera, feet_px, heads_px, image_size, options, frame_index=frame_index,
+                                track_id=track_id, body=body, workers=workers)
     method = options.method
     points, notes = resolve_points(feet_px, heads_px, options.points, method)
     with _naming_the_chosen_model(notes, points):
@@ -502,13 +508,16 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
     pp_sd = (0.02 * max(inp.size) if options.principal_point is None else 0.0) \
         if options.principal_point_sd_px is None else options.principal_point_sd_px
     height_known = options.camera_height_m is not None
-    stature_mean_sd = 0.0 if height_known else options.person_height_mean_sd_m
+    # The people's mean stature is known to the prior's own sd when that is the narrower (a reference person measured
+    # with a tape, --person-height S --height-sd 0.01), else to person_height_mean_sd_m (a population's mean).
+    stature_mean_sd = 0.0 if height_known else min(options.person_height_mean_sd_m, options.person_height_sd_m)
     held = held or {}
     assumed = Systematics(pp_sd, 0.0 if options.distortion else options.distortion_sd, stature_mean_sd,
                           options.box_depth_sd_m if points == "boxes" else 0.0, tuple(held.items()))
+    shifts: dict = {}
     cov, cov_stat, cov_warns, by_slot = covariances(inl, params, free, scale,
                                                     None if clusters is None else clusters[idx[mask_u]], assumed,
-                                                    method == "refine" and not held)
+                                                    method == "refine" and not held, shifts)
     std, corr = std_and_corr(params, cov, free)
     std_stat, _ = std_and_corr(params, cov_stat, free)
     (eu, ev), _, _, _ = profiled(inl, params[None], scale)
@@ -560,5 +569,5 @@ def _result(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, method:
                              float(params[BOX_DEPTH]), fixed, tuple(notes), height_known, stature_sd,
                              determined, implausible, 1.0 if inl.deff is None else float(np.max(inl.deff)),
                              0 if prob.body is None else prob.body.people, focal_prior,
-                             covariance=report_covariance(params, cov, free, held, height_known),
+                             covariance=report_covariance(params, cov, free, held, height_known, shifts),
                              footprint_px=footprint_polygon_px(inp.feet[inlier_mask]))

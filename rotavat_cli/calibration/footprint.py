@@ -98,8 +98,14 @@ class ParameterCovariance:
                 "matrix": [[None if math.isnan(v) else float(v) for v in row] for row in self.matrix]}
 
 
+# Assumed quantities a stature measured with the camera depends on directly (the camera holds them), with their
+# report names and the sign of their error's covariance with the fit's shift (uncertainty.covariances' ``shifts``):
+# the principal point is moved up by its sd there (+), the lens's undistortion coefficient down (-).
+ASSUMED_CAMERA_PARTS = {"cx": ("cx_px", 1.0), "cy": ("cy_px", 1.0), "distortion": ("distortion", -1.0)}
+
+
 def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, held: dict[int, float] | None = None,
-                      height_given: bool = False) -> ParameterCovariance:
+                      height_given: bool = False, shifts: dict | None = None) -> ParameterCovariance:
     """The camera parameters' covariance in report units (px, deg, deg, m, 1), over the estimated ones only.
 
     params: (6,) the fit (:mod:`.params`; focal px, height m at the fit's own scale); cov: (6, 6) over the
@@ -109,6 +115,11 @@ def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, hel
     the others is left at 0 (the others' own variance already carries their spread); height_given: the
     camera height was given, so it is not estimated (the angles' covariance is their marginal: the
     given height fixes the scale, the fit's own log height only carried the stature's).
+    shifts: the assumed quantities' parameter shifts and sds (:func:`.uncertainty.covariances`): the principal
+    point (``cx_px``, ``cy_px``) and an unfitted lens (``distortion``) join the names, with their sd as variance
+    and their covariance with the parameters they moved. A stature measured with the camera depends on them
+    directly too, and the two effects largely cancel (an off-centre principal point tilts the fitted camera the
+    way that keeps the people's pixels): without them its std came out about 2.5x its error.
     Returns the :class:`ParameterCovariance` of those (k may be 0: nothing estimated).
     """
     held = held or {}
@@ -121,4 +132,16 @@ def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, hel
         if s in held:
             matrix[k, :] = matrix[:, k] = 0.0
             matrix[k, k] = (scale[k] * held[s]) ** 2
-    return ParameterCovariance(tuple(COVARIANCE_SLOTS[s] for s in slots), matrix)
+    names = [COVARIANCE_SLOTS[s] for s in slots]
+    for key, (name, sign) in ASSUMED_CAMERA_PARTS.items():
+        if not shifts or key not in shifts or name in names:
+            continue
+        shift, sd = shifts[key]
+        cross = np.zeros(len(names))  # two assumed quantities are independent of each other
+        cross[:len(slots)] = sign * sd * np.asarray(shift, dtype=np.float64)[slots] * scale
+        grown = np.zeros((len(names) + 1, len(names) + 1))
+        grown[:-1, :-1] = matrix
+        grown[-1, :-1] = grown[:-1, -1] = cross
+        grown[-1, -1] = sd * sd
+        matrix, names = grown, names + [name]
+    return ParameterCovariance(tuple(names), matrix)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.focal import focal_px_from_35mm
+from ..geometry.lens import MAX_DISTORTION
 from ..settings.option_rules import Rule, check_fields
 from .grid import GridSpec
 from .priors import FOCAL_PRIORS
@@ -35,7 +36,8 @@ __all__ = ["METHODS", "POINTS", "FOCAL_PRIORS", "CalibrateOptions", "SECTION_RUL
 METHODS = ("grid", "refine")
 POINTS = ("auto", "landmarks", "boxes")  # auto: boxes when every pair's head is in its foot's column
 _NOT_IN_CONFIG = {"config": False}  # field metadata: an option Python sets, absent from configs/default.yaml
-_OPTIONAL = {"focal_px", "focal_mm", "camera_height_m", "principal_point_sd_px", "fov_prior_deg", "pitch_deg"}  # None: not given
+_OPTIONAL = {"focal_px", "focal_mm", "camera_height_m", "principal_point_sd_px", "fov_prior_deg", "pitch_deg",
+             "lens_distortion", "lens_distortion_sd"}  # None: not given
 _POSITIVE = Rule(low=0, open_low=True)
 _NON_NEGATIVE = Rule(low=0)
 
@@ -70,6 +72,10 @@ class CalibrateOptions:
     tracks: tuple[int, ...] | None = None  # sequences: calibrate from these person_ids only (None: everyone)
     per_frame: bool = False  # sequences: also calibrate every frame alone and report the spread
     grid: GridSpec = GridSpec()  # the paper's search grid (calibrate.grid)
+    # A known lens: its division-model coefficient (geometry/lens.py), from a lens profile or the scene's straight
+    # lines (calibrate --lens-lines, calibration/plumb_lines.py); the pairs are undistorted before the fit and the
+    # camera carries it (calibration/given_lens.py). None: no lens, unless ``distortion`` fits one.
+    lens_distortion: float | None = None
     # ---- not in the config ----
     noise_px: float = field(default=2.0, metadata=_NOT_IN_CONFIG)  # pixel noise of the points (refine weights)
     fov_prior_sd_deg: float = field(default=10.0, metadata=_NOT_IN_CONFIG)
@@ -99,6 +105,10 @@ class CalibrateOptions:
     # fits of earlier versions). Off by default for now: the sample's calibration (20 pairs of 5 people) is itself
     # "few pairs", and the policy changes it (tests/test_golden_outputs.py); turning it on is issue 35's decision.
     few_pairs: bool = field(default=False, metadata=_NOT_IN_CONFIG)
+    # A given lens's own uncertainty (its coefficient's sd: the plumb-line fit's, or the default distortion_sd for a
+    # profile) and where it came from, for the fit block's ``lens`` ("given", "lines FILE").
+    lens_distortion_sd: float | None = field(default=None, metadata=_NOT_IN_CONFIG)
+    lens_source: str | None = field(default=None, metadata=_NOT_IN_CONFIG)
 
     RULES: ClassVar[dict[str, Rule]] = {  # every option's bounds and names (rotavat_cli/settings/option_rules.py)
         "method": Rule(names=METHODS), "residual": Rule(names=RESIDUALS), "points": Rule(names=POINTS),
@@ -108,11 +118,12 @@ class CalibrateOptions:
         "focal_mm": Rule(low=1e-3, high=1e5, unit="mm"),
         "camera_height_m": Rule(low=0.01, high=1e5, unit="m"), "pitch_deg": Rule(low=-89.9, high=89.9, unit="deg"),
         "fov_prior_deg": Rule(low=0.1, high=179.9, unit="deg"), "principal_point": Rule(low=-1e6, high=1e6, unit="px"),
+        "lens_distortion": Rule(low=-MAX_DISTORTION, high=MAX_DISTORTION),
         # not in the config
         "noise_px": _POSITIVE, "fov_prior_sd_deg": _POSITIVE, "distortion_sd": _NON_NEGATIVE,
         "person_height_mean_sd_m": _NON_NEGATIVE, "principal_point_sd_px": _NON_NEGATIVE,
         "body_axis_sd_deg": Rule(low=0, high=90, open_low=True, unit="deg"), "body_engage_pitch_sd_deg": _NON_NEGATIVE,
-        "box_depth_sd_m": _NON_NEGATIVE,
+        "box_depth_sd_m": _NON_NEGATIVE, "lens_distortion_sd": _NON_NEGATIVE,
     }
 
     def __post_init__(self) -> None:
@@ -128,6 +139,11 @@ class CalibrateOptions:
                                               or (self.focal_px is None and self.focal_mm is None)):
             raise ValueError(f"focal_source names where a given focal came from: a text with focal_px or focal_mm, "
                              f"got {self.focal_source!r}")
+        if self.distortion and self.lens_distortion is not None:
+            raise ValueError("distortion fits the lens and lens_distortion gives it: use one, not both")
+        if self.lens_source is not None and (not isinstance(self.lens_source, str) or self.lens_distortion is None):
+            raise ValueError(f"lens_source names where a given lens came from: a text with lens_distortion, "
+                             f"got {self.lens_source!r}")
         if self.method == "grid" and (self.distortion or self.points == "boxes"):
             raise ValueError("distortion and points='boxes' need method 'refine' (the grid is the paper's model)")
         if not isinstance(self.grid, GridSpec):

@@ -156,8 +156,9 @@ def _perturbed(prob: Problem, which: str, amount: float) -> Problem:
 
 
 def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, r: np.ndarray,
-                    J: np.ndarray, assumed: Systematics) -> np.ndarray:
-    """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised)."""
+                    J: np.ndarray, assumed: Systematics, shifts: dict | None = None) -> np.ndarray:
+    """Covariance (n_free, n_free) induced by the assumed-but-unknown quantities (linearised); ``shifts``, when
+    given, receives each one's parameter shift (n_free,) for a one-sd change (:func:`covariances`)."""
     sds = {"cx": assumed.principal_point_px, "cy": assumed.principal_point_px, "distortion": assumed.distortion,
            "stature": assumed.stature_mean_m, "box": assumed.box_depth_m, **{slot: sd for slot, sd in assumed.held}}
     gain = -np.linalg.pinv(J.T @ J, rcond=_NULL_EIG) @ J.T
@@ -177,13 +178,20 @@ def _systematic_cov(prob: Problem, params: np.ndarray, free: np.ndarray, scale: 
             r_moved = model_residual(_perturbed(prob, name, step), params[None], free, scale)[0]
         shift = gain @ ((r_moved - r) / step) * sd  # parameter shift for a one-sd change
         cov += np.outer(shift, shift)
+        if shifts is not None:
+            shifts[name] = (shift, sd)
     return cov
 
 
 def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, clusters: np.ndarray | None,
-                 assumed: Systematics, test_columns: bool) -> tuple[np.ndarray, np.ndarray, list[str], dict[int, str]]:
+                 assumed: Systematics, test_columns: bool, shifts: dict | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, list[str], dict[int, str]]:
     """(total, statistical) covariances (6, 6) of the internal parameters (zero for fixed ones), warnings,
-    and what determined each free slot (:func:`determined_by`).
+    and what determined each free slot (:func:`determined_by`). ``shifts``, when given, receives for each
+    assumed quantity (``"cx"``, ``"cy"``, ``"distortion"``, ``"stature"``, ...) the internal parameters' shift
+    (6,) when the fit assumes it one sd higher (the principal point; for ``distortion`` the undistortion's
+    coefficient one sd lower: ``_perturbed``), and that sd: what a stature measured with the camera needs to
+    carry the assumption's direct effect too (:func:`rotavat_cli.calibration.footprint.report_covariance`).
 
     The statistical part is the posterior's (Gauss-Newton of the whole objective: the pairs with
     their design effects, the track statures, the priors, the bodies' axis; or the cluster jackknife
@@ -196,7 +204,13 @@ def covariances(prob: Problem, params: np.ndarray, free: np.ndarray, scale: floa
     average for a right model, whose disagreement is all noise), at most the parameter's prior variance.
     """
     stat, r, J = _statistical_cov(prob, params, free, scale, clusters)
-    total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed)
+    found: dict = {}
+    total = stat + _systematic_cov(prob, params, free, scale, r, J, assumed, found)
+    if shifts is not None:
+        for name, (shift, sd) in found.items():
+            full = np.zeros(len(free))
+            full[free] = shift
+            shifts[name] = (full, sd)
     warns = []
     by_slot = determined_by(J, _row_groups(prob, free, len(r)), free)
     enough = len(prob.rel_feet) >= _COLUMN_TEST_MIN_PAIRS if clusters is None else \

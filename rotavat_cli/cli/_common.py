@@ -167,7 +167,7 @@ def config_for(config_file: Path | None, section: str, **flags: Any) -> dict:
 
 # Flags named otherwise than their config key less its unit (focal_px -> --focal, box_depth_m -> --box-depth).
 _FLAG_NAMES = {"estimate_roll": "--roll/--no-roll", "person_height_sd_m": "--height-sd", "threshold_px": "--threshold-px",
-               "estimate_focal": "--estimate-focal"}
+               "estimate_focal": "--estimate-focal", "lens_distortion": "--lens"}
 
 
 def _flag_name(key: str) -> str:

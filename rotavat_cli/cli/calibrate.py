@@ -10,6 +10,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..calibration.plumb_lines import fit_plumb_lines, read_lines_file
 from ..calibration.residuals import RESIDUAL_KINDS
 from ..calibration.options import CalibrateOptions
 from ..alignment.camera_gate import what_to_give
@@ -27,14 +28,17 @@ from ._common import (ConfigOpt, FocalMmOpt, ForceOpt, FromOpt, ImageSizeOpt, Js
 
 
 def run_calibration(seq: Sequence, config: Path | None, quiet: bool, focal_source: str | None = None,
-                    **flags) -> SequenceCalibration:
+                    lens_options: dict | None = None, **flags) -> SequenceCalibration:
     """Calibrate with defaults < config file < flags (named by their ``calibrate`` config key), printing
     notes and warnings unless quiet (warnings always), and whether the meshes fit their own pixels.
 
     A focal flag (``focal_px``, ``focal_mm``) replaces the config file's other focal key; ``focal_source``
-    says where a given focal came from (default: the flag, ``--focal`` or ``--focal-mm``, else the config key)."""
+    says where a given focal came from (default: the flag, ``--focal`` or ``--focal-mm``, else the config key);
+    ``lens_options``: a lens from the scene's lines (:func:`_lens_from_lines`: its coefficient, sd and source)."""
     section = focal_flag_wins(config_for(config, "calibrate", **flags), flags.get("focal_px"), flags.get("focal_mm"))
     options = CalibrateOptions.from_config(section)
+    if lens_options:
+        options = options.replace(**lens_options)
     if focal_source is None and (flags.get("focal_px") is not None or flags.get("focal_mm") is not None):
         focal_source = options.given_focal_source("--focal", "--focal-mm")
     calib = calibrate_sequence(seq, options.replace(focal_source=focal_source) if focal_source else options)
@@ -72,6 +76,8 @@ def calibrate(
     points: Annotated[str | None, typer.Option(help="auto (boxes when every head is in its foot's column), landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
     box_depth: Annotated[float | None, typer.Option(help="With --points boxes: box top's extra distance from the camera over the box bottom (m).")] = None,
     distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
+    lens: Annotated[float | None, typer.Option("--lens", help="The lens is known: its division-model coefficient (from a lens profile; negative for barrel). The pairs are undistorted before the fit and camera.yaml carries it.")] = None,
+    lens_lines: Annotated[Path | None, typer.Option("--lens-lines", help="The lens from the scene's straight lines: a YAML file {lines: [[[u, v], ...], ...]} of edges clicked in the image (kerbs, door frames, poles), 3+ points each; as --lens with the coefficient that straightens them.", dir_okay=False)] = None,
     focal_prior: Annotated[str | None, typer.Option("--focal-prior", help="lens: the prior of real lenses' focal (docs/calibration.md); none: the people alone (refused when they cannot determine it).")] = None,
     fov_prior: Annotated[float | None, typer.Option("--fov-prior", help="Your own prior on the vertical field of view (deg), instead of the lens prior.")] = None,
     track: Annotated[list[int] | None, typer.Option("--track", help="Calibrate from this person_id only (repeat for several), e.g. a person of known stature with --person-height S --height-sd 0.01.")] = None,
@@ -93,8 +99,11 @@ def calibrate(
         check_sequence_path(seq)  # a tool's file given as SEQ: what it is and how to read it, before SEQ/camera.yaml
     target = out or seq / "camera.yaml"
     check_output_file(target, [seq], force, inside_input_ok=("camera.yaml",) if from_ is None else ())
+    if sum(v is not None and v is not False for v in (lens, lens_lines, distortion or None)) > 1:
+        raise InputError("--lens, --lens-lines and --distortion each set the lens: give one of them")
     with input_sequence(seq, from_, image_size, smpl_model, read_camera=False, quiet=quiet or as_json) as sequence:
         _never_replace_a_given_camera(target, seq, sequence)
+        lens_options = {} if lens_lines is None else _lens_from_lines(lens_lines, sequence, principal_point)
         source = None
         if image is not None:
             photo = _photo_focal(image, sequence, given=focal is not None or focal_mm is not None, quiet=quiet or as_json)
@@ -107,7 +116,8 @@ def calibrate(
             standing_only=standing_only, body_axes=body_axes,
             estimate_roll=roll, principal_point=list(principal_point) if principal_point else None,
             person_height_m=person_height, person_height_sd_m=height_sd, residual=residual, points=points,
-            box_depth_m=box_depth, distortion=distortion, fov_prior_deg=fov_prior, per_frame=per_frame)
+            box_depth_m=box_depth, distortion=distortion, fov_prior_deg=fov_prior, per_frame=per_frame,
+            lens_distortion=lens_options.get("lens_distortion", lens), lens_options=lens_options)
     fit = calib.fit_dict()
     write_camera_yaml(target, calib.result.camera, fit)
     cam = calib.result.camera
@@ -121,6 +131,21 @@ def calibrate(
         report(table, quiet)
         report(line, quiet)
     report(f"wrote {target}", quiet)
+
+
+def _lens_from_lines(path: Path, seq: Sequence, principal_point: tuple[float, float] | None) -> dict:
+    """The lens that straightens the lines of ``path`` (:func:`~rotavat_cli.calibration.plumb_lines.fit_plumb_lines`,
+    about the principal point the fit will use: the given one, else the sequence's, else the image centre), as
+    calibration options (the fit's note says it); InputError naming the file when the lines cannot tell it."""
+    if seq.image_size is None:
+        raise InputError(f"{seq.label}: --lens-lines needs the image size (meta.yaml image_size, or --image-size W H)")
+    pp = principal_point if principal_point is not None else seq.intrinsics.principal_point
+    try:
+        fit = fit_plumb_lines(read_lines_file(path), seq.image_size, None if pp is None else tuple(map(float, pp)))
+    except ValueError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    return {"lens_distortion": fit.distortion, "lens_distortion_sd": fit.std,
+            "lens_source": f"lines {path} ({fit.lines} lines, {fit.rms_px:.2f} px rms)"}
 
 
 def _photo_focal(image: Path, sequence: Sequence, given: bool, quiet: bool) -> tuple[float, str] | None:
@@ -185,6 +210,9 @@ def _table(summary: dict) -> tuple[Table, str]:
         table.add_row(key, value, _std_cell(std.get(key), fixed.get(key)), by.get(key, ""), *alone)
     if "distortion" in fit:
         table.add_row("distortion", f"{fit['distortion']:+.4f}", _std_cell(std.get("distortion"), None))
+    elif fit.get("lens"):
+        lens = fit["lens"]
+        table.add_row("distortion", f"{lens['distortion']:+.4f}", f"± {lens['sd']:.4f}", str(lens["from"]).split(" (")[0])
     mesh = (f"; meshes made with f {fit['mesh_focal_px']:.0f} px ({fit['mesh_focal_kind']})"
             if fit.get("mesh_focal_px") is not None else "")
     given = f"; focal from {fit['focal_source']}" if fit.get("focal_source") else ""
