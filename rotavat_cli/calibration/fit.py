@@ -57,7 +57,7 @@ from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NA
                      param_bounds, param_vector, to_internal)
 from .plausibility import implausible_findings
 from .priors import LEAN_SD_DEG, MOUNTED_ROLL_SD_DEG
-from .refine import FEW_PAIRS, fit_soft, fit_with_rejection, refine_fit
+from .refine import fit_with_rejection, refine_fit
 from .uncertainty import Systematics, covariances, fit_warnings, moved_by_data, std_and_corr
 
 __all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "fit_per_frame"]
@@ -67,6 +67,10 @@ __all__ = ["CalibrationResult", "PerFrameSummary", "fit_camera", "calibrate", "f
 _UNMOVED_TOL = 1e-4
 _BOUND_TOL = 1e-3  # a refined parameter this close to its search bound (internal units) "ran to the end"
 _REWEIGHT_ROUNDS = 2  # rejection rounds of the refits with the design effect and with the bodies' axis
+# Fewer usable pairs than this are "few": the fit of one reference person's clicks (CCVS: tens per subject), where the
+# few-pairs policy (options.few_pairs, :func:`_few_pairs_policy`) may hold the roll. Its rule is measured on 10-40 pairs
+# (benchmarks/bench_reference.py); above 50 it is not applied, and fits of many pairs are as before.
+FEW_PAIRS = 50
 _SLOT_NAMES = {FOCAL: "focal_px", PITCH: "pitch_deg", ROLL: "roll_deg", HEIGHT: "height_m", DISTORTION: "distortion"}
 
 
@@ -221,16 +225,13 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
             else:
                 frames_u = None if inp.frames is None else inp.frames[idx]
                 tracks_u = None if inp.tracks is None else inp.tracks[idx]
-                refit = fit_with_rejection
                 if options.few_pairs and len(idx) < FEW_PAIRS:
-                    refit = fit_soft
-                    prob, params, mask_u, scale = _few_pairs_policy(prob, params, free, scale, tracks_u, options,
-                                                                    notes)
-                prob, params, mask_u, scale = _weigh_correlated_pairs(prob, params, free, mask_u, scale, frames_u,
-                                                                      refit)
+                    prob, params, mask_u, scale = _few_pairs_policy(prob, params, free, mask_u, scale, tracks_u,
+                                                                    options, notes)
+                prob, params, mask_u, scale = _weigh_correlated_pairs(prob, params, free, mask_u, scale, frames_u)
                 if body is not None and options.body_axes and free[PITCH]:
                     prob, params, mask_u, scale = _with_bodies(prob, params, free, mask_u, scale, body, options,
-                                                               tracks_u, refit)
+                                                               tracks_u)
         if method == "grid":
             params, mask_u, free, scale, prob = _grid_fit(inp, idx, options, workers, prob)
         result = _result(inp, idx, options, method, points, notes, extra, prob, params, free, mask_u, scale,
@@ -383,30 +384,24 @@ def _seed_grid(options: CalibrateOptions):
     return replace(options.grid, pitch_range_deg=(options.pitch_deg, options.pitch_deg), steps=(steps[0], 1, steps[2]))
 
 
-def _few_pairs_policy(prob: Problem, params: np.ndarray, free: np.ndarray, scale: float, tracks: np.ndarray | None,
-                      options: CalibrateOptions, notes: list[str]) -> tuple[Problem, np.ndarray, np.ndarray, float]:
-    """The fit of fewer than :data:`.refine.FEW_PAIRS` usable pairs (``prob``; from the hard-rejection fit
-    ``params`` (6,)), each decision added to ``notes``:
-
-    - every pair kept under a soft (Cauchy) loss instead of hard rejection (:func:`.refine.fit_soft`: the
-      robust scale of few pairs is too noisy to reject by);
-    - the roll held near 0 by the mounting prior (``priors.MOUNTED_ROLL_SD_DEG``) when the pairs cannot
-      determine it (:func:`_roll_undetermined`); a prior, not a fixed 0, so that pairs which do determine
-      the roll still move it.
-    """
-    n = len(prob.rel_feet)
-    mask = np.ones(n, bool)
-    params, mask, scale = fit_soft(prob, params, free, mask, options.max_rounds)
-    notes.append(f"few pairs ({n} usable < {FEW_PAIRS}): a soft robust loss (Cauchy) on every pair instead of "
-                 "rejecting outliers")
+def _few_pairs_policy(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
+                      tracks: np.ndarray | None, options: CalibrateOptions, notes: list[str]
+                      ) -> tuple[Problem, np.ndarray, np.ndarray, float]:
+    """The fit of fewer than :data:`FEW_PAIRS` usable pairs (``prob``; the refinement's fit ``params`` (6,) with its
+    inliers ``mask`` (N,) and ``scale``): the roll held near 0 by the mounting prior (``priors.MOUNTED_ROLL_SD_DEG``)
+    when the pairs cannot determine it (:func:`_roll_undetermined`), with a note; unchanged otherwise. A prior, not a
+    fixed 0, so that pairs which do determine the roll still move it. Outliers stay rejected as in any fit: a soft
+    (Cauchy) loss on every pair instead lost to rejection (benchmarks/bench_reference.py, docs/calibration.md
+    "Few pairs: one reference person")."""
     if not free[ROLL] or prob.priors is None:
         return prob, params, mask, scale
     roll_sd_deg, people = _roll_sd_deg(prob, params, free, mask, scale, tracks)
     if not _roll_undetermined(roll_sd_deg):
         return prob, params, mask, scale
     prob = replace(prob, priors=prob.priors.with_sd(ROLL, math.radians(MOUNTED_ROLL_SD_DEG)))
-    params, mask, scale = fit_soft(prob, params, free, mask, options.max_rounds)
-    notes.append(f"roll held near 0 (prior sd {MOUNTED_ROLL_SD_DEG:g}°): {n} pairs of {people} "
+    params, mask, scale = fit_with_rejection(prob, params, free, mask, options.max_rounds)
+    n = len(prob.rel_feet)
+    notes.append(f"roll held near 0 (prior sd {MOUNTED_ROLL_SD_DEG:g}°): {n} pairs (< {FEW_PAIRS}) of {people} "
                  f"{'person' if people == 1 else 'people'} cannot determine it (its std {roll_sd_deg:.1f}° with "
                  f"a {LEAN_SD_DEG:g}° lean per person > {0.5 * MOUNTED_ROLL_SD_DEG:g}°)")
     return prob, params, mask, scale
@@ -428,29 +423,28 @@ def _roll_sd_deg(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.n
 def _roll_undetermined(roll_sd_deg: float) -> bool:
     """True when the pairs' roll std (deg) exceeds half the mounting prior's sd: the prior would then carry at
     least a fifth of the roll's information (its weight ``sd^2 / (sd^2 + prior_sd^2)`` >= 0.2), so the pairs
-    do not determine the roll by themselves. One person always does (the lean alone is 1.0 deg); from four
-    people, only when their clicks leave the roll uncertain."""
+    do not determine the roll by themselves. With the 1 deg prior that is always so for one to four people (the lean
+    alone is 1.0 deg / sqrt(people) >= 0.5 deg); from five, only when their clicks leave the roll uncertain."""
     return roll_sd_deg > 0.5 * MOUNTED_ROLL_SD_DEG
 
 
 def _weigh_correlated_pairs(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
-                            frames: np.ndarray | None, refit=fit_with_rejection
-                            ) -> tuple[Problem, np.ndarray, np.ndarray, float]:
-    """Refit (``refit``: :func:`.refine.fit_with_rejection`, or :func:`.refine.fit_soft` for few pairs) with
-    each tracked pair weighted by its design effect (:func:`.objective.design_effect`), measured on the
-    inliers of a first fit; unchanged when the pairs are independent."""
+                            frames: np.ndarray | None) -> tuple[Problem, np.ndarray, np.ndarray, float]:
+    """Refit (:func:`.refine.fit_with_rejection`) with each tracked pair weighted by its design effect
+    (:func:`.objective.design_effect`), measured on the inliers of a first fit; unchanged when the pairs are
+    independent."""
     inliers = np.flatnonzero(mask)
     deff = design_effect(prob.subset(inliers), params, scale, None if frames is None else frames[inliers])
     if deff <= 1.0:
         return prob, params, mask, scale
     prob = replace(prob, deff=np.where(prob.track >= 0, deff, 1.0))
-    return (prob, *refit(prob, params, free, mask, _REWEIGHT_ROUNDS))
+    return (prob, *fit_with_rejection(prob, params, free, mask, _REWEIGHT_ROUNDS))
 
 
 def _with_bodies(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.ndarray, scale: float,
-                 body: BodyAxes, options: CalibrateOptions, tracks: np.ndarray | None, refit=fit_with_rejection
+                 body: BodyAxes, options: CalibrateOptions, tracks: np.ndarray | None
                  ) -> tuple[Problem, np.ndarray, np.ndarray, float]:
-    """Refit (``refit``, as :func:`_weigh_correlated_pairs`) with the standing bodies' own vertical when the
+    """Refit (as :func:`_weigh_correlated_pairs`) with the standing bodies' own vertical when the
     pairs (with the priors) leave the pitch's std above ``options.body_engage_pitch_sd_deg``; unchanged
     otherwise."""
     inl = prob.subset(np.flatnonzero(mask))
@@ -459,7 +453,7 @@ def _with_bodies(prob: Problem, params: np.ndarray, free: np.ndarray, mask: np.n
     if not math.degrees(math.sqrt(max(cov[PITCH, PITCH], 0.0))) > options.body_engage_pitch_sd_deg:
         return prob, params, mask, scale
     prob = replace(prob, body=replace(body, sd_rad=math.radians(options.body_axis_sd_deg)))
-    return (prob, *refit(prob, params, free, mask, _REWEIGHT_ROUNDS))
+    return (prob, *fit_with_rejection(prob, params, free, mask, _REWEIGHT_ROUNDS))
 
 
 def _grid_fit(inp: PairsInput, idx: np.ndarray, options: CalibrateOptions, workers: int | None, prob: Problem

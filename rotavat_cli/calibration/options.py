@@ -100,11 +100,11 @@ class CalibrateOptions:
     # The foot's pixel noise carried into each head's error (objective.pair_covariance: errors in variables);
     # False gives the weights of earlier versions (benchmarks/bench_consistency.py shows what that costs).
     errors_in_variables: bool = field(default=True, metadata=_NOT_IN_CONFIG)
-    # The few-pairs policy (fit._few_pairs_policy): with few pairs a soft robust loss instead of hard rejection, and
-    # the roll held near 0 when the pairs cannot determine it (benchmarks/bench_reference.py compares it with the
-    # fits of earlier versions). Off by default for now: the sample's calibration (20 pairs of 5 people) is itself
-    # "few pairs", and the policy changes it (tests/test_golden_outputs.py); turning it on is issue 35's decision.
-    few_pairs: bool = field(default=False, metadata=_NOT_IN_CONFIG)
+    # The few-pairs policy (fit._few_pairs_policy): with fewer than fit.FEW_PAIRS pairs, the roll held near 0 by the
+    # mounting prior when the pairs cannot determine it. On by default (issue 35: benchmarks/bench_reference.py, one
+    # reference person, no worse than holding the roll at 0 for any reference and than the fits without it);
+    # False gives the fits of earlier versions.
+    few_pairs: bool = field(default=True, metadata=_NOT_IN_CONFIG)
     # A given lens's own uncertainty (its coefficient's sd: the plumb-line fit's, or the default distortion_sd for a
     # profile) and where it came from, for the fit block's ``lens`` ("given", "lines FILE").
     lens_distortion_sd: float | None = field(default=None, metadata=_NOT_IN_CONFIG)

@@ -18,8 +18,8 @@ from .grid import GridSpec, seed_params
 from .objective import Problem, body_rows, jacobian_at, pair_chi2, prior_rows, residual_at, robust_scale
 from .params import FOCAL, from_internal, param_bounds, to_internal
 
-__all__ = ["MANY_PAIRS", "FEW_PAIRS", "import_least_squares", "robust_least_squares", "min_pairs", "fit_with_rejection",
-           "fit_soft", "refine_fit"]
+__all__ = ["MANY_PAIRS", "import_least_squares", "robust_least_squares", "min_pairs", "fit_with_rejection",
+           "refine_fit"]
 
 _SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
 # A least-squares fit stops when a step changes the parameters or the cost by less than this (relative). With more
@@ -28,14 +28,6 @@ _SEED_ROUNDS = 3  # rejection rounds of each start on the subsample
 # 143, the fit 1.9 s -> 0.8 s, every parameter within 1% of its std of the tighter fit's; docs/performance.md).
 _TOL, _TOL_MANY, MANY_PAIRS = 1e-10, 1e-6, 4000
 _FULL_START_WIDEN = 4.0  # the full fit starts from the pairs within 4x the 99% chi-square of the best start
-# Fewer usable pairs than this are "few": hard rejection misjudges them, so the few-pairs policy keeps every pair under a
-# soft loss (:func:`fit_soft`). Why 50: rejection tests each pair against the 99% chi-square quantile times the scale,
-# and the scale comes from the median of N chi-squares (2 dof: an exponential), whose relative error is
-# 1 / (2 f(m) m sqrt(N)) = 1.44 / sqrt(N), the scale's half that, 0.72 / sqrt(N): 10% at N = 50. A scale 10% low
-# moves the 99% threshold to the 97.6% quantile (exp(-9.21 x 0.81 / 2)), so from 50 pairs down every round rejects
-# about one good pair, the far-out ones that carry most of the perspective; above it, under one.
-FEW_PAIRS = 50
-_SOFT_LOSS = ("cauchy", 2.0)  # the few-pairs loss: a gross click's pull fades with its size (soft_l1's stays bounded)
 
 
 def import_least_squares() -> None:
@@ -100,28 +92,6 @@ def fit_with_rejection(prob: Problem, params0: np.ndarray, free: np.ndarray, mas
         mask = new_mask
     scale = robust_scale(pair_chi2(prob, params, scale)[mask], prob)
     return params, mask, scale
-
-
-def fit_soft(prob: Problem, params0: np.ndarray, free: np.ndarray, mask0: np.ndarray, rounds: int,
-             many: bool | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """Robust fits on every pair with a finite chi-square at ``params0`` (6,) (``mask0`` (N,) is not used: no pair is
-    dropped), the Cauchy loss at a scale re-measured each round; returns (params (6,), the pairs within the 99%
-    chi-square of the fit (N,) (reported as inliers; the rest only pulled less), scale). Same signature as
-    :func:`fit_with_rejection`, so a caller switches between them (the few-pairs policy)."""
-    del mask0
-    fitted = np.isfinite(pair_chi2(prob, params0))
-    params = params0
-    sub = prob.subset(np.flatnonzero(fitted))
-    scale = robust_scale(pair_chi2(prob, params)[fitted], prob)
-    scale = robust_scale(pair_chi2(prob, params, scale)[fitted], prob)
-    for _ in range(max(1, rounds)):
-        params = robust_least_squares(sub, params, free, scale, *_SOFT_LOSS, many)
-        scale = robust_scale(pair_chi2(prob, params, scale)[fitted], prob)
-    chi2 = pair_chi2(prob, params, scale)
-    inliers = chi2 <= prob.residual.chi2_99 * scale**2
-    if inliers.sum() < min_pairs(prob, free):
-        inliers = fitted
-    return params, inliers, robust_scale(pair_chi2(prob, params, scale)[inliers], prob)
 
 
 def refine_fit(prob: Problem, feet: np.ndarray, heads: np.ndarray, pp: np.ndarray, image_size: tuple[int, int],
