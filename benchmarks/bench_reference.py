@@ -26,7 +26,12 @@ on the fit's block: the camera's covariance and the pixels). Policies, on the sa
 - ``roll 0``: the same with the roll held at 0 (``estimate_roll=False``): only the roll differs;
 - ``roll 0 (vertical)``: ``--residual vertical --no-roll`` (the head rows only, as the paper compares);
 - ``policy on``: the few-pairs policy (``few_pairs=True``, the default: ``calibration.fit._few_pairs_policy``);
-- ``default + lens``: the defaults with ``distortion=True`` (the camera carries the fitted lens).
+- ``default + lens``: the defaults with ``distortion=True`` (the camera carries the fitted lens, kept only when the
+  pairs tell it from none: ``calibration.fit.LENS_SIGNIFICANCE``, under the lens prior ``priors.DISTORTION_PRIOR_SD``);
+- ``default + lens from lines``: the defaults with the lens measured from 4 straight scene edges clicked with
+  1 px noise (``calibrate --lens-lines``: ``calibration.plumb_lines``, about the image centre);
+- ``true camera``: everyone measured with the camera that made the clicks (its lens included): the floor the
+  clicks themselves leave (their noise, lean and sway), no calibration.
 
 Reported: the other subjects' mean |error| (cm) per policy, per camera kind (distorted or not) and per
 reference; the coverage (the fraction of measured subjects with |error| <= 2 x their reported std: 95% when
@@ -61,6 +66,7 @@ sys.path.insert(0, str(ROOT))
 from rotavat_cli.bodies.measure import statures_from_camera_m  # noqa: E402
 from rotavat_cli.bodies.stature_error import stature_errors  # noqa: E402
 from rotavat_cli.calibration import CalibrateOptions, fit_camera  # noqa: E402
+from rotavat_cli.calibration.plumb_lines import fit_plumb_lines  # noqa: E402
 from rotavat_cli.errors import RotavatError  # noqa: E402
 from rotavat_cli.geometry.camera import Camera  # noqa: E402
 from rotavat_cli.geometry.lens import distort_px, lens_radius_px  # noqa: E402
@@ -79,6 +85,10 @@ ROLL_MAX_DEG = 2.0  # the cameras' roll is uniform in +-this (--roll-max)
 COVERAGE_K = 2.0  # a subject is covered when |error| <= 2 x its reported std (95% when the std is right)
 NOT_WORSE_SE = 2.0  # "no worse": the mean paired difference at most 2 standard errors above 0 (module docstring)
 POLICY_OFF, POLICY_ON = "policy off", "policy on"
+# Not options: the lens from the scene's straight lines (calibrate --lens-lines), and the true camera (the floor the
+# clicks themselves leave: their noise, lean and sway, measured with the camera that made them).
+LENS_FROM_LINES, TRUE_CAMERA = "lens_from_lines", "true camera"
+SCENE_LINES, LINE_POINTS, LINE_NOISE_PX = 4, 8, 1.0  # straight edges clicked per camera (kerbs, door frames, poles)
 # policy -> (option changes, only on distorted cameras)
 POLICIES = {
     "paper grid": ({"method": "grid"}, False),
@@ -87,6 +97,8 @@ POLICIES = {
     "roll 0 (vertical)": ({"few_pairs": False, "residual": "vertical", "estimate_roll": False}, False),
     POLICY_ON: ({"few_pairs": True}, False),
     "default + lens": ({"distortion": True}, False),
+    "default + lens from lines": ({LENS_FROM_LINES: True}, False),
+    TRUE_CAMERA: ({TRUE_CAMERA: True}, False),
 }
 
 
@@ -100,6 +112,7 @@ class Scene:
     feet_px: np.ndarray
     heads_px: np.ndarray
     subject: np.ndarray
+    lines_px: tuple[np.ndarray, ...] = ()  # the scene's straight edges as clicked (distorted px, LINE_NOISE_PX)
 
 
 def lam_for_corner(displacement: float) -> float:
@@ -182,7 +195,29 @@ def make_scene(rng: np.random.Generator, index: int, roll_max_deg: float = ROLL_
         feet.append(f)
         heads.append(h)
         subject.append(np.full(len(f), s))
-    return Scene(cam, lam, statures, np.concatenate(feet), np.concatenate(heads), np.concatenate(subject))
+    return Scene(cam, lam, statures, np.concatenate(feet), np.concatenate(heads), np.concatenate(subject),
+                 scene_lines(np.random.default_rng([SEED, index]), cam, lam))
+
+
+def scene_lines(rng: np.random.Generator, cam: Camera, lam: float) -> tuple[np.ndarray, ...]:
+    """:data:`SCENE_LINES` straight edges of the scene as a user clicks them (:data:`LINE_POINTS` points each, distorted
+    px with :data:`LINE_NOISE_PX` noise): segments straight in the pinhole image, from one third of the image to
+    another, two near-horizontal and two near-vertical (kerbs, door frames). Their own generator, so the people's
+    clicks are the same with or without them."""
+    W, H = cam.image_size
+    radius = lens_radius_px(cam.image_size)
+    lines = []
+    for k in range(SCENE_LINES):
+        if k % 2 == 0:  # across the image, in its upper or lower third
+            v = rng.uniform(0.05, 0.3) * H if k == 0 else rng.uniform(0.7, 0.95) * H
+            ends = np.array([[0.05 * W, v + rng.uniform(-20, 20)], [0.95 * W, v + rng.uniform(-20, 20)]])
+        else:  # down the image, in its left or right fifth
+            u = rng.uniform(0.03, 0.2) * W if k == 1 else rng.uniform(0.8, 0.97) * W
+            ends = np.array([[u + rng.uniform(-15, 15), 0.05 * H], [u + rng.uniform(-15, 15), 0.95 * H]])
+        pinhole = ends[0] + np.linspace(0.0, 1.0, LINE_POINTS)[:, None] * (ends[1] - ends[0])
+        clicked = distort_px(pinhole, lam, cam.principal_point, radius) + rng.normal(0, LINE_NOISE_PX, pinhole.shape)
+        lines.append(clicked)
+    return tuple(lines)
 
 
 @dataclass(frozen=True)
@@ -203,16 +238,23 @@ def calibrate_and_measure(scene: Scene, ref: int, changes: dict) -> Outcome:
     ``rotavat measure`` does (the statures, then their std from the camera's covariance and the pixels:
     ``bodies.stature_error.stature_errors`` on the fit's block)."""
     sel = scene.subject == ref
-    options = CalibrateOptions(person_height_m=float(scene.statures_m[ref]), person_height_sd_m=KNOWN_STATURE_SD_M,
-                               **changes)
     nothing = np.full(N_SUBJECTS, np.nan)
-    try:
-        res = fit_camera(scene.feet_px[sel], scene.heads_px[sel], scene.camera.image_size, options,
-                         frame_index=np.arange(int(sel.sum())), track_id=scene.subject[sel])
-    except (RotavatError, ValueError) as exc:
-        return Outcome(nothing, nothing, math.nan, (f"refused: {exc}",))
-    statures = statures_from_camera_m(scene.feet_px, scene.heads_px, res.camera)
-    errors = stature_errors(scene.feet_px, scene.heads_px, statures, scene.subject, res.camera, res.fit_dict(),
+    if changes.get(TRUE_CAMERA):
+        camera, fit, notes = scene.camera.replace(distortion=scene.distortion), None, ()
+    else:
+        if changes.get(LENS_FROM_LINES):
+            lens = fit_plumb_lines(list(scene.lines_px), scene.camera.image_size)
+            changes = {"lens_distortion": lens.distortion, "lens_distortion_sd": lens.std}
+        options = CalibrateOptions(person_height_m=float(scene.statures_m[ref]),
+                                   person_height_sd_m=KNOWN_STATURE_SD_M, **changes)
+        try:
+            res = fit_camera(scene.feet_px[sel], scene.heads_px[sel], scene.camera.image_size, options,
+                             frame_index=np.arange(int(sel.sum())), track_id=scene.subject[sel])
+        except (RotavatError, ValueError) as exc:
+            return Outcome(nothing, nothing, math.nan, (f"refused: {exc}",))
+        camera, fit, notes = res.camera, res.fit_dict(), res.notes
+    statures = statures_from_camera_m(scene.feet_px, scene.heads_px, camera)
+    errors = stature_errors(scene.feet_px, scene.heads_px, statures, scene.subject, camera, fit,
                             _frames_within_subject(scene.subject))
     median = np.array([np.nanmedian(statures[scene.subject == s]) for s in range(N_SUBJECTS)])
     error = median - scene.statures_m
@@ -221,7 +263,9 @@ def calibrate_and_measure(scene: Scene, ref: int, changes: dict) -> Outcome:
     std[errors.ids] = errors.std_m
     with np.errstate(invalid="ignore"):
         covered = np.where(np.isfinite(error) & (std > 0), (np.abs(error) <= COVERAGE_K * std).astype(float), np.nan)
-    return Outcome(error, covered, math.degrees(res.camera.roll_rad - scene.camera.roll_rad), res.notes)
+    if fit is None:
+        covered[:] = np.nan  # the true camera has no uncertainty to cover with
+    return Outcome(error, covered, math.degrees(camera.roll_rad - scene.camera.roll_rad), notes)
 
 
 def _frames_within_subject(subject: np.ndarray) -> np.ndarray:

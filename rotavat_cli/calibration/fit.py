@@ -238,7 +238,33 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
                          n_frames, held)
         if method == "refine" and (inp.priors is None or not inp.priors.cover(free)):
             _refuse_undetermined(result)
+        if options.distortion and not _lens_significant(result):
+            return _without_the_lens(result, fit_camera(feet_px, heads_px, image_size, options.replace(distortion=False),
+                                                        frame_index=frame_index, track_id=track_id, body=body,
+                                                        workers=workers))
         return result
+
+
+# A fitted lens is kept when it is this many of its std from none (a two-sided 95% test when ~2): from a few tens of
+# clicks the lens trades off with the focal and the pitch, and a coefficient the pairs cannot tell from 0 moved the
+# statures of undistorted cameras by up to 9.6 cm (benchmarks/bench_reference.py: --distortion on one reference).
+LENS_SIGNIFICANCE = 2.0
+
+
+def _lens_significant(result: CalibrationResult) -> bool:
+    """Whether the fitted lens differs from none by :data:`LENS_SIGNIFICANCE` of its std."""
+    sd = result.std.get("distortion", math.nan)
+    return bool(math.isfinite(result.distortion) and math.isfinite(sd)
+                and abs(result.distortion) > LENS_SIGNIFICANCE * sd)
+
+
+def _without_the_lens(lensed: CalibrationResult, pinhole: CalibrationResult) -> CalibrationResult:
+    """The fit without the lens (``pinhole``), saying which lens the pairs suggested and why it is not applied."""
+    note = (f"lens not applied: the pairs suggest a division coefficient {lensed.distortion:+.3f} +- "
+            f"{lensed.std.get('distortion', math.nan):.3f}, within {LENS_SIGNIFICANCE:g} std of none (a known lens: "
+            "--lens K, or --lens-lines FILE from the scene's straight edges)")
+    return replace(pinhole, notes=pinhole.notes + (note,),
+                   fixed={**pinhole.fixed, "distortion": "not significant"})
 
 
 _HELD_OPTION = {FOCAL: "focal_px", PITCH: "pitch_deg"}  # the option that holds a slot at its prior's median

@@ -22,7 +22,8 @@ The priors, on the internal parameters:
 - roll: N(0 deg, 10 deg). Cameras are mounted and held nearly level. Where few pairs cannot determine the
   roll (:func:`~.fit.fit_camera`'s few-pairs policy), N(0, 1 deg): a mounted camera levelled by eye
   (``MOUNTED_ROLL_SD_DEG``);
-- height: ``log h`` ~ N(log 3 m, 0.8). Handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m).
+- height: ``log h`` ~ N(log 3 m, 0.8). Handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m);
+- lens (``--distortion`` only): the division coefficient ~ N(0, 0.15) (``DISTORTION_PRIOR_SD``).
 
 With ``--camera-height M`` the height is known and the people's mean stature ``S`` is estimated
 instead; since the model sees only ``S / h``, that is the height slot with the prior
@@ -47,10 +48,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .params import FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal  # noqa: F401 (to_internal: the doctest)
+from .params import DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal  # noqa: F401 (to_internal: the doctest)
 
 __all__ = ["FOCAL_PRIORS", "LENS_FOCAL_OVER_DIAGONAL", "LENS_LOG_SD", "LENS_DOF", "student_row", "PITCH_PRIOR_DEG", "ROLL_PRIOR_SD_DEG",
-           "MOUNTED_ROLL_SD_DEG", "LEAN_SD_DEG", "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
+           "MOUNTED_ROLL_SD_DEG", "LEAN_SD_DEG", "DISTORTION_PRIOR_SD", "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
 
 FOCAL_PRIORS = ("lens", "none")  # calibrate.focal_prior: the lens prior, or none (the people alone)
 LENS_FOCAL_OVER_DIAGONAL = 0.75  # median focal of real lenses / image diagonal (table above)
@@ -58,6 +59,11 @@ LENS_LOG_SD = 0.30  # sd of log(f / D) (the curvature at the median; the lens pr
 LENS_DOF = 3.0  # its degrees of freedom: heavy tails, so people who determine a wide or long lens are not pulled back
 PITCH_PRIOR_DEG = (15.0, 25.0)  # mean, sd
 ROLL_PRIOR_SD_DEG = 10.0  # mean 0
+# A fitted lens's division coefficient, mean 0 (the corner's relative displacement): surveillance and phone lenses
+# move the corner by 0-30% (barrel), pincushion is rare; +-2 sd spans +-0.3. Only a fit with --distortion uses it;
+# from a few tens of clicks it keeps the lens from trading itself for the focal and the pitch (a far-only reference
+# fitted +0.29 to a pinhole camera and measured everyone 10 cm off: benchmarks/bench_reference.py).
+DISTORTION_PRIOR_SD = 0.15
 # The few-pairs policy's roll prior: the spread of mounted cameras' roll. An installer levelling by eye leaves it within
 # 1-2 deg (a 2 deg roll tilts a doorframe 3.5 cm per metre, which one sees): +-2 sd = +-2 deg, sd 1 deg. Measured
 # (benchmarks/bench_reference.py, one reference person, cameras' roll uniform in +-2 deg, i.e. sd 1.15 deg): the other
@@ -147,8 +153,8 @@ def default_priors(image_size: tuple[int, int], *, focal_prior: str = "lens",
     mean = param_vector(focal=math.log(LENS_FOCAL_OVER_DIAGONAL * math.hypot(W, H)),
                         pitch=math.radians(PITCH_PRIOR_DEG[0]), roll=0.0, height=math.log(HEIGHT_PRIOR_M))
     sd = np.full(N_PARAMS, math.inf)
-    sd[[FOCAL, PITCH, ROLL, HEIGHT]] = (LENS_LOG_SD, math.radians(PITCH_PRIOR_DEG[1]),
-                                        math.radians(ROLL_PRIOR_SD_DEG), HEIGHT_LOG_SD)
+    sd[[FOCAL, PITCH, ROLL, HEIGHT, DISTORTION]] = (LENS_LOG_SD, math.radians(PITCH_PRIOR_DEG[1]),
+                                                    math.radians(ROLL_PRIOR_SD_DEG), HEIGHT_LOG_SD, DISTORTION_PRIOR_SD)
     focal_kind, height_kind = focal_prior, "camera"
     if fov_prior_deg is not None:  # the user's prior on the vertical field of view, as a log-focal prior
         fov_mean, fov_sd = fov_prior_deg
