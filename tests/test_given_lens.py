@@ -100,3 +100,13 @@ def test_bad_lens_flags_are_one_line_and_exit_2(tmp_path, args, message):
     result = invoke(CliRunner(), "calibrate", seq, *args, catch_exceptions=True)
     assert result.exit_code == 2 and message in result.output, result.output
     assert not (seq / "camera.yaml").exists()
+
+
+def test_info_shows_the_cameras_lens():
+    from rotavat_cli.cli.info import _camera_cell
+
+    camera = {"focal_px": 1000.0, "pitch_deg": 20.0, "roll_deg": 1.0, "height_m": 4.0, "distortion": -0.25,
+              "fit": {"std": {}, "fixed": {"distortion": "given"}, "lens": {"from": "given", "distortion": -0.25,
+                                                                           "sd": 0.01}}}
+    assert _camera_cell(camera).endswith("lens -0.2500 ± 0.0100 (given)")
+    assert "lens" not in _camera_cell({**camera, "distortion": {"model": "opencv"}})  # an answer key's own lens block

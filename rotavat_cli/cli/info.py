@@ -80,6 +80,12 @@ def _camera_cell(cam: dict | None) -> str:
             parts.append(f"{name} {value}{unit} (undetermined)")
         else:
             parts.append(f"{name} {value}{unit}")
+    lens = cam.get("distortion")
+    if isinstance(lens, (int, float)) and not isinstance(lens, bool) and lens:  # the camera's lens (division model)
+        given = fit.get("lens") if isinstance(fit.get("lens"), dict) else {}
+        sd = std.get("distortion", given.get("sd"))
+        parts.append(f"lens {lens:+.4f}" + (f" ± {sd:.4f}" if isinstance(sd, (int, float)) and math.isfinite(sd) else "")
+                     + (f" ({str(given['from']).split(' (')[0]})" if given.get("from") else ""))
     implausible = fit.get("implausible") or []
     mark = f"; [red]implausible[/] ({len(implausible)} findings: fit.implausible)" if implausible else ""
     return ", ".join(parts) + mark
