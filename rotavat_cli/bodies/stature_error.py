@@ -44,6 +44,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..design_effect import autocorrelation_time
 from ..geometry.camera import Camera
 from .measure import statures_by_track, statures_from_camera_m
 
@@ -66,8 +67,6 @@ MIN_SCATTER_PAIRS = 8  # a track with this many measured pairs estimates its own
 _IQR_TO_SD = 0.6745  # half the interquartile range of a normal is 0.6745 sd
 _MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)  # sd of a large sample's median over sd / sqrt(n), normal data
 _PIXEL_STEP_PX = 0.01  # central-difference step of the pixel derivatives
-_DEFF_MIN_RHO = 0.05  # autocorrelations below this end the design effect's sum (calibration.objective's rule)
-_DEFF_MAX_LAG = 200
 FOOTPRINT_MARGIN_REL = 0.02  # a foot this far (x the image's larger side, px) outside the footprint is still inside
 DEPTH_TOLERANCE_REL = 0.10  # a foot depth within this fraction beyond the footprint's depth range is still inside
 
@@ -175,21 +174,7 @@ def stature_design_effect(statures_m: np.ndarray, track_ids: np.ndarray, frame_i
     order = np.lexsort((frames, ids))
     s, ids = s[order], ids[order]
     tracks = statures_by_track(s, ids)
-    r = s - tracks.median_m[np.searchsorted(tracks.ids, ids)]
-    denom = float(np.sum(r * r))
-    if denom <= 0.0:
-        return 1.0
-    lengths = tracks.pairs[tracks.pairs > 0]
-    tau = 1.0
-    for k in range(1, min(_DEFF_MAX_LAG, int(lengths.max()))):
-        same = ids[k:] == ids[:-k]
-        if not same.any():
-            break
-        rho = float(np.sum(r[k:][same] * r[:-k][same])) / denom * len(r) / same.sum()
-        if rho < _DEFF_MIN_RHO:
-            break
-        tau += 2.0 * rho
-    return float(min(max(tau, 1.0), float(np.mean(lengths))))
+    return autocorrelation_time(s - tracks.median_m[np.searchsorted(tracks.ids, ids)], ids)
 
 
 def within_polygon(points_px: np.ndarray, polygon_px: np.ndarray, margin_px: float = 0.0) -> np.ndarray:

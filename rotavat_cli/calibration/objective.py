@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..design_effect import MAX_LAG, autocorrelation_time
 from ..geometry.camera import up_vector_cam
 from ..geometry.lens import lens_radius_px
 from ..parallel import cpu_count
@@ -38,7 +39,6 @@ _FD_STEP = 1e-6  # finite-difference step in the internal parameters (log f, rad
 _FOOT_STEP_PX = 0.5  # finite-difference step of the foot pixel (the model is smooth over a pixel)
 MIN_NOISE_PX = 0.5  # floor of the residual scale in pixels: annotation is never better than this
 _THREAD_ROWS = 40_000  # pairs x parameter sets from which a Jacobian's sets are split over two threads
-_DEFF_MIN_RHO = 0.05  # autocorrelations below this end the design effect's sum (they are noise)
 
 
 @dataclass(frozen=True)
@@ -314,7 +314,7 @@ def pair_chi2(prob: Problem, params: np.ndarray, scale: float = 1.0) -> np.ndarr
 
 
 def design_effect(prob: Problem, params: np.ndarray, scale: float, frame_index: np.ndarray | None,
-                  max_lag: int = 200) -> float:
+                  max_lag: int = MAX_LAG) -> float:
     """How many pairs one independent pair is worth along a track (>= 1): the integrated
     autocorrelation time ``1 + 2 sum_k rho_k`` of the whitened residuals of consecutive pairs of
     each track (pooled over tracks and components), summed while ``rho_k`` stays above 0.05, at
@@ -332,23 +332,7 @@ def design_effect(prob: Problem, params: np.ndarray, scale: float, frame_index: 
     r = np.where(valid[0][:, None], r[0], 0.0)  # (N, dof)
     order = np.lexsort((frame_index, prob.track))
     order = order[tracked[order]]
-    track, r = prob.track[order], r[order]
-    lengths = np.bincount(track)
-    lengths = lengths[lengths > 0]
-    denom = float(np.sum(r * r))
-    if denom <= 0 or len(r) < 3:
-        return 1.0
-    tau = 1.0
-    for k in range(1, min(max_lag, int(lengths.max()))):
-        same = track[k:] == track[:-k]
-        if not same.any():
-            break
-        rho = float(np.sum(r[k:][same] * r[:-k][same])) / denom * len(r) / same.sum()
-        if rho < _DEFF_MIN_RHO:
-            break
-        tau += 2.0 * rho
-    return float(min(max(tau, 1.0), float(np.mean(lengths))))
-
+    return autocorrelation_time(r[order], prob.track[order], max_lag)
 
 
 def robust_scale(chi2: np.ndarray, prob: Problem) -> float:
