@@ -112,7 +112,9 @@ def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, hel
     internal parameters (log focal, pitch rad, roll rad, log height, distortion, box depth; zero rows for
     fixed slots: :func:`.uncertainty.covariances`); free: (6,) bool; held: slots held at their prior's
     median with the prior's sd (internal units): their variance is the prior's, their covariance with
-    the others is left at 0 (the others' own variance already carries their spread); height_given: the
+    the others the shift the fit makes when the held value moves by that sd (``shifts``; 0 without it: a
+    focal held at the lens prior moves the pitch and height with it, and a stature measured with the
+    camera depends on all three, largely cancelling); height_given: the
     camera height was given, so it is not estimated (the angles' covariance is their marginal: the
     given height fixes the scale, the fit's own log height only carried the stature's).
     shifts: the assumed quantities' parameter shifts and sds (:func:`.uncertainty.covariances`): the principal
@@ -129,8 +131,10 @@ def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, hel
     scale = np.array([unit[s] for s in slots])
     matrix = np.array(cov, dtype=np.float64)[np.ix_(slots, slots)] * np.outer(scale, scale)
     for k, s in enumerate(slots):
-        if s in held:
-            matrix[k, :] = matrix[:, k] = 0.0
+        if s in held:  # the prior's variance; with the others, what moving it by its sd does to them (``shifts``)
+            moved = shifts.get(s) if shifts else None
+            cross = 0.0 if moved is None else np.asarray(moved[0], dtype=np.float64)[slots] * scale * scale[k] * held[s]
+            matrix[k, :] = matrix[:, k] = cross
             matrix[k, k] = (scale[k] * held[s]) ** 2
     names = [COVARIANCE_SLOTS[s] for s in slots]
     for key, (name, sign) in ASSUMED_CAMERA_PARTS.items():
