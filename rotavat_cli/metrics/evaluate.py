@@ -40,6 +40,7 @@ import numpy as np
 
 from ..files.atomic import atomic_open
 from ..geometry.camera import Camera, camera_parameters, project_cam_to_px
+from ..geometry.focal import CAMERA
 from ..errors import InputError, input_errors
 from ..bodies.joint_layouts import LAYOUT_NAMES, layout_key
 from ..bodies.landmarks import SMPL_JOINT_NAMES
@@ -147,12 +148,15 @@ def parse_joints(spec: str | None, n_joints: int | None = None) -> tuple[int, ..
     return tuple(out)
 
 
-def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | None) -> np.ndarray | None:
-    """2D points per person used for matching: projected joints, else 2D keypoints, else foot/head."""
+def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | None,
+               lens: Camera | None = None) -> np.ndarray | None:
+    """2D points per person used for matching, in image pixels: projected joints (through ``lens``, the sequence's
+    camera when its frames are in it: :func:`image_lens`), else 2D keypoints, else foot/head."""
     focals = intrinsics.focals_px(frame.n_people)
     if frame.get("joints") is not None and focals is not None:
         j = frame.data["joints"]
-        return project_cam_to_px(j[:, list(joints)] if joints else j, focals[:, None], intrinsics.principal_point)
+        px = project_cam_to_px(j[:, list(joints)] if joints else j, focals[:, None], intrinsics.principal_point)
+        return px if lens is None else lens.distort_px(px)
     if frame.get("keypoints_2d") is not None:
         return frame.data["keypoints_2d"].astype(np.float64)
     if frame.get("feet_2d") is not None and frame.get("heads_2d") is not None:
@@ -160,14 +164,24 @@ def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | N
     return None
 
 
-def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions) -> tuple[np.ndarray, np.ndarray]:
-    """Per-frame one-to-one matching (pred_idx, gt_idx); ``opts`` as :func:`_effective` makes them."""
+def image_lens(seq: Sequence) -> Camera | None:
+    """The lens a sequence's frames are seen through: its camera's, when the frames are in that camera (its focal is
+    the camera's own: an aligned output, a ground truth) and it has one; None otherwise (an HPS method's frames are
+    its own pinhole's, whose pixels are already the image's)."""
+    cam = seq.camera
+    return cam if cam is not None and cam.distortion != 0.0 and seq.focal_kind == CAMERA else None
+
+
+def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions,
+           lenses: tuple[Camera | None, Camera | None] = (None, None)) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame one-to-one matching (pred_idx, gt_idx); ``opts`` as :func:`_effective` makes them; ``lenses``:
+    each side's :func:`image_lens`."""
     both_ids = pred.get("person_ids") is not None and gt.get("person_ids") is not None
     if opts.match == "ids" or (opts.match == "auto" and both_ids):
         if not both_ids:
             raise InputError(f"{pred.source}: --match ids needs 'person_ids' on both sides")
         return match_by_ids(pred.person_ids, gt.person_ids)
-    pred_px, gt_px = _people_px(pred, pred_intr, opts.joints), _people_px(gt, gt_intr, opts.joints)
+    pred_px, gt_px = _people_px(pred, pred_intr, opts.joints, lenses[0]), _people_px(gt, gt_intr, opts.joints, lenses[1])
     if pred_px is None or gt_px is None or pred_px.shape[1] != gt_px.shape[1]:
         raise InputError(f"{pred.source}: cannot match people in 2D (need joints with a known focal, "
                          "keypoints_2d or feet_2d/heads_2d with the same count on both sides; or use --joints)")
@@ -399,16 +413,18 @@ def _evaluate(pred_seq: Sequence, gt_seq: Sequence, options: EvalOptions | None,
 
 
 def match_frame(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions,
-                vertices: bool = True) -> tuple[np.ndarray, np.ndarray, MatchedPairs | None]:
+                vertices: bool = True, lenses: tuple[Camera | None, Camera | None] = (None, None)
+                ) -> tuple[np.ndarray, np.ndarray, MatchedPairs | None]:
     """One frame's people matched and gathered as :func:`evaluate` scores them (``opts``: :func:`pairing_options`'):
     (M,) prediction indices, (M,) ground-truth indices, the matched pairs (None when M = 0; ``vertices=False``:
-    without their vertices); InputError as :func:`evaluate` (joints missing, people not matchable, point counts)."""
+    without their vertices); ``lenses``: each side's :func:`image_lens`; InputError as :func:`evaluate` (joints
+    missing, people not matchable, point counts)."""
     _check_joints(pred, opts)
     _check_joints(gt, opts)
     if pred.n_people == 0 or gt.n_people == 0:
         pi = gi = np.zeros(0, dtype=np.int64)
     else:
-        pi, gi = _match(pred, gt, pred_intr, gt_intr, opts)
+        pi, gi = _match(pred, gt, pred_intr, gt_intr, opts, lenses)
     return pi, gi, _gather_pairs(pred, gt, pi, gi, opts, vertices) if len(pi) else None
 
 
@@ -469,7 +485,8 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
     result.frames += 1
     result.people_pred += pred.n_people
     result.people_gt += gt.n_people
-    pi, gi, pairs = match_frame(pred, gt, pred_seq.frame_intrinsics(pred), gt_seq.frame_intrinsics(gt), opts)
+    pi, gi, pairs = match_frame(pred, gt, pred_seq.frame_intrinsics(pred), gt_seq.frame_intrinsics(gt), opts,
+                                lenses=(image_lens(pred_seq), image_lens(gt_seq)))
     result.matched += len(pi)
     result.missed += gt.n_people - len(gi)
     result.false_positives += pred.n_people - len(pi)
