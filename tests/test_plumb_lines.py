@@ -79,8 +79,21 @@ def test_the_lines_file_is_read_and_bad_ones_named(tmp_path):
     assert [line.shape for line in lines] == [(3, 2), (4, 2)]
     bad = tmp_path / "bad.yaml"
     bad.write_text("lines:\n  - [[10, 20, 3], [30, 40, 3]]\n")
+    with pytest.raises(InputError, match=r"bad.yaml: lines\[0\] must be a list of \[u, v\] pixel pairs"):
+        read_lines_file(bad)
+    bad.write_text("lines:\n  - [[10, 20], [30, .nan], [1, 2]]\n  - [[0, 0], [5, 5], [9, 11]]\n")
     with pytest.raises(InputError, match=r"bad.yaml: lines\[0\] must be a list of finite \[u, v\] pixel pairs"):
         read_lines_file(bad)
     (tmp_path / "none.yaml").write_text("points: []\n")
     with pytest.raises(InputError, match="none.yaml: expected a mapping with 'lines'"):
         read_lines_file(tmp_path / "none.yaml")
+
+
+def test_a_small_file_of_yaml_aliases_is_refused_before_it_is_expanded(tmp_path):
+    """Nine levels of nine aliases are 387 million values once expanded: refused from the shape of the first point."""
+    levels = ["a0: &a0 [1.0, 2.0]"] + [f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, 9)]
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("\n".join(levels) + "\nlines: [*a8, *a8]\n")
+    assert bomb.stat().st_size < 1000
+    with pytest.raises(InputError, match=r"lines\[0\] must be a list of \[u, v\] pixel pairs"):
+        read_lines_file(bomb)

@@ -39,6 +39,7 @@ __all__ = ["PlumbLineFit", "fit_plumb_lines", "straightness_px2", "read_lines_fi
 
 MIN_LINES = 2  # one line confounds the lens with the line's own curvature... of which there is none: two to be sure
 MIN_POINTS_PER_LINE = 3  # two points always lie on a line
+MAX_LINES, MAX_POINTS_PER_LINE = 1_000, 10_000  # what a file may hold (clicked edges: a few, tens of points each)
 _GRID = 201  # coefficients tried over [-MAX_DISTORTION, MAX_DISTORTION] before refining (0.005 apart)
 
 
@@ -139,13 +140,22 @@ def read_lines_file(path: str | Path) -> list[np.ndarray]:
     raw = data.get("lines") if isinstance(data, dict) else None
     if not isinstance(raw, list) or not raw:
         raise InputError(f"{path}: expected a mapping with 'lines': a list of polylines, each a list of [u, v] pixels")
+    if len(raw) > MAX_LINES:
+        raise InputError(f"{path}: {len(raw)} lines, more than the {MAX_LINES} a lens needs (at most)")
     lines = []
     for k, line in enumerate(raw):
-        try:
-            arr = np.asarray(line, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InputError(f"{path}: lines[{k}] must be a list of [u, v] pixel pairs") from None
+        if isinstance(line, list) and len(line) > MAX_POINTS_PER_LINE:  # checked before converting: YAML aliases
+            raise InputError(f"{path}: lines[{k}] has {len(line)} points, more than {MAX_POINTS_PER_LINE}")
+        if not isinstance(line, list) or not all(_is_pixel(point) for point in line):  # before numpy sees a nest
+            raise InputError(f"{path}: lines[{k}] must be a list of [u, v] pixel pairs")
+        arr = np.asarray(line, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 2 or not np.all(np.isfinite(arr)):
             raise InputError(f"{path}: lines[{k}] must be a list of finite [u, v] pixel pairs, got shape {list(arr.shape)}")
         lines.append(arr)
     return lines
+
+
+def _is_pixel(point: object) -> bool:
+    """Whether a YAML value is one ``[u, v]`` pair of numbers."""
+    return (isinstance(point, list) and len(point) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in point))
