@@ -254,3 +254,32 @@ def test_a_focal_held_at_its_prior_moves_the_others_with_it():
     statures = statures_from_camera_m(feet, heads, res.camera)
     errors = stature_errors(feet, heads, statures, np.zeros(n, int), res.camera, fit, np.arange(n))
     assert 0.02 < errors.std_m[0] < 0.15, errors.std_m
+
+
+@pytest.mark.parametrize("key", ["footprint_px", "covariance"])
+def test_a_camera_file_of_yaml_aliases_is_refused_in_one_line_before_it_is_expanded(walkers, tmp_path, runner, key):
+    """Eight levels of nine aliases (43 million values once expanded) in a 1 kB camera.yaml: exit 2, one line."""
+    good = tmp_path / "good.yaml"
+    write_camera_yaml(good, CAM, {"method": "refine", "rmse_px": 3.0})
+    levels = ["a0: &a0 [1.0, 2.0]"] + [f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, 8)]
+    block = "  footprint_px: *a7" if key == "footprint_px" else \
+        "  covariance: {names: [focal_px, height_m], matrix: [*a7, *a7]}"
+    bomb = tmp_path / "bomb.yaml"
+    text = good.read_text().replace("fit: {method: refine, rmse_px: 3.0}", "fit:\n  method: refine\n" + block)
+    assert block in text
+    bomb.write_text("\n".join(levels) + "\n" + text)
+    assert bomb.stat().st_size < 3000
+    result = invoke(runner, "measure", walkers, "--camera", bomb, "--out", tmp_path / "m.csv", catch_exceptions=True)
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert key in result.stderr and not (tmp_path / "m.csv").exists()
+
+
+def test_a_footprint_of_shared_lists_is_refused_without_expanding_it():
+    """What YAML aliases make: nine levels of nine references to one list, 387 million values if numpy expanded
+    them (3 GB); refused from the first vertex's shape instead."""
+    nest = [1.0, 2.0]
+    for _ in range(9):
+        nest = [nest] * 9
+    feet = np.array([[600.0, 500.0]])
+    with pytest.raises(ValueError, match="fit.footprint_px must be a list of"):
+        stature_errors(feet, feet - [0.0, 100.0], np.array([1.7]), np.array([0]), CAM, {"footprint_px": nest})

@@ -68,6 +68,7 @@ _IQR_TO_SD = 0.6745  # half the interquartile range of a normal is 0.6745 sd
 _MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)  # sd of a large sample's median over sd / sqrt(n), normal data
 _PIXEL_STEP_PX = 0.01  # central-difference step of the pixel derivatives
 FOOTPRINT_MARGIN_REL = 0.02  # a foot this far (x the image's larger side, px) outside the footprint is still inside
+FOOTPRINT_MAX_READ = 10_000  # vertices a camera.yaml's footprint may hold (calibrate writes at most 32)
 DEPTH_TOLERANCE_REL = 0.10  # a foot depth within this fraction beyond the footprint's depth range is still inside
 
 
@@ -92,8 +93,12 @@ class CameraCovariance:
         names = block.get("names") if isinstance(block, Mapping) else None
         if not isinstance(names, list) or any(n not in CAMERA_PARAMETERS for n in names):
             raise ValueError(f"fit.covariance.names must list some of {', '.join(CAMERA_PARAMETERS)}, got {names!r}")
+        rows = block.get("matrix")
+        k = len(names)
+        if not (isinstance(rows, list) and len(rows) == k and all(isinstance(r, list) and len(r) == k for r in rows)):
+            rows = None  # the shape is checked before any value is read (a file of YAML aliases is small)
         try:
-            matrix = np.array([[math.nan if v is None else float(v) for v in row] for row in block.get("matrix")])
+            matrix = None if rows is None else np.array([[math.nan if v is None else float(v) for v in r] for r in rows])
         except (TypeError, ValueError):
             matrix = None
         if matrix is None or matrix.shape != (len(names), len(names)):
@@ -328,10 +333,10 @@ def _footprint_px(fit: Mapping | None) -> np.ndarray:
     block = fit.get("footprint_px") if isinstance(fit, Mapping) else None
     if block is None:
         return np.zeros((0, 2))
-    try:
-        polygon = np.array(block, dtype=np.float64)
-    except (TypeError, ValueError):
-        polygon = None
+    polygon = None
+    if isinstance(block, list) and len(block) <= FOOTPRINT_MAX_READ and all(
+            isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v) for v in block):
+        polygon = np.array(block, dtype=np.float64)  # checked first: numpy never expands a nest of YAML aliases
     if polygon is None or polygon.ndim != 2 or polygon.shape[1:] != (2,) or not np.isfinite(polygon).all():
         raise ValueError("fit.footprint_px must be a list of [u, v] pixel vertices")
     return polygon
