@@ -25,7 +25,7 @@ from .settings import limits
 from .files.atomic import atomic_open
 from .geometry.camera import MAX_IMAGE_SIDE_PX, Camera, camera_from_yaml_dict, camera_to_yaml_dict, people_not_in_front
 from .errors import InputError, file_error, input_errors
-from .geometry.focal import focal_kind_or_default
+from .geometry.focal import CAMERA as CAMERA_FOCAL, focal_kind_or_default
 from .unpickle.npz import load_npz
 from .files.yaml_io import read_yaml, write_yaml
 
@@ -508,6 +508,14 @@ class Sequence:
         guess ('assumed'): meta.yaml ``focal_kind``, absent = 'assumed' (rotavat.focal)."""
         with input_errors(self._meta_name):
             return focal_kind_or_default(self.meta.get("focal_kind"))
+
+    @property
+    def image_lens(self) -> Camera | None:
+        """The lens the frames' people are seen through in the image: the sequence's camera's, when its frames are in
+        that camera (``focal_kind: camera``: a ground truth, an aligned output) and it has one; None otherwise (an HPS
+        method's people are in its own pinhole, whose pixels are already the image's)."""
+        cam = self.camera
+        return cam if cam is not None and cam.distortion != 0.0 and self.focal_kind == CAMERA_FOCAL else None
 
     @property
     def joints_layout(self) -> str | None:

@@ -1,12 +1,12 @@
 """eval matches people in the image: a sequence in its camera (ground truth, aligned output) projects its joints
-through the camera's lens (metrics.evaluate.image_lens), as the HPS method's own pinhole drew them."""
+through the camera's lens (Sequence.image_lens), as the HPS method's own pinhole drew them."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from rotavat_cli.geometry.camera import Camera, project_cam_to_px
-from rotavat_cli.metrics.evaluate import EvalOptions, image_lens, match_frame
+from rotavat_cli.metrics.evaluate import EvalOptions, match_frame
 from rotavat_cli.sequence import Frame, Intrinsics, open_sequence, write_camera_yaml, write_frame, write_meta
 
 CAM = Camera((1280, 720), 900.0, None, np.deg2rad(20.0), 0.0, 4.0, distortion=-0.3)
@@ -45,6 +45,6 @@ def test_only_a_sequence_in_its_camera_with_a_lens_has_one(tmp_path):
         write_frame(seq, Frame("000000", {"joints": _people_near_the_corners()}), "npz")
         write_meta(seq, {"image_size": [1280, 720], "focal_length": 900.0, "focal_kind": kind})
         write_camera_yaml(seq / "camera.yaml", CAM.replace(distortion=lam))
-    lenses = {name: image_lens(open_sequence(tmp_path / name)) for name in ("gt", "pred", "flat")}
+    lenses = {name: open_sequence(tmp_path / name).image_lens for name in ("gt", "pred", "flat")}
     assert lenses["gt"] is not None and lenses["gt"].distortion == -0.3
     assert lenses["pred"] is None and lenses["flat"] is None

@@ -12,7 +12,7 @@ from _cli import invoke
 from conftest import tree_hash
 from PIL import Image
 
-from rotavat_cli.geometry.camera import Camera
+from rotavat_cli.geometry.camera import Camera, project_cam_to_px
 from rotavat_cli.settings.config import default_config
 from rotavat_cli.errors import RotavatError
 from rotavat_cli.bodies.landmarks import foot_head_points
@@ -24,6 +24,7 @@ from rotavat_cli.render import (LABEL_PX, REGISTRY, RENDERERS, VIEWS, FigureOpti
                                 render_grid, render_panel, render_sequences, scene_extents, select_frames,
                                 sequence_camera, sequence_tracks)
 from rotavat_cli.render.skeleton import JOINT_RADIUS_M
+from rotavat_cli.render.views import front_points_cam
 from rotavat_cli.render.views import side_fov_px, tick_marks
 from rotavat_cli.sequence import open_sequence, read_camera_yaml
 from rotavat_cli.synth import SynthOptions, write_synth_scene
@@ -1004,3 +1005,23 @@ def test_vertex_normals_are_zero_where_undefined_even_next_to_a_nan_vertex(dtype
     np.testing.assert_allclose(n[0, 4], 0.0)  # no face: no normal
     np.testing.assert_allclose(n[0, [3, 5]], 0.0)  # only NaN faces: no normal
     np.testing.assert_allclose(n[0, 2], [0, 0, 1], atol=1e-6)
+
+
+def test_the_front_view_draws_people_through_the_rows_lens(rasterizer):
+    """A row whose people are in a camera with a lens (an aligned output, a ground truth: Sequence.image_lens) is
+    drawn where the lens shows them in the image, not where its pinhole would; the side view keeps the true points."""
+    lens = _camera().replace(distortion=-0.3)
+    row = dataclasses.replace(_people_row(lens, np.array([[-4.5, -7.0], [0.0, -7.0], [4.5, -7.5]]), [0, 1, 2]),
+                              lens=lens)
+    warped = front_points_cam(row.verts_cam, row)
+    pinhole_px = project_cam_to_px(warped, lens.focal_px, lens.principal_point)
+    np.testing.assert_allclose(pinhole_px, lens.project(row.verts_cam), atol=1e-9)  # the lens's pixels, exactly
+    np.testing.assert_array_equal(warped[..., 2], row.verts_cam[..., 2])  # the depths kept: the same z-buffer
+    masks = _masks(render_panel(row, front_view(row, lens.image_size), rasterizer.rasterize, STYLE, labels=False))
+    for p in (0, 2):  # the people near the borders: barrel pulls them toward the centre
+        uv = lens.project(row.verts_cam[p])
+        expected = np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+        np.testing.assert_allclose(_box(masks[p]), expected, atol=PX_TOL, err_msg=f"person {p}")
+        pinhole = lens.pinhole.project(row.verts_cam[p])
+        assert abs(np.median(pinhole[:, 0]) - np.median(uv[:, 0])) > 3 * PX_TOL  # not where the pinhole draws them
+    assert front_points_cam(row.verts_cam, dataclasses.replace(row, lens=None)) is row.verts_cam  # no lens: untouched

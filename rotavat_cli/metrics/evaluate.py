@@ -40,7 +40,6 @@ import numpy as np
 
 from ..files.atomic import atomic_open
 from ..geometry.camera import Camera, camera_parameters, project_cam_to_px
-from ..geometry.focal import CAMERA
 from ..errors import InputError, input_errors
 from ..bodies.joint_layouts import LAYOUT_NAMES, layout_key
 from ..bodies.landmarks import SMPL_JOINT_NAMES
@@ -151,7 +150,7 @@ def parse_joints(spec: str | None, n_joints: int | None = None) -> tuple[int, ..
 def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | None,
                lens: Camera | None = None) -> np.ndarray | None:
     """2D points per person used for matching, in image pixels: projected joints (through ``lens``, the sequence's
-    camera when its frames are in it: :func:`image_lens`), else 2D keypoints, else foot/head."""
+    camera when its frames are in it: ``Sequence.image_lens``), else 2D keypoints, else foot/head."""
     focals = intrinsics.focals_px(frame.n_people)
     if frame.get("joints") is not None and focals is not None:
         j = frame.data["joints"]
@@ -164,18 +163,10 @@ def _people_px(frame: Frame, intrinsics: Intrinsics, joints: tuple[int, ...] | N
     return None
 
 
-def image_lens(seq: Sequence) -> Camera | None:
-    """The lens a sequence's frames are seen through: its camera's, when the frames are in that camera (its focal is
-    the camera's own: an aligned output, a ground truth) and it has one; None otherwise (an HPS method's frames are
-    its own pinhole's, whose pixels are already the image's)."""
-    cam = seq.camera
-    return cam if cam is not None and cam.distortion != 0.0 and seq.focal_kind == CAMERA else None
-
-
 def _match(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsics, opts: EvalOptions,
            lenses: tuple[Camera | None, Camera | None] = (None, None)) -> tuple[np.ndarray, np.ndarray]:
     """Per-frame one-to-one matching (pred_idx, gt_idx); ``opts`` as :func:`_effective` makes them; ``lenses``:
-    each side's :func:`image_lens`."""
+    each side's ``Sequence.image_lens``."""
     both_ids = pred.get("person_ids") is not None and gt.get("person_ids") is not None
     if opts.match == "ids" or (opts.match == "auto" and both_ids):
         if not both_ids:
@@ -417,7 +408,7 @@ def match_frame(pred: Frame, gt: Frame, pred_intr: Intrinsics, gt_intr: Intrinsi
                 ) -> tuple[np.ndarray, np.ndarray, MatchedPairs | None]:
     """One frame's people matched and gathered as :func:`evaluate` scores them (``opts``: :func:`pairing_options`'):
     (M,) prediction indices, (M,) ground-truth indices, the matched pairs (None when M = 0; ``vertices=False``:
-    without their vertices); ``lenses``: each side's :func:`image_lens`; InputError as :func:`evaluate` (joints
+    without their vertices); ``lenses``: each side's ``Sequence.image_lens``; InputError as :func:`evaluate` (joints
     missing, people not matchable, point counts)."""
     _check_joints(pred, opts)
     _check_joints(gt, opts)
@@ -486,7 +477,7 @@ def _score_frame(name: str, pred_seq: Sequence, gt_seq: Sequence, pred_names: se
     result.people_pred += pred.n_people
     result.people_gt += gt.n_people
     pi, gi, pairs = match_frame(pred, gt, pred_seq.frame_intrinsics(pred), gt_seq.frame_intrinsics(gt), opts,
-                                lenses=(image_lens(pred_seq), image_lens(gt_seq)))
+                                lenses=(pred_seq.image_lens, gt_seq.image_lens))
     result.matched += len(pi)
     result.missed += gt.n_people - len(gi)
     result.false_positives += pred.n_people - len(pi)

@@ -12,7 +12,7 @@ its numbers: camera, metrics against the ground truth) above its panels.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -21,7 +21,7 @@ from PIL import Image, ImageDraw
 from .geometry import PanelView, panel_px_per_m, project_view_px
 from .skeleton import BONE_RADIUS_M, POINT_RADIUS_M, Shapes, layout_bones, point_shapes, skeleton_shapes
 from .style import RenderStyle, font, mix, person_colors, rgb8, shade_vertices, vertex_normals
-from .views import REGISTRY, RowFrame, edge_marker, scene_extents, view_specs
+from .views import REGISTRY, RowFrame, edge_marker, front_points_cam, scene_extents, view_specs
 
 __all__ = ["render_panel", "render_grid", "LABEL_PX", "row_shapes", "GHOST_ALPHA", "person_label"]
 
@@ -102,6 +102,14 @@ def _mesh_layer(mesh: _Mesh, view: PanelView, rasterize: Any) -> np.ndarray:
     return rasterize(mesh.points_cam, mesh.faces, lit, view.clip_from_cam, view.size)
 
 
+def _in_view(mesh: _Mesh, row: RowFrame, front: bool) -> _Mesh:
+    """The mesh as ``row``'s panel draws it: in the front view through the row's lens (:func:`.views.front_points_cam`;
+    its ghost too, placed in this row's camera), elsewhere as it is."""
+    if not front or row.lens is None or not len(mesh.points_cam):
+        return mesh
+    return replace(mesh, points_cam=front_points_cam(mesh.points_cam, row))
+
+
 def _outline(coverage: np.ndarray) -> np.ndarray:
     """(H, W) bool: covered pixels with an uncovered 4-neighbour (the silhouette's edge)."""
     inside = coverage > 0.5
@@ -135,7 +143,7 @@ def _id_labels(img: Any, view: PanelView, row: RowFrame, style: RenderStyle, ids
     (:attr:`RowFrame.flagged`) get their flag in an outlined box, and in an orthographic view, when they
     lie off the panel (windows are fitted on the others), an edge marker pointing to them, clear of the
     labels in ``taken`` (the view's annotations) and of the ids."""
-    points = row.points_cam
+    points = front_points_cam(row.points_cam, row) if view.kind == "front" else row.points_cam
     flagged = row.flagged
     if not points.shape[1] or not (ids or flagged):
         return
@@ -193,13 +201,15 @@ def render_panel(row: RowFrame, view: PanelView, rasterize: Any, style: RenderSt
     W, H = view.size
     img = Image.new("RGB", (W, H), rgb8(style.background))
     spec.under(img, view, row, style)
-    layer = _mesh_layer(mesh if mesh is not None and row.kind == "mesh" else _row_mesh(row, style, view), view, rasterize)
+    front = view.kind == "front"
+    layer = _mesh_layer(_in_view(mesh if mesh is not None and row.kind == "mesh" else _row_mesh(row, style, view), row,
+                                 front), view, rasterize)
     base = np.asarray(img, dtype=np.float32) / 255.0
     alpha = layer[..., 3:4]
     out = base * (1.0 - alpha) + layer[..., :3] * alpha
     if row.ghost is not None and spec.shows_ghost:
         ghost = ghost_mesh if ghost_mesh is not None and row.ghost.kind == "mesh" else _row_mesh(row.ghost, style, view)
-        out = _ghost_over(out, _mesh_layer(ghost, view, rasterize), style)
+        out = _ghost_over(out, _mesh_layer(_in_view(ghost, row, front), view, rasterize), style)
     img = Image.fromarray(np.round(255.0 * np.clip(out, 0.0, 1.0)).astype(np.uint8))
     annotations = spec.over(img, view, row, style)
     _id_labels(img, view, row, style, labels, annotations)  # ids (``labels``), and the flagged people's marks always

@@ -231,4 +231,4 @@ def read_row(seq: Sequence, name: str, label: str, camera: Camera | None, image_
     row_flags = None if flags is None else tuple(flags.get((name, int(pid)), "") for pid in frame.person_ids)
     return RowFrame(label, np.zeros((P, 0, 3)) if verts is None else verts,
                     np.zeros((0, 3), np.int64) if faces is None else faces, frame.person_ids,
-                    size, float(focal), pp, camera, image, joints, layout, flags=row_flags)
+                    size, float(focal), pp, camera, image, joints, layout, flags=row_flags, lens=seq.image_lens)

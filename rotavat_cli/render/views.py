@@ -72,6 +72,7 @@ class RowFrame:
     ghost: "RowFrame | None" = None
     caption: str = ""  # numbers shown after the label (camera, metrics)
     flags: tuple[str, ...] | None = None  # (P,) people.csv's flag per person ("" = none: plausible); None: no flags
+    lens: Camera | None = None  # the lens the people are seen through in the image (Sequence.image_lens): front view
 
     @property
     def plausible(self) -> np.ndarray:
@@ -104,6 +105,27 @@ class RowFrame:
         if self.kind == "skeleton":
             return np.asarray(self.joints_cam, dtype=np.float64)
         return np.zeros((len(self.person_ids), 0, 3))
+
+
+def front_points_cam(points_cam: np.ndarray, row: RowFrame) -> np.ndarray:
+    """Points (..., 3) camera frame -> the points the front view draws: where the row's pinhole (its focal and
+    principal point) puts them at the pixel the row's lens shows them, the depth kept (so the z-buffer is the
+    same). The points themselves without a lens.
+
+    A pinhole drawing of a camera with a lens puts people toward the corners where the image does not; moving
+    each vertex to its lens pixel draws the (dense) meshes through the lens, and the side and top views keep
+    the true points.
+    """
+    if row.lens is None:
+        return points_cam
+    pts = np.asarray(points_cam, dtype=np.float64)
+    pp = np.asarray(row.principal_point, dtype=np.float64)
+    z = pts[..., 2:3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pinhole_px = pp + row.focal_px * pts[..., :2] / z
+        image_px = row.lens.distort_px(pinhole_px)
+        xy = (image_px - pp) * z / row.focal_px
+    return np.concatenate([np.where(np.isfinite(xy), xy, pts[..., :2]), z], axis=-1)
 
 
 Box = tuple[float, float, float, float]  # x0, y0, x1, y1 panel px
@@ -194,7 +216,8 @@ class WindowBounds:
 
 def window_bounds(row: RowFrame, views: tuple[str, ...], fit: str = "people") -> WindowBounds:
     """A row's :class:`WindowBounds` for the orthographic ``views`` (the camera's view's is always made)."""
-    pts = row.points_cam.reshape(-1, 3)  # not the ghost: drawn in another row's focal, it may land anywhere in the image
+    pts = front_points_cam(row.points_cam, row).reshape(-1, 3)  # not the ghost: drawn in another row's focal, it may
+    # land anywhere in the image
     pts = pts[np.isfinite(pts).all(axis=1) & (pts[:, 2] > _NEAR_M)]
     front = None
     if len(pts):
