@@ -414,7 +414,7 @@ def summary(study: Study) -> bool:
         ok_all &= ok
         print(f"| {r} | " + " | ".join(maes) + f" | {zero[0]:+.2f} ± {zero[1]:.2f} | {off[0]:+.2f} ± {off[1]:.2f} | "
               f"{'yes' if ok else 'NO'} |")
-    print(f"\n## Pooled over the references: paired differences (cm, ± standard error over the cameras)\n")
+    print("\n## Pooled over the references: paired differences (cm, ± standard error over the cameras)\n")
     print("| comparison | all cameras | undistorted | distorted |")
     print("|---|---|---|---|")
     for a, b in ((POLICY_ON, "roll 0"), (POLICY_ON, POLICY_OFF), (POLICY_ON, "paper grid"), (POLICY_OFF, "roll 0")):

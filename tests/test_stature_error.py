@@ -15,7 +15,8 @@ from _cli import invoke
 from _synthetic_pairs import synthetic_pairs
 
 from rotavat_cli.bodies.measure import statures_by_track, statures_from_camera_m
-from rotavat_cli.bodies.stature_error import (CameraCovariance, camera_jacobian_m, extrapolated_feet,
+from rotavat_cli.geometry.camera_covariance import CameraCovariance
+from rotavat_cli.bodies.stature_error import (camera_jacobian_m, extrapolated_feet,
                                               pixel_gradient_m, stature_errors, within_polygon)
 from rotavat_cli.calibration import CalibrateOptions, fit_camera
 from rotavat_cli.calibration.footprint import FOOTPRINT_MAX_VERTICES, footprint_polygon_px
@@ -283,3 +284,10 @@ def test_a_footprint_of_shared_lists_is_refused_without_expanding_it():
     feet = np.array([[600.0, 500.0]])
     with pytest.raises(ValueError, match="fit.footprint_px must be a list of"):
         stature_errors(feet, feet - [0.0, 100.0], np.array([1.7]), np.array([0]), CAM, {"footprint_px": nest})
+
+
+def test_every_name_a_covariance_may_hold_is_differentiated():
+    from rotavat_cli.bodies.stature_error import CAMERA_PARAMETERS
+    from rotavat_cli.geometry.camera_covariance import COVARIANCE_UNITS
+
+    assert set(CAMERA_PARAMETERS) == set(COVARIANCE_UNITS)

@@ -46,10 +46,11 @@ import numpy as np
 
 from ..design_effect import autocorrelation_time
 from ..geometry.camera import Camera
+from ..geometry.camera_covariance import CameraCovariance
 from .measure import statures_by_track, statures_from_camera_m
 
 __all__ = ["CAMERA_PARAMETERS", "CLICK_NOISE_PX", "MIN_SCATTER_PAIRS", "FOOTPRINT_MARGIN_REL", "DEPTH_TOLERANCE_REL",
-           "CameraCovariance", "StatureErrors", "camera_jacobian_m", "pixel_gradient_m", "stature_design_effect",
+           "StatureErrors", "camera_jacobian_m", "pixel_gradient_m", "stature_design_effect",
            "within_polygon", "extrapolated_feet", "stature_errors"]
 
 # Report name -> (Camera field, report unit -> field unit, central-difference step in report units, relative?).
@@ -70,41 +71,6 @@ _PIXEL_STEP_PX = 0.01  # central-difference step of the pixel derivatives
 FOOTPRINT_MARGIN_REL = 0.02  # a foot this far (x the image's larger side, px) outside the footprint is still inside
 FOOTPRINT_MAX_READ = 10_000  # vertices a camera.yaml's footprint may hold (calibrate writes at most 32)
 DEPTH_TOLERANCE_REL = 0.10  # a foot depth within this fraction beyond the footprint's depth range is still inside
-
-
-@dataclass(frozen=True)
-class CameraCovariance:
-    """A camera's parameter covariance from camera.yaml: ``names`` (k,) among :data:`CAMERA_PARAMETERS`,
-    ``matrix`` (k, k) in their report units squared (px, deg, deg, m, 1)."""
-
-    names: tuple[str, ...]
-    matrix: np.ndarray
-
-    @classmethod
-    def from_fit(cls, fit: Mapping | None) -> "CameraCovariance | None":
-        """The ``fit.covariance`` block (written by calibrate), None when absent; ValueError when malformed.
-
-        >>> CameraCovariance.from_fit({"covariance": {"names": ["height_m"], "matrix": [[0.01]]}}).matrix.tolist()
-        [[0.01]]
-        """
-        block = fit.get("covariance") if isinstance(fit, Mapping) else None
-        if block is None:
-            return None
-        names = block.get("names") if isinstance(block, Mapping) else None
-        if not isinstance(names, list) or any(n not in CAMERA_PARAMETERS for n in names):
-            raise ValueError(f"fit.covariance.names must list some of {', '.join(CAMERA_PARAMETERS)}, got {names!r}")
-        rows = block.get("matrix")
-        k = len(names)
-        if not (isinstance(rows, list) and len(rows) == k and all(isinstance(r, list) and len(r) == k for r in rows)):
-            rows = None  # the shape is checked before any value is read (a file of YAML aliases is small)
-        try:
-            matrix = None if rows is None else np.array([[math.nan if v is None else float(v) for v in r] for r in rows])
-        except (TypeError, ValueError):
-            matrix = None
-        if matrix is None or matrix.shape != (len(names), len(names)):
-            raise ValueError(f"fit.covariance.matrix must be {len(names)}x{len(names)} numbers (one row and column "
-                             f"per name)")
-        return cls(tuple(names), matrix.reshape(len(names), len(names)))
 
 
 def camera_jacobian_m(feet_px: np.ndarray, heads_px: np.ndarray, camera: Camera, names: tuple[str, ...]) -> np.ndarray:

@@ -48,7 +48,8 @@ from ..geometry.camera import Camera, camera_parameters
 from ..errors import DegenerateSceneError
 from .flat_ground import ground_findings
 from .given_lens import fit_through_lens
-from .footprint import ParameterCovariance, footprint_polygon_px, report_covariance
+from ..geometry.camera_covariance import CameraCovariance
+from .footprint import footprint_polygon_px, report_covariance
 from .grid import paper_grid_search
 from .inputs import PairsInput, check_index, check_inputs, free_slots, resolve_points
 from .objective import MIN_NOISE_PX, BodyAxes, Problem, design_effect, make_problem, profiled
@@ -103,7 +104,7 @@ class CalibrationResult:
     design_effect: float = 1.0  # how many tracked pairs one independent pair is worth (objective.design_effect)
     body_axes: int = 0  # standing people whose own vertical axis entered the fit (0: not used)
     focal_prior: str = "none"  # the focal's prior: "lens", "fov" (the user's) or "none"
-    covariance: ParameterCovariance | None = None  # the estimated camera parameters', report units (.footprint)
+    covariance: CameraCovariance | None = None  # the estimated camera parameters', report units (.footprint)
     footprint_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (V, 2) px: the inliers' feet hull
     lens: dict | None = None  # a given lens (.given_lens): from ("given", "lines FILE"), distortion, sd
 

@@ -14,14 +14,14 @@ outside the footprint is measured by extrapolation.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.camera_covariance import CameraCovariance
 from .params import DISTORTION, FOCAL, HEIGHT, PITCH, ROLL
 
 __all__ = ["FOOTPRINT_MAX_VERTICES", "FOOTPRINT_PAD_PX", "COVARIANCE_SLOTS", "footprint_polygon_px",
-           "ParameterCovariance", "report_covariance"]
+           "report_covariance"]
 
 FOOTPRINT_MAX_VERTICES = 32  # a hull with more is thinned (the vertices that add the least area go first)
 FOOTPRINT_PAD_PX = 2.0  # a degenerate footprint (one point, a segment) is thickened by this much each way (click noise)
@@ -84,20 +84,6 @@ def _thinned(polygon: np.ndarray, max_vertices: int) -> np.ndarray:
     return poly
 
 
-@dataclass(frozen=True)
-class ParameterCovariance:
-    """Covariance of named camera parameters in report units: ``names`` (k,) among focal_px, pitch_deg,
-    roll_deg, height_m, distortion; ``matrix`` (k, k) in their units (px, deg, deg, m, 1) squared."""
-
-    names: tuple[str, ...]
-    matrix: np.ndarray
-
-    def to_dict(self) -> dict:
-        """camera.yaml's ``fit.covariance``: ``{names: [...], matrix: [[...]]}`` (NaN as None, inf kept)."""
-        return {"names": list(self.names),
-                "matrix": [[None if math.isnan(v) else float(v) for v in row] for row in self.matrix]}
-
-
 # Assumed quantities a stature measured with the camera depends on directly (the camera holds them), with their
 # report names and the sign of their error's covariance with the fit's shift (uncertainty.covariances' ``shifts``):
 # the principal point is moved up by its sd there (+), the lens's undistortion coefficient down (-).
@@ -105,7 +91,7 @@ ASSUMED_CAMERA_PARTS = {"cx": ("cx_px", 1.0), "cy": ("cy_px", 1.0), "distortion"
 
 
 def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, held: dict[int, float] | None = None,
-                      height_given: bool = False, shifts: dict | None = None) -> ParameterCovariance:
+                      height_given: bool = False, shifts: dict | None = None) -> CameraCovariance:
     """The camera parameters' covariance in report units (px, deg, deg, m, 1), over the estimated ones only.
 
     params: (6,) the fit (:mod:`.params`; focal px, height m at the fit's own scale); cov: (6, 6) over the
@@ -122,7 +108,7 @@ def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, hel
     and their covariance with the parameters they moved. A stature measured with the camera depends on them
     directly too, and the two effects largely cancel (an off-centre principal point tilts the fitted camera the
     way that keeps the people's pixels): without them its std came out about 2.5x its error.
-    Returns the :class:`ParameterCovariance` of those (k may be 0: nothing estimated).
+    Returns the :class:`CameraCovariance` of those (k may be 0: nothing estimated).
     """
     held = held or {}
     slots = [s for s in COVARIANCE_SLOTS if (free[s] or s in held) and not (s == HEIGHT and height_given)]
@@ -148,4 +134,4 @@ def report_covariance(params: np.ndarray, cov: np.ndarray, free: np.ndarray, hel
         grown[-1, :-1] = grown[:-1, -1] = cross
         grown[-1, -1] = sd * sd
         matrix, names = grown, names + [name]
-    return ParameterCovariance(tuple(names), matrix)
+    return CameraCovariance(tuple(names), matrix)
