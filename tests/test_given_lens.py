@@ -46,6 +46,18 @@ def test_a_given_lens_is_removed_before_the_fit_and_carried_by_the_camera():
     assert any(note.startswith("lens given: division coefficient -0.2500") for note in fit["notes"])
 
 
+def test_a_given_lens_is_not_fitted_again_to_few_pairs_of_a_measured_reference():
+    """A reference of measured stature (few pairs: the defaults would try a lens) with the lens given: the pairs are
+    undistorted once and fitted as a pinhole; no second lens is fitted to them (the camera's lens is the given one
+    and the fit's only lens note is the given lens's). Before, the inner fit tried the lens on undistorted pairs."""
+    _, feet, heads, _ = _pairs(seed=4, n=30)
+    plain = fit_camera(feet, heads, SIZE, person_height_m=1.7, person_height_sd_m=0.01, lens_distortion=LAM)
+    assert plain.camera.distortion == LAM and plain.fixed["distortion"] == "given"
+    assert [n for n in plain.notes if n.startswith("lens")] == [
+        "lens given: division coefficient -0.2500 (sd 0.0100); the pairs were undistorted before the fit and the "
+        "camera carries the lens"]
+
+
 def test_the_footprint_is_in_image_pixels():
     _, feet, heads, _ = _pairs(seed=1)
     result = fit_camera(feet, heads, SIZE, lens_distortion=LAM)
@@ -87,6 +99,30 @@ def test_calibrate_takes_the_lens_from_the_scene_lines(tmp_path):
     assert written["distortion"] == pytest.approx(LAM, abs=0.01)
     assert written["fit"]["lens"]["from"].startswith("lines ")
     assert 0 < written["fit"]["lens"]["sd"] < 0.01
+
+
+def test_calibrate_fits_the_lens_of_a_measured_reference_by_default(tmp_path):
+    """One walker of tape-measured stature, 30 clicks through a barrel lens, one per frame: `calibrate
+    --person-height 1.75 --height-sd 0.01` writes the lens it fitted; `--no-distortion` writes none."""
+    rng = np.random.default_rng(8)
+    cam = Camera(SIZE, 1000.0, None, np.deg2rad(20.0), 0.0, 4.0, distortion=LAM)
+    uv = np.column_stack([np.linspace(150, 1130, 30), np.linspace(320, 700, 30)]) + rng.normal(0, 15, (30, 2))
+    feet_cam = cam.backproject_px_to_ground(uv)
+    feet, heads = (cam.project(p) + rng.normal(0, 1.0, (30, 2)) for p in (feet_cam, feet_cam + 1.75 * cam.up_cam))
+    lens = {}
+    for flags in ((), ("--no-distortion",)):
+        seq = tmp_path / f"seq{len(flags)}"
+        for t in range(30):
+            write_frame(seq, Frame(f"{t:06d}", {"feet_2d": feet[t:t + 1], "heads_2d": heads[t:t + 1],
+                                                "person_ids": np.array([7])}), "npz")
+        write_meta(seq, {"image_size": list(SIZE)})
+        result = invoke(CliRunner(), "calibrate", seq, "--person-height", "1.75", "--height-sd", "0.01", *flags,
+                        "--quiet")
+        assert result.exit_code == 0, result.output
+        lens[flags] = yaml.safe_load((seq / "camera.yaml").read_text())
+    assert lens[()]["distortion"] == pytest.approx(LAM, abs=0.03)
+    assert any(n.startswith("lens fitted: the pairs tell") for n in lens[()]["fit"]["notes"])
+    assert "distortion" not in lens[("--no-distortion",)]
 
 
 @pytest.mark.parametrize("args, message", [

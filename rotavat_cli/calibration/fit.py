@@ -57,7 +57,7 @@ from .options import CalibrateOptions
 from .params import (BOX_DEPTH, DISTORTION, FOCAL, HEIGHT, MODEL_NAMES, PARAM_NAMES, PITCH, ROLL, SLOT_LABELS, describe,
                      param_bounds, param_vector, to_internal)
 from .plausibility import implausible_findings
-from .priors import LEAN_SD_DEG, MOUNTED_ROLL_SD_DEG
+from .priors import LEAN_SD_DEG, MEASURED_STATURE_SD_M, MOUNTED_ROLL_SD_DEG
 from .refine import fit_with_rejection, refine_fit
 from .uncertainty import Systematics, covariances, fit_warnings, moved_by_data, std_and_corr
 
@@ -200,11 +200,17 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
         inp = check_inputs(feet_px, heads_px, image_size, options, points, frame_index, track_id)
         idx = np.flatnonzero(inp.usable)
         n_frames = 1 if inp.frames is None else len(np.unique(inp.frames[inp.usable]))
+        if _tries_the_lens(options, method, inp, len(idx)):
+            lensed = _with_the_lens_tried(feet_px, heads_px, image_size, options, frame_index=frame_index,
+                                          track_id=track_id, body=body, workers=workers)
+            if lensed is not None:
+                return lensed
         prob = make_problem(inp.feet[idx], inp.heads[idx], inp.pp, options.person_height_m,
                             options.person_height_sd_m, options.noise_px, inp.residual, inp.size, inp.priors,
                             None if inp.tracks is None or method == "grid" else inp.tracks[idx],
                             foot_noise=options.errors_in_variables)
         extra: list[str] = []
+        asked = options  # what the caller asked, before a slot is held at its prior (the pinhole refit starts there)
         held = held_at_prior(inp, options, method)
         if held:  # what the people at one depth say nothing first-order of: the prior's median, its spread carried
             options = options.replace(**{_HELD_OPTION[slot]: value for slot, value in
@@ -240,10 +246,38 @@ def fit_camera(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int,
         if method == "refine" and (inp.priors is None or not inp.priors.cover(free)):
             _refuse_undetermined(result)
         if options.distortion and not _lens_significant(result):
-            return _without_the_lens(result, fit_camera(feet_px, heads_px, image_size, options.replace(distortion=False),
+            return _without_the_lens(result, fit_camera(feet_px, heads_px, image_size, asked.replace(distortion=False),
                                                         frame_index=frame_index, track_id=track_id, body=body,
                                                         workers=workers))
         return result
+
+
+def _tries_the_lens(options: CalibrateOptions, method: str, inp: PairsInput, n_usable: int) -> bool:
+    """Whether the few-pairs policy fits the lens on its own (``options.distortion`` None): fewer than
+    :data:`FEW_PAIRS` usable pairs of people of measured stature (``priors.MEASURED_STATURE_SD_M``: a reference
+    person's clicks, where a pinhole fit of a barrel-distorted camera costs centimetres:
+    benchmarks/bench_reference.py), the refinement with its priors (the lens prior among them), and no lens given.
+    The lens is then kept only when the pairs tell it from none (:data:`LENS_SIGNIFICANCE`)."""
+    return (options.distortion is None and options.few_pairs and method == "refine" and n_usable < FEW_PAIRS
+            and options.person_height_sd_m <= MEASURED_STATURE_SD_M and inp.priors is not None
+            and options.lens_distortion is None)
+
+
+def _with_the_lens_tried(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[int, int],
+                         options: CalibrateOptions, **kwargs) -> CalibrationResult | None:
+    """:func:`fit_camera` with the lens fitted (``distortion=True``: the pinhole fit with a note when the lens is not
+    significant), a note saying why a lens was fitted when it is kept; None when the fit with the lens refuses the
+    pairs (the pinhole fit is then the answer)."""
+    try:
+        result = fit_camera(feet_px, heads_px, image_size, options.replace(distortion=True), **kwargs)
+    except DegenerateSceneError:
+        return None
+    if not math.isfinite(result.distortion):
+        return result
+    note = (f"lens fitted: the pairs tell a division coefficient {result.distortion:+.3f} +- "
+            f"{result.std.get('distortion', math.nan):.3f} from none (with fewer than {FEW_PAIRS} pairs the lens is "
+            "tried unless --no-distortion; a known lens: --lens K, or --lens-lines FILE)")
+    return replace(result, notes=result.notes + (note,))
 
 
 # A fitted lens is kept when it is this many of its std from none (a two-sided 95% test when ~2): from a few tens of
@@ -315,6 +349,8 @@ def fit_per_frame(feet_px: np.ndarray, heads_px: np.ndarray, image_size: tuple[i
     feet_px, heads_px: (N, 2) px; frame_index, track_id: (N,) int.
     """
     options = _with_changes(options, changes)
+    if options.distortion is None:  # every frame alone has few pairs: the lens only when asked (--distortion)
+        options = options.replace(distortion=False)
     feet, heads = np.asarray(feet_px, np.float64), np.asarray(heads_px, np.float64)
     frames = check_index(frame_index, len(feet), "frame_index")
     if frames is None:

@@ -41,7 +41,8 @@ def fit_through_lens(fit: Callable, feet_px: np.ndarray, heads_px: np.ndarray, i
     feet_u = undistort_px(np.asarray(feet_px, dtype=np.float64), lam, pp, radius)
     heads_u = undistort_px(np.asarray(heads_px, dtype=np.float64), lam, pp, radius)
     sd = options.distortion_sd if options.lens_distortion_sd is None else options.lens_distortion_sd
-    pinhole = options.replace(lens_distortion=None, lens_distortion_sd=None, lens_source=None, distortion_sd=sd)
+    pinhole = options.replace(lens_distortion=None, lens_distortion_sd=None, lens_source=None, distortion_sd=sd,
+                              distortion=False)  # the pairs are undistorted: no lens is fitted to them again
     result = fit(feet_u, heads_u, image_size, pinhole, **kwargs)
     source = options.lens_source or "given"
     footprint = result.footprint_px

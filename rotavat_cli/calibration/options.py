@@ -57,7 +57,9 @@ class CalibrateOptions:
     # (half a foot length, 0.13 m, plus on average ~0.1 m of stride toward the camera); its top is the
     # head's silhouette, ~0.03 m beyond the crown for a camera looking down.
     box_depth_m: float = 0.25
-    distortion: bool = False  # refine: also fit one-parameter (division model) radial lens distortion
+    # refine: also fit one-parameter (division model) radial lens distortion, kept only when the pairs tell it from
+    # none (fit.LENS_SIGNIFICANCE). None: tried only when the pairs are few (the few-pairs policy: fit._tries_the_lens).
+    distortion: bool | None = None
     estimate_roll: bool = True  # refine only; the paper fixes roll at 0
     estimate_focal: bool = False  # sequences: estimate f even when the sequence's focal is the camera's own
     focal_px: float | None = None  # fix the focal length (px); None: estimated
@@ -173,7 +175,12 @@ class CalibrateOptions:
         if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
             raise ValueError(f"max_rounds must be a positive integer, got {self.max_rounds!r}")
         object.__setattr__(self, "max_rounds", int(self.max_rounds))
-        for name in ("distortion", "estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes",
+        if self.distortion is not None:
+            if not isinstance(self.distortion, (bool, np.bool_)):
+                raise ValueError(f"distortion must be true, false or null (tried when the pairs are few), "
+                                 f"got {self.distortion!r}")
+            object.__setattr__(self, "distortion", bool(self.distortion))
+        for name in ("estimate_roll", "estimate_focal", "per_frame", "standing_only", "body_axes",
                      "errors_in_variables", "few_pairs"):
             object.__setattr__(self, name, bool(getattr(self, name)))
 

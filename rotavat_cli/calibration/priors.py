@@ -23,7 +23,8 @@ The priors, on the internal parameters:
   roll (:func:`~.fit.fit_camera`'s few-pairs policy), N(0, 1 deg): a mounted camera levelled by eye
   (``MOUNTED_ROLL_SD_DEG``);
 - height: ``log h`` ~ N(log 3 m, 0.8). Handheld 1.2-2 m, surveillance 2.5-15 m (+-2 sd: 0.6-15 m);
-- lens (``--distortion`` only): the division coefficient ~ N(0, 0.15) (``DISTORTION_PRIOR_SD``).
+- lens (when fitted: ``--distortion``, or by default from fewer than 50 pairs of people of measured stature,
+  ``MEASURED_STATURE_SD_M``): the division coefficient ~ N(0, 0.15) (``DISTORTION_PRIOR_SD``).
 
 With ``--camera-height M`` the height is known and the people's mean stature ``S`` is estimated
 instead; since the model sees only ``S / h``, that is the height slot with the prior
@@ -51,7 +52,7 @@ import numpy as np
 from .params import DISTORTION, FOCAL, HEIGHT, N_PARAMS, PITCH, ROLL, param_vector, to_internal  # noqa: F401 (to_internal: the doctest)
 
 __all__ = ["FOCAL_PRIORS", "LENS_FOCAL_OVER_DIAGONAL", "LENS_LOG_SD", "LENS_DOF", "student_row", "PITCH_PRIOR_DEG", "ROLL_PRIOR_SD_DEG",
-           "MOUNTED_ROLL_SD_DEG", "LEAN_SD_DEG", "DISTORTION_PRIOR_SD", "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
+           "MOUNTED_ROLL_SD_DEG", "MEASURED_STATURE_SD_M", "LEAN_SD_DEG", "DISTORTION_PRIOR_SD", "HEIGHT_PRIOR_M", "HEIGHT_LOG_SD", "MEAN_STATURE_SD_M", "Priors", "default_priors", "lens_range_px"]
 
 FOCAL_PRIORS = ("lens", "none")  # calibrate.focal_prior: the lens prior, or none (the people alone)
 LENS_FOCAL_OVER_DIAGONAL = 0.75  # median focal of real lenses / image diagonal (table above)
@@ -64,6 +65,12 @@ ROLL_PRIOR_SD_DEG = 10.0  # mean 0
 # from a few tens of clicks it keeps the lens from trading itself for the focal and the pitch (a far-only reference
 # fitted +0.29 to a pinhole camera and measured everyone 10 cm off: benchmarks/bench_reference.py).
 DISTORTION_PRIOR_SD = 0.15
+# A stature known this well (sd, m) is a measured one (a tape-measured reference: --height-sd 0.01); only then do a few
+# pairs carry the lens (the few-pairs policy tries it: fit._tries_the_lens). A 25% barrel lens changes a person's
+# image length by a few percent, about 5 cm of stature; the population's 7 cm spread per person hides it, and on
+# twenty people of unknown stature at two depths --distortion kept a spurious lens (+0.13, the pitch 0.6 deg off) in
+# 4 of 20 draws (tests/test_lens_fit_policy.py).
+MEASURED_STATURE_SD_M = 0.02
 # The few-pairs policy's roll prior: the spread of mounted cameras' roll. An installer levelling by eye leaves it within
 # 1-2 deg (a 2 deg roll tilts a doorframe 3.5 cm per metre, which one sees): +-2 sd = +-2 deg, sd 1 deg. Measured
 # (benchmarks/bench_reference.py, one reference person, cameras' roll uniform in +-2 deg, i.e. sd 1.15 deg): the other

@@ -75,7 +75,7 @@ def calibrate(
     residual: Annotated[str | None, typer.Option(help=_RESIDUAL_HELP)] = None,
     points: Annotated[str | None, typer.Option(help="auto (boxes when every head is in its foot's column), landmarks (mid-sole, crown) or boxes (bottom-/top-centre of person boxes; refine, head row).")] = None,
     box_depth: Annotated[float | None, typer.Option(help="With --points boxes: box top's extra distance from the camera over the box bottom (m).")] = None,
-    distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Also fit radial lens distortion (refine; division model).")] = None,
+    distortion: Annotated[bool | None, typer.Option("--distortion/--no-distortion", help="Fit radial lens distortion (refine; division model), kept when the pairs tell it from none. Default: only from fewer than 50 pairs of people of measured stature (--height-sd 0.02 or less).")] = None,
     lens: Annotated[float | None, typer.Option("--lens", help="The lens is known: its division-model coefficient (from a lens profile; negative for barrel). The pairs are undistorted before the fit and camera.yaml carries it.")] = None,
     lens_lines: Annotated[Path | None, typer.Option("--lens-lines", help="The lens from the scene's straight lines: a YAML file {lines: [[[u, v], ...], ...]} of edges clicked in the image (kerbs, door frames, poles), 3+ points each; as --lens with the coefficient that straightens them.", dir_okay=False)] = None,
     focal_prior: Annotated[str | None, typer.Option("--focal-prior", help="lens: the prior of real lenses' focal (docs/calibration.md); none: the people alone (refused when they cannot determine it).")] = None,
