@@ -90,10 +90,10 @@ def test_a_focal_held_at_its_prior_stays_the_priors_when_the_lens_is_left_out():
         assert res.determined_by["focal_px"] == "prior" and "focal_px" not in res.fixed
 
 
-@pytest.mark.parametrize("seed", [4, 11, 12, 17])
+@pytest.mark.parametrize("seed", [4, 12, 17])
 def test_the_defaults_leave_the_lens_alone_when_the_statures_are_unknown(seed):
     """Twenty people of unknown stature (the population's 7 cm) at two depths, the focal known, a pinhole camera:
-    --distortion keeps a spurious lens for these draws (4 of 20 seeds); the defaults do not try it (the statures are
+    --distortion keeps a spurious lens for these draws (3 of 20 seeds); the defaults do not try it (the statures are
     not measured: priors.MEASURED_STATURE_SD_M), and the pitch stays within 0.5 deg of the truth."""
     cam = Camera((1920, 1080), 1500.0, None, np.deg2rad(6.0), 0.0, 1.6)
     rng = np.random.default_rng(seed)
@@ -117,3 +117,28 @@ def test_distortion_is_true_false_or_null(value):
 
 def test_the_default_config_tries_the_lens_only_when_the_pairs_are_few():
     assert load_config(None)["calibrate"]["distortion"] is None and CalibrateOptions().distortion is None
+
+
+def test_head_errors_through_a_lens_are_in_image_pixels():
+    """model.head_errors with a lens: a head clicked 3 px right of its true image pixel errs by 3 px wherever it is
+    (before, the error was measured after undistorting both points: 4.5 px at the corner of a -0.25 lens, and a
+    lens that shrinks the periphery shrank the errors there; the fit leaned toward it by half a std). Its derivative
+    by the stature agrees with finite differences."""
+    from rotavat_cli.calibration.model import head_errors
+    from rotavat_cli.calibration.params import param_vector
+    from rotavat_cli.geometry.lens import lens_radius_px
+
+    cam = Camera(SIZE, 1100.0, None, np.deg2rad(22.0), np.deg2rad(0.5), 4.5, distortion=-0.25)
+    feet_cam = cam.backproject_px_to_ground(np.array([[640.0, 400.0], [1200.0, 690.0], [90.0, 500.0]]))
+    feet, heads = cam.project(feet_cam), cam.project(feet_cam + 1.75 * cam.up_cam)
+    clicked = heads + [3.0, 0.0]
+    pp = np.asarray(cam.principal_point)
+    params = param_vector(focal=cam.focal_px, pitch=cam.pitch_rad, roll=cam.roll_rad, height=cam.height_m,
+                          distortion=-0.25)[None]
+    radius = lens_radius_px(SIZE)
+    (e_u, e_v), (d_u, d_v), valid = head_errors(feet - pp, feet - clicked, params, 1.75, radius)
+    assert valid.all()
+    np.testing.assert_allclose(e_u[0], -3.0, atol=1e-6)
+    np.testing.assert_allclose(e_v[0], 0.0, atol=1e-6)
+    (m_u, m_v), _, _ = head_errors(feet - pp, feet - clicked, params, 1.75 + 1e-6, radius)
+    np.testing.assert_allclose(np.stack([d_u, d_v]), np.stack([m_u - e_u, m_v - e_v]) / 1e-6, rtol=1e-4, atol=1e-4)

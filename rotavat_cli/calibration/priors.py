@@ -68,8 +68,8 @@ DISTORTION_PRIOR_SD = 0.15
 # A stature known this well (sd, m) is a measured one (a tape-measured reference: --height-sd 0.01); only then do a few
 # pairs carry the lens (the few-pairs policy tries it: fit._tries_the_lens). A 25% barrel lens changes a person's
 # image length by a few percent, about 5 cm of stature; the population's 7 cm spread per person hides it, and on
-# twenty people of unknown stature at two depths --distortion kept a spurious lens (+0.13, the pitch 0.6 deg off) in
-# 4 of 20 draws (tests/test_lens_fit_policy.py).
+# twenty people of unknown stature at two depths --distortion kept a spurious lens (up to +0.19, the pitch 1.3 deg
+# off) in 3 of 20 draws (tests/test_lens_fit_policy.py).
 MEASURED_STATURE_SD_M = 0.02
 # The few-pairs policy's roll prior: the spread of mounted cameras' roll. An installer levelling by eye leaves it within
 # 1-2 deg (a 2 deg roll tilts a doorframe 3.5 cm per metre, which one sees): +-2 sd = +-2 deg, sd 1 deg. Measured

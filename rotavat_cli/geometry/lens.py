@@ -35,7 +35,8 @@ import math
 
 import numpy as np
 
-__all__ = ["MAX_DISTORTION", "lens_radius_px", "undistort_rel_px", "undistort_px", "distort_px", "check_distortion"]
+__all__ = ["MAX_DISTORTION", "lens_radius_px", "undistort_rel_px", "undistort_px", "distort_scale", "distort_rel_px", "distort_px",
+           "check_distortion"]
 
 # The largest |lam| a camera may carry: the calibration's search bound (calibration/params.py), a corner moved by half
 # the half-diagonal; real lenses move it by a few percent.
@@ -102,6 +103,32 @@ def undistort_px(points_px: np.ndarray, distortion: np.ndarray | float, principa
     return np.where((denom > 0.0)[..., None], pp + undistort_rel_px(rel, lam, radius_px), np.nan)
 
 
+def distort_scale(points_rel_px: np.ndarray, distortion: np.ndarray | float, radius_px: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The distortion's scale ``s = 2 / (1 + sqrt(1 - 4 lam rho))`` of pixels about the principal point (``p_d = s
+    p_u``, ``rho = |p_u|^2 / R^2``) and its derivative ``ds/drho = s^2 lam / sqrt(1 - 4 lam rho)``, each (...):
+    NaN where no real inverse exists. Broadcasting as :func:`undistort_rel_px`."""
+    p = np.asarray(points_rel_px, dtype=np.float64)
+    lam = np.asarray(distortion, dtype=np.float64)
+    disc = 1.0 - 4.0 * lam * (np.sum(p * p, axis=-1) / radius_px**2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        root = np.sqrt(np.where(disc >= 0.0, disc, np.nan))
+        scale = 2.0 / (1.0 + root)
+        return scale, scale * scale * lam / root
+
+
+def distort_rel_px(points_rel_px: np.ndarray, distortion: np.ndarray | float, radius_px: float) -> np.ndarray:
+    """:func:`undistort_rel_px`'s exact inverse on pixels about the principal point -> (..., 2): ``p_d = s(p_u) p_u``
+    (:func:`distort_scale`), NaN where it has none. Broadcasting as :func:`undistort_rel_px`.
+
+    >>> distort_rel_px(undistort_rel_px(np.array([[400.0, 0.0]]), np.array([[-0.2]]), 400.0), np.array([[-0.2]]),
+    ...                400.0).round(9).tolist()
+    [[[400.0, 0.0]]]
+    """
+    p = np.asarray(points_rel_px, dtype=np.float64)
+    return p * distort_scale(p, distortion, radius_px)[0][..., None]
+
+
 def distort_px(points_px: np.ndarray, distortion: np.ndarray | float, principal_point: np.ndarray | tuple,
                radius_px: float) -> np.ndarray:
     """Undistorted (pinhole) pixels (..., 2) -> distorted (image) pixels (..., 2), px: :func:`undistort_px`'s
@@ -113,11 +140,5 @@ def distort_px(points_px: np.ndarray, distortion: np.ndarray | float, principal_
     >>> distort_px(np.array([[720.0, 240.0]]), -0.25, (320.0, 240.0), 400.0).tolist()   # |p_u| = R: pulled in
     [[651.3708498984761, 240.0]]
     """
-    p = np.asarray(points_px, dtype=np.float64)
     pp = np.asarray(principal_point, dtype=np.float64)
-    rel = p - pp
-    lam = np.asarray(distortion, dtype=np.float64)
-    disc = 1.0 - 4.0 * lam * (np.sum(rel * rel, axis=-1) / radius_px**2)
-    with np.errstate(invalid="ignore"):
-        scale = 2.0 / (1.0 + np.sqrt(np.where(disc >= 0.0, disc, np.nan)))
-    return pp + rel * scale[..., None]
+    return pp + distort_rel_px(np.asarray(points_px, dtype=np.float64) - pp, distortion, radius_px)
