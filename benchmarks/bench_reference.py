@@ -38,6 +38,8 @@ on the fit's block: the camera's covariance and the pixels). Policies, on the sa
   ``priors.DISTORTION_PRIOR_SD``);
 - ``default + lens from lines``: the defaults with the lens measured from 4 straight scene edges clicked with
   1 px noise (``calibrate --lens-lines``: ``calibration.plumb_lines``, about the image centre);
+- ``default + lens given``: the defaults with the camera's true lens given (``calibrate --lens K``, a lens
+  profile: sd 0.01; 0 for the undistorted cameras), like-for-like with ``Li et al. 2015, lens known``;
 - ``true camera``: everyone measured with the camera that made the clicks (its lens included): the floor the
   clicks themselves leave (their noise, lean and sway), no calibration.
 
@@ -99,7 +101,7 @@ POLICY_OFF, POLICY_ON, NO_LENS, ROLL_0 = "policy off", "default", "no lens", "ro
 # --lens-lines), and the true camera (the floor the clicks themselves leave: their noise, lean and sway, measured with
 # the camera that made them).
 LI2015, LI2015_LENS = "Li et al. 2015", "Li et al. 2015, lens known"
-LENS_FROM_LINES, TRUE_CAMERA = "lens_from_lines", "true camera"
+LENS_FROM_LINES, LENS_GIVEN, TRUE_CAMERA = "lens_from_lines", "lens_given", "true camera"
 SCENE_LINES, LINE_POINTS, LINE_NOISE_PX = 4, 8, 1.0  # straight edges clicked per camera (kerbs, door frames, poles)
 # policy -> (option changes, only on distorted cameras)
 POLICIES = {
@@ -112,6 +114,7 @@ POLICIES = {
     ROLL_0: ({"estimate_roll": False}, False),
     POLICY_ON: ({}, False),
     "default + lens from lines": ({LENS_FROM_LINES: True}, False),
+    "default + lens given": ({LENS_GIVEN: True}, False),
     TRUE_CAMERA: ({TRUE_CAMERA: True}, False),
 }
 
@@ -265,6 +268,8 @@ def calibrate_and_measure(scene: Scene, ref: int, changes: dict) -> Outcome:
         if changes.get(LENS_FROM_LINES):
             lens = fit_plumb_lines(list(scene.lines_px), scene.camera.image_size)
             changes = {"lens_distortion": lens.distortion, "lens_distortion_sd": lens.std}
+        elif changes.get(LENS_GIVEN):
+            changes = {"lens_distortion": scene.distortion}  # calibrate --lens K: a lens profile (sd 0.01)
         options = CalibrateOptions(person_height_m=float(scene.statures_m[ref]),
                                    person_height_sd_m=KNOWN_STATURE_SD_M, **changes)
         try:

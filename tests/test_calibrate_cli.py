@@ -146,7 +146,7 @@ def box_seq(path: Path) -> tuple[Path, dict]:
 
     cam = Camera((1280, 720), 1800.0, None, math.radians(18.0), math.radians(1.0), 6.5)
     data = synthetic_pairs(np.random.default_rng(51), camera=cam, frames=40, people=15, points="boxes",
-                           distortion=-0.02)
+                           distortion=-0.04)
     path.mkdir(parents=True)
     for t in range(40):
         sel = data.frame_index == t

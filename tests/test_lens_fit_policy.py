@@ -90,10 +90,10 @@ def test_a_focal_held_at_its_prior_stays_the_priors_when_the_lens_is_left_out():
         assert res.determined_by["focal_px"] == "prior" and "focal_px" not in res.fixed
 
 
-@pytest.mark.parametrize("seed", [4, 12, 17])
+@pytest.mark.parametrize("seed", [4, 17])
 def test_the_defaults_leave_the_lens_alone_when_the_statures_are_unknown(seed):
     """Twenty people of unknown stature (the population's 7 cm) at two depths, the focal known, a pinhole camera:
-    --distortion keeps a spurious lens for these draws (3 of 20 seeds); the defaults do not try it (the statures are
+    --distortion keeps a spurious lens for these draws (2 of 20 seeds, at 3 std: the std is too small here); the defaults do not try it (the statures are
     not measured: priors.MEASURED_STATURE_SD_M), and the pitch stays within 0.5 deg of the truth."""
     cam = Camera((1920, 1080), 1500.0, None, np.deg2rad(6.0), 0.0, 1.6)
     rng = np.random.default_rng(seed)

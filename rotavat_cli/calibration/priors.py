@@ -69,7 +69,7 @@ DISTORTION_PRIOR_SD = 0.15
 # pairs carry the lens (the few-pairs policy tries it: fit._tries_the_lens). A 25% barrel lens changes a person's
 # image length by a few percent, about 5 cm of stature; the population's 7 cm spread per person hides it, and on
 # twenty people of unknown stature at two depths --distortion kept a spurious lens (up to +0.19, the pitch 1.3 deg
-# off) in 3 of 20 draws (tests/test_lens_fit_policy.py).
+# off) in 2 of 20 draws, 3 std from none (tests/test_lens_fit_policy.py): there the lens's std is too small.
 MEASURED_STATURE_SD_M = 0.02
 # The few-pairs policy's roll prior: the spread of mounted cameras' roll. An installer levelling by eye leaves it within
 # 1-2 deg (a 2 deg roll tilts a doorframe 3.5 cm per metre, which one sees): +-2 sd = +-2 deg, sd 1 deg. Measured
