@@ -16,7 +16,8 @@ makes the paper grid fast (:mod:`.grid`: the same model with ``k / z = 1 / (h/S 
 distorts the predicted head back into the image, where it is compared with the observed head (the
 error is in image pixels, where the clicks' noise is: compared after undistorting both, a lens that
 shrinks the image's periphery would also shrink the errors there, and the fit leaned toward it:
-+0.02, half a std, from one walker's clicks of a pinhole camera), and box-derived points put the head ``b`` metres beyond the foot (``k = (S rho + b) / (h rho + b)``).
++0.02, half a std, from one walker's clicks of a pinhole camera), and box-derived points put the
+head ``b`` metres beyond the foot (``k = (S rho + b) / (h rho + b)``).
 
 :func:`head_errors` is the one implementation: the paper grid's exact re-scoring, the
 refinement and the uncertainty all call it, over ``Q`` parameter sets at once.

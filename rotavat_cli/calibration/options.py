@@ -58,7 +58,7 @@ class CalibrateOptions:
     # head's silhouette, ~0.03 m beyond the crown for a camera looking down.
     box_depth_m: float = 0.25
     # refine: also fit one-parameter (division model) radial lens distortion, kept only when the pairs tell it from
-    # none (fit.LENS_SIGNIFICANCE). None: tried only when the pairs are few (the few-pairs policy: fit._tries_the_lens).
+    # none (fit.LENS_SIGNIFICANCE). None: tried only for few pairs of people of measured stature (fit._tries_the_lens).
     distortion: bool | None = None
     estimate_roll: bool = True  # refine only; the paper fixes roll at 0
     estimate_focal: bool = False  # sequences: estimate f even when the sequence's focal is the camera's own
