@@ -467,10 +467,10 @@ def summary(study: Study) -> bool:
         print(f"\nThe lens the defaults try (kept when significant; measure undistorts with it): `{POLICY_ON}` − "
               f"`{NO_LENS}` {m:+.2f} ± {se:.2f} cm on the distorted cameras, {m_u:+.2f} ± {se_u:.2f} cm on the "
               "undistorted; worse in "
-              f"{int(np.sum(worse[distorted] > 0))} of {int(distorted.sum()) * len(study.refs)} distorted and "
-              f"{int(np.sum(worse[~distorted] > 0))} of {int((~distorted).sum()) * len(study.refs)} undistorted "
-              f"calibrations (by more than 0.25 cm: {int(np.sum(worse > 0.25))}; the largest "
-              f"{np.nanmax(worse):+.2f} cm)")
+              f"{int(np.sum(worse[distorted] > 0))} of {int(distorted.sum()) * len(study.refs)} distorted (the largest "
+              f"{np.nanmax(worse[distorted]):+.2f} cm) and {int(np.sum(worse[~distorted] > 0))} of "
+              f"{int((~distorted).sum()) * len(study.refs)} undistorted calibrations (the largest "
+              f"{np.nanmax(worse[~distorted]):+.2f} cm)")
     for li in (LI2015, LI2015_LENS):
         if li in study.error_m:
             m, se = paired_difference_cm(study, POLICY_ON, li)

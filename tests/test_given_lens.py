@@ -138,6 +138,16 @@ def test_bad_lens_flags_are_one_line_and_exit_2(tmp_path, args, message):
     assert not (seq / "camera.yaml").exists()
 
 
+def test_a_config_distortion_that_is_not_a_flag_is_one_line_and_exit_2(tmp_path):
+    _, feet, heads, _ = _pairs(seed=3, n=40)
+    seq = tmp_path / "seq"
+    _sequence(seq, feet, heads)
+    (tmp_path / "c.yaml").write_text("calibrate:\n  distortion: auto\n")
+    result = invoke(CliRunner(), "calibrate", seq, "--config", tmp_path / "c.yaml", catch_exceptions=True)
+    assert result.exit_code == 2 and "distortion must be true, false or null" in result.output, result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (seq / "camera.yaml").exists()
+
+
 def test_info_shows_the_cameras_lens():
     from rotavat_cli.cli.info import _camera_cell
 

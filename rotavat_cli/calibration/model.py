@@ -78,7 +78,7 @@ def undistort(rel_feet: np.ndarray, diff: np.ndarray, lam: np.ndarray, radius_px
 @dataclass(frozen=True)
 class CameraTerms:
     """What the model needs of parameter sets ``params (Q, 6)`` and pairs, whatever the stature: the pairs
-    (undistorted when a set holds a lens distortion), the focal, height and box depth (Q, 1), the up vector's
+    (with a lens: the feet undistorted, the observed heads kept in the image as ``image_heads``), the focal, height and box depth (Q, 1), the up vector's
     components (Q, 1) and ``d``, ``M_u``, ``M_v`` (Q, N) (:func:`foot_terms`). A refinement step evaluates the
     model at several statures for one set of parameters: these are computed once."""
 
@@ -103,9 +103,10 @@ def camera_terms(rel_feet: np.ndarray, diff: np.ndarray, params: np.ndarray, rad
     lam, box = slot(params, DISTORTION), slot(params, BOX_DEPTH)
     distorted = bool(np.any(lam))
     image_heads = None
-    if distorted:
+    if distorted:  # the foot undistorted; the head stays in the image (_image_head_errors distorts the prediction)
         image_heads = rel_feet - diff
-        rel_feet, diff = undistort(rel_feet, diff, lam, radius_px)
+        rel_feet = undistort_rel_px(rel_feet, lam, radius_px)
+        diff = rel_feet - image_heads
     n = up_vector_cam(pitch[:, 0], roll[:, 0])
     nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
     d, m_u, m_v = foot_terms(rel_feet[..., 0], rel_feet[..., 1], f, nx, ny, nz)
@@ -141,13 +142,13 @@ def _image_head_errors(t: CameraTerms, coef: np.ndarray, dcoef: np.ndarray, vali
     """:func:`head_errors` through a lens: the predicted head ``F + coef M`` (undistorted, Q x N) distorted into the
     image (``p_d = s p_u``, :func:`~rotavat_cli.geometry.lens.distort_scale`) minus the observed head there, and its
     derivative by the stature through the distortion's Jacobian ``s v + p_u (ds/drho) 2 (p_u . v) / R^2``. A head
-    the lens has no image of is invalid (its error left in undistorted pixels, finite)."""
+    the lens has no image of is invalid (its error the undistorted prediction's, finite)."""
     move = np.stack([t.m_u, t.m_v], axis=-1)
     pred = t.rel_feet + coef[..., None] * move
     scale, dscale = distort_scale(pred, t.lam, t.radius_px)
     ok = np.isfinite(scale) & np.isfinite(dscale)
     scale, dscale = np.where(ok, scale, 1.0), np.where(ok, dscale, 0.0)
-    err = np.where(ok[..., None], pred * scale[..., None] - t.image_heads, t.diff + coef[..., None] * move)
+    err = pred * scale[..., None] - t.image_heads
     v = dcoef[..., None] * move
     along = np.sum(pred * v, axis=-1) * (2.0 / t.radius_px**2)
     d_err = scale[..., None] * v + pred * (dscale * along)[..., None]
