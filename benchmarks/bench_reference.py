@@ -7,14 +7,18 @@ A synthetic stand-in for the CCVS protocol of Li et al. 2015 (9 real cameras, 11
 tape-measured statures, hand-clicked crown and mid-sole points, each camera calibrated from one
 subject and the others measured; that data is not available here). Seeded, CCVS-like:
 
-- 9 surveillance-like cameras: 1280x720 or 704x576, focal 0.8-1.6 x width, pitch 10-35 deg, height
-  2.5-6 m, roll +-2 deg (``--roll-max``), principal point a few px off-centre; 5 with barrel distortion of the division
-  model (``geometry.lens``) rotavat fits, the corner moved by +20% to +30%;
-- 11 subjects of statures 1.55-1.95 m, each walking two straight legs (away from the camera and toward it), 10-40 clicks
-  each; on 3 cameras subject 0 walks only in the far half of the image and everyone else in the near
-  half; clicks at mid-sole and crown with 1.75 px noise, the crown a few cm off the vertical (a
-  persistent lean per subject, sd 1.5 cm per axis, plus per-click sway, sd 2 cm), and gross click
-  errors (4% of the clicks, 10-40 px).
+- 9 surveillance-like cameras: 1280x720 or 704x576 (both sizes among the distorted cameras and among the others),
+  focal 0.8-1.6 x width, pitch 10-35 deg, height 2.5-6 m, roll +-2 deg (``--roll-max``), principal point a few px
+  off-centre; 5 with barrel distortion of the division model (``geometry.lens``) rotavat fits, the corner moved by
+  +20% to +30%;
+- 11 subjects of statures 1.55-1.95 m, 10-40 clicks each, walking the scene's route of two straight legs (away from
+  the camera and toward it, then anywhere), each subject in their own way (the route's corners moved by 3% of the
+  image): the CCVS subjects walked one scene's route, as the issue describes them (``--routes own``: each subject a
+  route of their own, so that every measurement extrapolates from the reference's walk; a harder stand-in); on 3
+  cameras subject 0 walks a route only in the far half of the image and everyone else one in the near half (the
+  issue's one such camera, three times); clicks at mid-sole and crown with 1.75 px noise, the crown a few cm off the
+  vertical (a persistent lean per subject, sd 1.5 cm per axis, plus per-click sway, sd 2 cm), and gross click errors
+  (4% of the clicks, 10-40 px).
 
 For each camera and each subject as the reference: the camera calibrated from that subject alone
 with its tape stature known (sd 0.01 m); every other subject measured as ``rotavat measure`` does (the
@@ -87,6 +91,9 @@ SEED = 35
 N_CAMERAS, N_SUBJECTS = 9, 11
 DISTORTED = (0, 2, 4, 6, 8)  # cameras with barrel distortion (5 of 9, as in CCVS)
 FAR_NEAR = (1, 4, 7)  # cameras where subject 0 walks in the far half and everyone else in the near half
+LARGE_IMAGE = (0, 1, 4, 5, 8)  # 1280x720 (the others 704x576): distorted and undistorted cameras of both sizes
+SHARED, OWN = "shared", "own"  # the subjects walk the scene's route (each in their own way), or each their own
+ROUTE_SD = 0.03  # how far (fraction of the image) a subject walks from the route's corners
 CLICK_NOISE_PX = 1.75
 LEAN_SD_M, SWAY_SD_M = 0.015, 0.02  # crown off the vertical: per subject (persistent), per click
 GROSS_FRACTION, GROSS_PX = 0.04, (10.0, 40.0)
@@ -140,7 +147,7 @@ def lam_for_corner(displacement: float) -> float:
 def make_camera(rng: np.random.Generator, index: int, roll_max_deg: float = ROLL_MAX_DEG) -> tuple[Camera, float]:
     """A surveillance-like camera (module docstring; its roll uniform in +-``roll_max_deg``) and its division-model
     lam (0 when undistorted)."""
-    size = (1280, 720) if index % 2 == 0 else (704, 576)
+    size = (1280, 720) if index in LARGE_IMAGE else (704, 576)
     while True:  # drawn again until whole people fill at least the lower 45% of the image (a camera that watches people)
         pp = (size[0] / 2 + rng.uniform(-4, 4), size[1] / 2 + rng.uniform(-4, 4))
         cam = Camera(size, rng.uniform(0.8, 1.6) * size[0], pp, math.radians(rng.uniform(10, 35)),
@@ -151,13 +158,12 @@ def make_camera(rng: np.random.Generator, index: int, roll_max_deg: float = ROLL
     return cam, lam
 
 
-def _ground_point(rng: np.random.Generator, cam: Camera, rows: tuple[float, float], tallest_m: float) -> np.ndarray:
-    """A world ground point (3,) whose foot pixel lies in image rows ``rows`` (fractions of the foot rows a
-    person of ``tallest_m`` fits in whole) and in the central 90% of the columns."""
+def _ground_point(cam: Camera, at: np.ndarray, tallest_m: float) -> np.ndarray:
+    """The world ground point (3,) under the image point ``at`` (2,) = (column, row) as fractions: the column of the
+    image's width, the row of the foot rows a person of ``tallest_m`` fits in whole."""
     W, H = cam.image_size
     top = _highest_foot_row(cam, tallest_m)
-    v = top + (H - 8 - top) * rng.uniform(*rows)
-    u = rng.uniform(0.05 * W, 0.95 * W)
+    u, v = at[0] * W, top + (H - 8 - top) * at[1]
     return cam.world_from_cam(cam.backproject_px_to_ground(np.array([u, v])))
 
 
@@ -173,15 +179,24 @@ def _highest_foot_row(cam: Camera, tallest_m: float) -> float:
     return math.inf  # no row shows a whole person
 
 
-def walk(rng: np.random.Generator, cam: Camera, lam: float, stature_m: float, rows: tuple[float, float]
-         ) -> tuple[np.ndarray, np.ndarray]:
-    """One subject's clicks (feet, heads (N, 2) distorted px) along a walk of two straight legs (far, near, anywhere
-    within foot rows ``rows``, so that it spans depth as the CCVS subjects' walks do): click noise, the crown off
-    the vertical (a lean and sway), a few gross click errors."""
-    n = int(rng.integers(10, 41))
+def route(rng: np.random.Generator, rows: tuple[float, float]) -> np.ndarray:
+    """A walk of two straight legs as its three corners (3, 2) (column, row fractions, as :func:`_ground_point`):
+    away from the camera, toward it, then anywhere within foot rows ``rows``, so that it spans depth as the CCVS
+    subjects' walks do."""
     lo, hi = rows
-    ends = [(lo, lo + 0.4 * (hi - lo)), (hi - 0.4 * (hi - lo), hi), rows]  # away, toward the camera, anywhere
-    corners = np.array([_ground_point(rng, cam, r, 1.95) for r in ends])
+    ends = [(lo, lo + 0.4 * (hi - lo)), (hi - 0.4 * (hi - lo), hi), rows]
+    return np.array([(rng.uniform(0.05, 0.95), rng.uniform(*r)) for r in ends])
+
+
+def walk(rng: np.random.Generator, cam: Camera, lam: float, stature_m: float, corners: np.ndarray,
+         rows: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """One subject's clicks (feet, heads (N, 2) distorted px) along the route ``corners`` (3, 2), each corner moved
+    by the subject's own way of walking it (ROUTE_SD of the image, kept within foot rows ``rows`` and the central
+    90% of the columns): click noise, the crown off the vertical (a lean and sway), a few gross click errors."""
+    n = int(rng.integers(10, 41))
+    own = corners + rng.normal(0.0, ROUTE_SD, corners.shape)
+    own = np.column_stack([np.clip(own[:, 0], 0.05, 0.95), np.clip(own[:, 1], *rows)])
+    corners = np.array([_ground_point(cam, c, 1.95) for c in own])
     length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(corners, axis=0), axis=1))])
     at = np.sort(rng.uniform(0, length[-1], n))
     ground = np.column_stack([np.interp(at, length, corners[:, k]) for k in range(3)])
@@ -201,15 +216,19 @@ def walk(rng: np.random.Generator, cam: Camera, lam: float, stature_m: float, ro
     return feet, heads
 
 
-def make_scene(rng: np.random.Generator, index: int, roll_max_deg: float = ROLL_MAX_DEG, seed: int = SEED) -> Scene:
-    """Camera ``index`` with its 11 subjects' clicks (subject 0 far, the others near on FAR_NEAR cameras); its scene
-    lines from their own generator (``seed``, ``index``)."""
+def make_scene(rng: np.random.Generator, index: int, roll_max_deg: float = ROLL_MAX_DEG, seed: int = SEED,
+               routes: str = SHARED) -> Scene:
+    """Camera ``index`` with its 11 subjects' clicks (subject 0 far, the others near on FAR_NEAR cameras); with
+    ``routes`` SHARED the subjects of one group (far or near) walk one route of the scene, each in their own way,
+    with OWN each their own route; the scene lines from their own generator (``seed``, ``index``)."""
     cam, lam = make_camera(rng, index, roll_max_deg)
     statures = rng.uniform(1.55, 1.95, N_SUBJECTS)
+    rows = [((0.0, 0.5) if s == 0 else (0.5, 1.0)) if index in FAR_NEAR else (0.0, 1.0) for s in range(N_SUBJECTS)]
+    scene_routes = {r: route(rng, r) for r in dict.fromkeys(rows)}
     feet, heads, subject = [], [], []
     for s, stature in enumerate(statures):
-        rows = ((0.0, 0.5) if s == 0 else (0.5, 1.0)) if index in FAR_NEAR else (0.0, 1.0)
-        f, h = walk(rng, cam, lam, stature, rows)
+        corners = scene_routes[rows[s]] if routes == SHARED else route(rng, rows[s])
+        f, h = walk(rng, cam, lam, stature, corners, rows[s])
         feet.append(f)
         heads.append(h)
         subject.append(np.full(len(f), s))
@@ -333,17 +352,17 @@ def _quiet_nan():
         yield
 
 
-def draw_scenes(seed: int, roll_max_deg: float = ROLL_MAX_DEG) -> list[Scene]:
+def draw_scenes(seed: int, roll_max_deg: float = ROLL_MAX_DEG, routes: str = SHARED) -> list[Scene]:
     """The :data:`N_CAMERAS` scenes of one seed (every camera drawn: --quick measures some of the same)."""
     rng = np.random.default_rng(seed)
-    return [make_scene(rng, i, roll_max_deg, seed) for i in range(N_CAMERAS)]
+    return [make_scene(rng, i, roll_max_deg, seed, routes) for i in range(N_CAMERAS)]
 
 
 def run(cameras: list[int], refs: list[int], policies: dict = POLICIES, roll_max_deg: float = ROLL_MAX_DEG,
-        seeds: tuple[int, ...] = (SEED,)) -> Study:
+        seeds: tuple[int, ...] = (SEED,), routes: str = SHARED) -> Study:
     """Every policy of ``policies`` on every (camera, reference) of every seed's scenes (``cameras`` of each), the
-    cameras' roll within +-``roll_max_deg``; prints one row per camera."""
-    scenes = {(seed, c): scene for seed in seeds for c, scene in enumerate(draw_scenes(seed, roll_max_deg))}
+    cameras' roll within +-``roll_max_deg``, the subjects' ``routes``; prints one row per camera."""
+    scenes = {(seed, c): scene for seed in seeds for c, scene in enumerate(draw_scenes(seed, roll_max_deg, routes))}
     cameras = [(seed, c) for seed in seeds for c in cameras]
     shape = (len(cameras), len(refs))
     study = Study(cameras, refs, {p: np.full((*shape, N_SUBJECTS), np.nan) for p in policies},
@@ -498,15 +517,18 @@ def main() -> int:
                         help=f"pool this many independent draws of the {N_CAMERAS} cameras (seeds {SEED}, {SEED + 1}, ...)")
     parser.add_argument("--roll-max", type=float, default=ROLL_MAX_DEG,
                         help=f"the cameras' roll is uniform in +- this many degrees (default {ROLL_MAX_DEG:g})")
+    parser.add_argument("--routes", choices=(SHARED, OWN), default=SHARED,
+                        help="the subjects walk the scene's route, each in their own way (shared, as in CCVS), or each "
+                             "their own (own: every measurement extrapolates from the reference's walk)")
     args = parser.parse_args()
     cameras = [0, 1, 3, 4, 5] if args.quick else list(range(N_CAMERAS))
     refs = [0, 3, 6, 9] if args.quick else list(range(N_SUBJECTS))
     seeds = tuple(range(SEED, SEED + max(args.seeds, 1)))
     print(f"# Statures from one reference person: {len(cameras)} cameras × {len(refs)} references × "
           f"{len(seeds)} draw{'s' if len(seeds) > 1 else ''} (seed{'s' if len(seeds) > 1 else ''} "
-          f"{', '.join(map(str, seeds))}; roll within ±{args.roll_max:g}°)\n")
+          f"{', '.join(map(str, seeds))}; roll within ±{args.roll_max:g}°; routes {args.routes})\n")
     t0 = time.perf_counter()
-    ok = summary(run(cameras, refs, roll_max_deg=args.roll_max, seeds=seeds))
+    ok = summary(run(cameras, refs, roll_max_deg=args.roll_max, seeds=seeds, routes=args.routes))
     print(f"\n({time.perf_counter() - t0:.0f} s)")
     return 0 if ok else 1
 
