@@ -316,7 +316,11 @@ def held_at_prior(inp: PairsInput, options: CalibrateOptions, method: str) -> di
     answer is then the prior's, with its spread carried into the other parameters:
 
     - an estimated focal (how a person's image tilts and shrinks across the view; synthetic walkers:
-      -45% for a camera 25 deg down, +20% for a level one);
+      -45% for a camera 25 deg down, +20% for a level one), unless the people's statures are measured
+      (``priors.MEASURED_STATURE_SD_M``: a reference person of known stature, whose clicks' second-order effects
+      are not blurred by a population's spread of statures): the focal is then estimated under its prior
+      (benchmarks/bench_reference.py: held at the prior's median, a reference walking one depth band measured the
+      others 0.1 cm worse over the study, 2.3 cm worse on its long-lens camera);
     - an estimated pitch when only the head rows are compared (box points, ``--residual vertical``):
       without the columns, nothing says how the verticals converge, and a row of box-annotated people
       with the focal known fits a level camera at head height to a fraction of a pixel (synthetic: a
@@ -325,7 +329,8 @@ def held_at_prior(inp: PairsInput, options: CalibrateOptions, method: str) -> di
     if method != "refine" or not inp.one_depth or inp.priors is None:
         return {}
     held = {}
-    if options.focal_px is None and np.isfinite(inp.priors.sd[FOCAL]):
+    if options.focal_px is None and np.isfinite(inp.priors.sd[FOCAL]) and \
+            options.person_height_sd_m > MEASURED_STATURE_SD_M:
         held[FOCAL] = float(inp.priors.sd[FOCAL])
     if options.pitch_deg is None and inp.residual.dof == 1 and np.isfinite(inp.priors.sd[PITCH]):
         held[PITCH] = float(inp.priors.sd[PITCH])
