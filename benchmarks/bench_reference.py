@@ -224,10 +224,10 @@ def make_scene(rng: np.random.Generator, index: int, roll_max_deg: float = ROLL_
     cam, lam = make_camera(rng, index, roll_max_deg)
     statures = rng.uniform(1.55, 1.95, N_SUBJECTS)
     rows = [((0.0, 0.5) if s == 0 else (0.5, 1.0)) if index in FAR_NEAR else (0.0, 1.0) for s in range(N_SUBJECTS)]
-    scene_routes = {r: route(rng, r) for r in dict.fromkeys(rows)}
+    scene_routes = {r: route(rng, r) for r in dict.fromkeys(rows)} if routes == SHARED else {}  # a route per group
     feet, heads, subject = [], [], []
     for s, stature in enumerate(statures):
-        corners = scene_routes[rows[s]] if routes == SHARED else route(rng, rows[s])
+        corners = scene_routes[rows[s]] if scene_routes else route(rng, rows[s])
         f, h = walk(rng, cam, lam, stature, corners, rows[s])
         feet.append(f)
         heads.append(h)

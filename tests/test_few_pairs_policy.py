@@ -12,7 +12,7 @@ import pytest
 
 from rotavat_cli.bodies.measure import statures_from_camera_m
 from rotavat_cli.calibration import CalibrateOptions, fit_camera
-from rotavat_cli.calibration.priors import MOUNTED_ROLL_SD_DEG
+from rotavat_cli.calibration.priors import LENS_FOCAL_OVER_DIAGONAL, MOUNTED_ROLL_SD_DEG
 from rotavat_cli.calibration.fit import FEW_PAIRS
 from rotavat_cli.calibration.inputs import at_one_depth
 from rotavat_cli.geometry.camera import Camera
@@ -83,6 +83,7 @@ def test_gross_clicks_of_few_pairs_are_rejected_not_kept_under_a_soft_loss():
 
 
 LONG_LENS = Camera((1280, 720), 1900.0, (641.0, 359.0), math.radians(26.0), 0.0, 5.3)  # 1.7x the lens prior's median
+PRIOR_MEDIAN_PX = LENS_FOCAL_OVER_DIAGONAL * math.hypot(*LONG_LENS.image_size)  # 1101 px
 
 
 def band_walker_px(rng: np.random.Generator, camera: Camera, stature_m: float, n: int, depth_m: float
@@ -113,7 +114,7 @@ def test_a_measured_reference_at_one_depth_has_its_focal_estimated_not_held_at_t
         population = fit_camera(feet, heads, LONG_LENS.image_size, person_height_m=1.78, person_height_sd_m=0.07,
                                 frame_index=np.arange(30), track_id=np.zeros(30, int))
         assert population.determined_by["focal_px"] == "prior"  # unknown statures: held, as before
-        assert population.camera.focal_px == pytest.approx(1101, rel=0.01)
+        assert population.camera.focal_px == pytest.approx(PRIOR_MEDIAN_PX, rel=0.01)
         stature = np.median(statures_from_camera_m(other_feet, other_heads, measured.camera))
         errors_cm.append(100.0 * (stature - 1.62))
     assert np.median(np.abs(errors_cm)) < 5.0 and np.max(np.abs(errors_cm)) < 10.0, errors_cm
